@@ -1,0 +1,288 @@
+"""Frictionless unilateral contact by the bolt-point method (Janovský & Procházka 1980, §3).
+
+Notation (m interface nodes, SI units):
+
+- ``B u`` is the normal jump ``[u]ν = u'·ν - u''·ν`` at the interface nodes (m);
+  ``W = diag(weight)`` the trapezoid weights of the paper's quadrature I (m);
+  ``lam`` the contact pressure λ (Pa); the nodal contact forces are ``B^T W lam``.
+- Equilibrium ``K u + B^T W lam = f``. The ground stiffness ``K'`` is regular; the
+  lining's ``K''`` has one zero mode ``r`` (vertical translation), so the lining
+  displacement is ``u'' = K''^+ (f'' - B''^T W lam) + a r`` with ``K''^+`` the
+  generalized inverse obtained by fixing one lining DOF away from the interface,
+  and ``a`` (m) the lining's rigid vertical translation.
+- The interface flexibility ``S = B K^+ B^T`` (m^2/N, dense m x m) and
+  ``d = B K^+ f`` (m) give the gap for any pressure:
+  ``gap(lam, a) = g0 - d + S W lam + a nu2``; the lining balance (paper Def. 2.6) is
+  ``F2 + sum(nu2 w lam) = 0`` with ``F2`` the lining's vertical load (N/m).
+
+The auxiliary problem (3.1) with a bolt at node A is: ``gap_A = 0`` (this fixes
+``a``; it is step 1 of the paper's p,A-algorithm, "find u in V_A"), ``lam_A`` free
+and given by the balance (3.12), and ``lam >= 0, gap >= 0, lam gap = 0`` at every
+other node. Theorem 3.3: if ``lam_A >= 0`` it solves the contact problem (2.1).
+Both inner solvers below solve the same auxiliary problem.
+"""
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as la
+from scipy.optimize import nnls
+from scipy.sparse.linalg import eigsh
+
+
+class SolverError(RuntimeError):
+    """A case that cannot be solved; never a result that only looks valid."""
+
+
+class NotConvergedError(SolverError):
+    """The inner solver did not reach the tolerance within ``max_iterations``."""
+
+
+class NoAdmissibleBoltError(SolverError):
+    """No bolt node gave a non-negative bolt reaction (contradicts Theorem 3.3)."""
+
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class DualProblem:
+    """The interface form of the contact problem (see the module docstring).
+
+    S : (m, m) m^2/N; d, g0 : (m,) m; w : (m,) m; nu2 : (m,) vertical normal
+    component; F2 : lining vertical load, N/m (negative: the weight).
+    """
+
+    S: np.ndarray
+    d: np.ndarray
+    g0: np.ndarray
+    w: np.ndarray
+    nu2: np.ndarray
+    F2: float
+
+    @property
+    def m(self) -> int:
+        return self.d.size
+
+    def gap(self, lam: np.ndarray, bolt: int) -> tuple[np.ndarray, float]:
+        """Gap g0 - [u]ν (m) and lining translation a (m) for ``lam`` with the bolt closed."""
+        v = self.g0 - self.d + self.S @ (self.w * lam)
+        a = -v[bolt] / self.nu2[bolt]
+        gap = v + a * self.nu2
+        gap[bolt] = 0.0
+        return gap, a
+
+    def bolt_pressure(self, lam: np.ndarray, bolt: int) -> float:
+        """λ_A from the balance (3.12) given the other nodes' pressures."""
+        rest = self.nu2 * self.w * lam
+        return (-self.F2 - (rest.sum() - rest[bolt])) / (self.nu2[bolt] * self.w[bolt])
+
+    @property
+    def pressure_scale(self) -> float:
+        """Mean pressure that carries the lining weight over the lower half (Pa)."""
+        return abs(self.F2) / max(np.sum(np.abs(self.nu2) * self.w) / 2.0, 1e-300)
+
+    def reduced(self, bolt: int):
+        """Reduced Hessian H, linear term b and offset ``lam0`` after eliminating λ_A.
+
+        ``lam = lam0 + E x`` with x the pressures at the other nodes;
+        the dual objective is ``1/2 x^T H x - b^T x + const``; its gradient is
+        ``W_F gap_F``.
+        """
+        m, w, nu2 = self.m, self.w, self.nu2
+        free = np.flatnonzero(np.arange(m) != bolt)
+        E = np.zeros((m, m - 1))
+        E[free, np.arange(m - 1)] = 1.0
+        E[bolt] = -(nu2[free] * w[free]) / (nu2[bolt] * w[bolt])
+        lam0 = np.zeros(m)
+        lam0[bolt] = -self.F2 / (nu2[bolt] * w[bolt])
+        WSW = (w[:, None] * self.S) * w[None, :]
+        H = E.T @ WSW @ E
+        b = E.T @ (w * (self.d - self.g0) - WSW @ lam0)
+        return free, E, lam0, 0.5 * (H + H.T), b
+
+
+@dataclass
+class InnerResult:
+    lam: np.ndarray
+    iterations: int
+    converged: bool
+
+
+@dataclass
+class BoltTrial:
+    node: int
+    theta: float
+    bolt_pressure: float
+    iterations: int
+    accepted: bool
+
+
+@dataclass
+class ContactSolution:
+    """Pressure λ (Pa), gap (m), lining translation a (m), and the bolt search record."""
+
+    lam: np.ndarray
+    gap: np.ndarray
+    a: float
+    bolt: int
+    trials: list[BoltTrial] = field(default_factory=list)
+    iterations: int = 0
+    converged: bool = True
+    admissible: bool = True
+    seconds: float = 0.0
+
+
+def natural_residual(lam, gap, scale_gap, bolt) -> float:
+    """max |min(λ, gap·scale_gap)| over the non-bolt nodes (Pa): 0 iff complementarity holds."""
+    r = np.abs(np.minimum(lam, gap * scale_gap))
+    r[bolt] = 0.0
+    return float(r.max(initial=0.0))
+
+
+def _curvature(dual: DualProblem, bolt: int) -> tuple[float, tuple]:
+    """Largest eigenvalue L (m/Pa) of W_F^-1/2 H W_F^-1/2 by Lanczos (ARPACK).
+
+    This is the Lipschitz constant of the reduced dual gradient in the W_F metric,
+    so the Uzawa step ρ < 2/L converges (paper (3.15): ρ in (0, 2 C1/C2)).
+    """
+    reduced = dual.reduced(bolt)
+    free, _, _, H, _ = reduced
+    s = 1.0 / np.sqrt(dual.w[free])
+    M = (s[:, None] * H) * s[None, :]
+    if M.shape[0] <= 64:
+        L = float(la.eigvalsh(M)[-1])
+    else:
+        L = float(eigsh(M, k=1, which="LA", tol=1e-10, return_eigenvectors=False)[0])
+    return L, reduced
+
+
+def uzawa(dual: DualProblem, bolt: int, lam_init: np.ndarray, *, tol: float, max_iter: int) -> InnerResult:
+    """The paper's p,A-algorithm (3.10)-(3.12) with ρ = 1.9 / L (see :func:`_curvature`)."""
+    L, _ = _curvature(dual, bolt)
+    rho = 1.9 / L
+    lam = np.maximum(lam_init, 0.0)
+    lam[bolt] = dual.bolt_pressure(lam, bolt)
+    p_ref = max(dual.pressure_scale, 1e-300)
+    not_bolt = np.arange(dual.m) != bolt
+    for k in range(1, max_iter + 1):
+        gap, _ = dual.gap(lam, bolt)                       # step 1: u in V_A
+        new = np.where(not_bolt, np.maximum(lam - rho * gap, 0.0), 0.0)  # (3.11)
+        new[bolt] = dual.bolt_pressure(new, bolt)          # (3.12)
+        step = np.max(np.abs(new - lam)[not_bolt], initial=0.0)
+        lam = new
+        if step <= tol * max(p_ref, np.max(np.abs(lam))):
+            gap, _ = dual.gap(lam, bolt)
+            if natural_residual(lam, gap, 1.0 / L, bolt) <= tol * max(p_ref, np.max(np.abs(lam))):
+                return InnerResult(lam, k, True)
+    return InnerResult(lam, max_iter, False)
+
+
+def active_set(dual: DualProblem, bolt: int, lam_init: np.ndarray, *, tol: float, max_iter: int) -> InnerResult:
+    """Primal-dual active set (semismooth Newton) on the bolted dual; exact.
+
+    Each step solves the equality-constrained system of the current active set
+    A (gap = 0 on A, λ = 0 off A, balance) and updates
+    A = {bolt} ∪ {i : λ_i - c gap_i > 0}, c = 1/L. It stops when A repeats (then
+    λ >= 0 on A and gap >= 0 off A hold exactly). If an active set recurs (a
+    cycle) or ``max_iter`` passes, the bolted dual QP is finished by the
+    Lawson-Hanson NNLS active-set method, which terminates finitely.
+    """
+    m, w, nu2, S = dual.m, dual.w, dual.nu2, dual.S
+    L = float(np.max(np.diag(S) * w))  # scale only: c = 1/L makes λ and gap/L commensurate
+    c = 1.0 / L
+    lam = np.asarray(lam_init, float).copy()
+    active = lam > 0 if np.any(lam[np.arange(m) != bolt] > 0) else np.ones(m, bool)
+    active[bolt] = True
+    seen = set()
+    WSW = (w[:, None] * S) * w[None, :]
+    rhs_full = w * (dual.d - dual.g0)
+    for k in range(1, max_iter + 1):
+        key = np.packbits(active).tobytes()
+        if key in seen:
+            log.info("active set cycled after %d steps; finishing with NNLS", k)
+            return _nnls(dual, bolt, k)
+        seen.add(key)
+        idx = np.flatnonzero(active)
+        n = idx.size
+        A = np.zeros((n + 1, n + 1))
+        A[:n, :n] = WSW[np.ix_(idx, idx)]
+        A[:n, n] = A[n, :n] = (w * nu2)[idx]
+        rhs = np.r_[rhs_full[idx], -dual.F2]
+        sol = la.solve(A, rhs, assume_a="sym")
+        lam = np.zeros(m)
+        lam[idx] = sol[:n]
+        gap, _ = dual.gap(lam, bolt)
+        new = (lam - c * gap) > 0
+        new[bolt] = True
+        if np.array_equal(new, active):
+            return InnerResult(lam, k, True)
+        active = new
+    return _nnls(dual, bolt, max_iter)
+
+
+def _nnls(dual: DualProblem, bolt: int, iterations: int) -> InnerResult:
+    free, E, lam0, H, b = dual.reduced(bolt)
+    R = la.cholesky(H)  # H = R^T R
+    z = la.solve_triangular(R, b, trans="T")
+    x, _ = nnls(R, z, maxiter=50 * H.shape[0])
+    return InnerResult(lam0 + E @ x, iterations + 1, True)
+
+
+INNER = {"uzawa": uzawa, "active-set": active_set}
+
+
+def solve_contact(dual: DualProblem, theta: np.ndarray, *, inner: str, tol: float,
+                  max_iterations: int, bolt: float | str = "auto") -> ContactSolution:
+    """The paper's global strategy: guess a bolt A, solve (3.1), accept when λ_A >= 0.
+
+    Candidates are the nodes with ν2 != 0 (the set N0). The first guess is the
+    invert (the floating lining rests on it under its own weight); after a
+    rejected guess the next is the untried node with the largest pressure in the
+    rejected auxiliary solution (where the bolted lining presses hardest), ties
+    broken towards the invert. Every trial is recorded.
+
+    With ``bolt`` a theta in degrees, the nearest node of N0 is the only bolt;
+    a negative bolt reaction is then reported (``admissible=False``), not hidden.
+    """
+    t0 = time.perf_counter()
+    solver = INNER[inner]
+    candidates = np.flatnonzero(np.abs(dual.nu2) > 1e-12)
+    p_ref = dual.pressure_scale
+    if bolt != "auto":
+        order = [int(candidates[np.argmin(np.abs(theta[candidates] - float(bolt)))])]
+    else:
+        order = [int(candidates[np.argmax(theta[candidates])])]
+    tried: set[int] = set()
+    trials: list[BoltTrial] = []
+    lam = np.zeros(dual.m)
+    total = 0
+    while order:
+        A = order.pop(0)
+        tried.add(A)
+        res = solver(dual, A, lam, tol=tol, max_iter=max_iterations)
+        total += res.iterations
+        if not res.converged:
+            raise NotConvergedError(
+                f"solver.inner={inner!r} did not converge in {max_iterations} iterations "
+                f"(bolt at theta={theta[A]:.2f} deg); raise solver.max_iterations or use 'active-set'")
+        lam = res.lam
+        lam_A = float(lam[A])
+        ok = lam_A >= -tol * max(p_ref, float(np.max(np.abs(lam))))
+        trials.append(BoltTrial(A, float(theta[A]), lam_A, res.iterations, bool(ok)))
+        log.debug("bolt trial at theta=%.2f: lambda_A=%.4g Pa (%s)", theta[A], lam_A, ok)
+        if ok or bolt != "auto":
+            gap, a = dual.gap(lam, A)
+            return ContactSolution(lam=lam, gap=gap, a=a, bolt=A, trials=trials, iterations=total,
+                                   converged=True, admissible=bool(ok),
+                                   seconds=time.perf_counter() - t0)
+        rest = np.array([i for i in candidates if i not in tried], dtype=np.int64)
+        if rest.size:
+            score = np.lexsort((theta[rest], lam[rest]))  # largest λ, then nearest the invert
+            order = [int(rest[score[-1]])]
+    raise NoAdmissibleBoltError(
+        f"no admissible bolt among {len(tried)} candidates (every bolt reaction was negative); "
+        "check the loads and solver.tolerance")
