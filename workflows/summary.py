@@ -1,0 +1,20 @@
+"""Small summaries of results: the 0-d scalars of a case as plain floats."""
+from __future__ import annotations
+
+import os
+
+import xarray as xr
+
+from .store import OPEN_OPTIONS, case_path
+
+
+def summarize(ds: xr.Dataset) -> dict[str, float]:
+    """``{name: value}`` of every 0-d data variable of a result (SPEC §3 scalars)."""
+    return {str(name): float(var.values) for name, var in ds.data_vars.items()
+            if var.ndim == 0 and var.dtype.kind in "biuf" and name != "mesh"}
+
+
+def read_summary(root: str | os.PathLike, case_id: str) -> dict[str, float]:
+    """Summary of a stored case, reading only its scalars."""
+    with xr.open_dataset(case_path(root, case_id), **OPEN_OPTIONS) as ds:
+        return summarize(ds)

@@ -1,0 +1,233 @@
+"""Parametric sweeps: a base case, parameters to vary, and their expansion into cases.
+
+A sweep (JSON)::
+
+    {"name": "thickness", "base": {case}, "vary": {"lining.thickness": [0.2, 0.3]},
+     "mode": "grid"}
+
+``grid`` takes the cartesian product of the lists, ``zip`` takes them together (equal
+lengths). :func:`expand_sweep` checks everything at once and raises one
+:class:`SweepError` listing every problem with the dotted path it concerns.
+"""
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import logging
+import math
+import os
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager, nullcontext
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from solver.spec import CaseSpec
+
+from .parameters import PATH_ALIASES, canonical_path, parameter_paths
+
+logger = logging.getLogger(__name__)
+
+#: Largest number of cases one sweep may expand to.
+MAX_SWEEP_CASES = 5000
+
+
+class Sweep(BaseModel):
+    """A parametric study: ``base`` with the parameters in ``vary`` changed."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    name: str = Field(min_length=1, max_length=200, description="label of the study")
+    base: CaseSpec = Field(default_factory=CaseSpec, description="the case the variations start from")
+    vary: dict[str, list[Any]] = Field(
+        default_factory=dict,
+        description="dotted parameter path (e.g. 'lining.thickness', 'ground.young') -> list of values")
+    mode: Literal["grid", "zip"] = Field(
+        "grid", description="'grid': cartesian product of the lists; 'zip': equal-length lists taken together")
+
+    def canonical_json(self) -> str:
+        """Defaults filled, keys sorted, no whitespace."""
+        return json.dumps(self.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+
+    @property
+    def sweep_id(self) -> str:
+        """Stable 16-hex-digit id of the sweep (sha256 of its canonical JSON)."""
+        return hashlib.sha256(self.canonical_json().encode()).hexdigest()[:16]
+
+
+class SweepError(ValueError):
+    """A sweep that cannot be expanded; ``errors`` lists ``(dotted path, message)``."""
+
+    def __init__(self, errors: list[tuple[str, str]]):
+        self.errors = list(errors)
+        super().__init__("invalid sweep: " + "; ".join(f"{p}: {m}" for p, m in self.errors))
+
+
+def sweep_size(sweep: Sweep) -> int:
+    """Number of combinations ``sweep`` describes (before validating the cases)."""
+    lengths = [len(v) for v in sweep.vary.values()]
+    if not lengths:
+        return 1
+    return math.prod(lengths) if sweep.mode == "grid" else max(lengths)
+
+
+def expand_sweep(sweep: Sweep) -> list[CaseSpec]:
+    """The cases of ``sweep``, validated, without duplicates, in expansion order.
+
+    Checks, all reported together in one :class:`SweepError`: every varied path is
+    a parameter of the case model (aliases: :data:`~workflows.parameters.PATH_ALIASES`),
+    no parameter is given twice, every list is non-empty, ``zip`` lists have equal
+    lengths, the sweep has at most :data:`MAX_SWEEP_CASES` cases, and every expanded
+    case is a valid :class:`CaseSpec`.
+    """
+    errors = _structure_errors(sweep)
+    base = sweep.base.model_dump(mode="json")
+    # each value on its own first: the errors then name the varied path and value
+    for path, values in sweep.vary.items():
+        target = canonical_path(path)
+        if target not in parameter_paths():
+            continue
+        for value in values:
+            try:
+                CaseSpec.model_validate(_with_values(base, {target: value}))
+            except ValidationError as exc:
+                errors.extend((path, f"{value!r}: {msg}") for _, msg in _messages(exc))
+    if errors:
+        raise SweepError(errors)
+
+    paths = [canonical_path(p) for p in sweep.vary]
+    rows = (itertools.product(*sweep.vary.values()) if sweep.mode == "grid"
+            else zip(*sweep.vary.values()))
+    cases: dict[str, CaseSpec] = {}
+    for row in rows:
+        try:
+            spec = CaseSpec.model_validate(_with_values(base, dict(zip(paths, row))))
+        except ValidationError as exc:  # a combination that is invalid only together
+            where = ", ".join(f"{p}={v!r}" for p, v in zip(sweep.vary, row))
+            for loc, msg in _messages(exc):
+                if (loc, f"{msg} (case {where})") not in errors:
+                    errors.append((loc, f"{msg} (case {where})"))
+            continue
+        cases.setdefault(spec.case_id, spec)
+    if errors:
+        raise SweepError(errors)
+    logger.info("sweep %r: %d cases", sweep.name, len(cases))
+    return list(cases.values())
+
+
+def _structure_errors(sweep: Sweep) -> list[tuple[str, str]]:
+    """Problems of the ``vary`` table itself: paths, empty or unequal lists, size."""
+    errors: list[tuple[str, str]] = []
+    known = parameter_paths()
+    seen: dict[str, str] = {}
+    for path, values in sweep.vary.items():
+        target = canonical_path(path)
+        if target not in known:
+            errors.append((path, "unknown parameter; expected '<section>.<field>' of the case "
+                                 f"(e.g. {known[0]}, ..., {known[-1]})"))
+        elif target in seen:
+            errors.append((path, f"the same parameter as {seen[target]!r}"))
+        else:
+            seen[target] = path
+        if not values:
+            errors.append((path, "empty list of values"))
+    lengths = [len(v) for v in sweep.vary.values()]
+    if sweep.mode == "zip" and len(set(lengths)) > 1:
+        errors.extend((path, f"has {len(values)} values; in zip mode all lists must be equally "
+                             f"long (lengths {lengths})") for path, values in sweep.vary.items())
+    size = sweep_size(sweep)
+    if size > MAX_SWEEP_CASES:
+        errors.append(("vary", f"the sweep has {size:,} cases, over the cap of {MAX_SWEEP_CASES:,}"))
+    return errors
+
+
+def _with_values(base: dict[str, Any], values: dict[str, Any]) -> dict[str, Any]:
+    """A copy of the case dict ``base`` with ``{canonical path: value}`` set."""
+    data = {section: dict(fields) for section, fields in base.items()}
+    for path, value in values.items():
+        section, field = path.split(".")
+        data[section][field] = value
+    return data
+
+
+def _messages(exc: ValidationError) -> list[tuple[str, str]]:
+    """``(dotted location, message)`` of each error of a case validation."""
+    return [(".".join(str(x) for x in err["loc"]) or "case",
+             err["msg"].removeprefix("Value error, ")) for err in exc.errors()]
+
+
+def run_sweep(sweep: Sweep, root: str | os.PathLike, client=None, *, progress: bool = False,
+              force: bool = False, on_result: Callable[[dict], None] | None = None) -> list[str]:
+    """Solve every case of ``sweep`` on dask and store the results; return the case ids.
+
+    One task per case, key ``case-<case_id>``, running :func:`workflows.tasks.solve_and_store`.
+    Cases already stored are skipped without submitting anything (unless ``force``);
+    a failing case records its error file and does not stop the others.
+
+    Parameters
+    ----------
+    sweep : the study.
+    root : folder of the result store (it must be reachable from the workers).
+    client : a ``distributed.Client``; ``None`` starts an embedded LocalCluster
+        (2 worker processes, 1 thread each) and closes it afterwards.
+    progress : show a tqdm progress bar.
+    force : recompute stored cases.
+    on_result : called with each task's summary dict as it completes.
+    """
+    from distributed import as_completed
+    from tqdm import tqdm
+
+    from .store import is_stored
+    from .tasks import solve_and_store
+
+    specs = expand_sweep(sweep)
+    ids = [s.case_id for s in specs]
+    todo = [s for s in specs if force or not is_stored(root, s.case_id)]
+    logger.info("sweep %r: %d cases, %d to compute", sweep.name, len(ids), len(todo))
+    if not todo:
+        return ids
+    root = os.path.abspath(root)
+    with _client_or_local(client) as c:
+        futures = [c.submit(solve_and_store, s.canonical_json(), root, force,
+                            key=f"case-{s.case_id}", pure=False) for s in todo]
+        bar = tqdm(total=len(todo), desc=f"sweep {sweep.name}", unit="case") if progress else None
+        try:
+            for future in as_completed(futures):
+                result = _result_of(future)
+                logger.info("case %s %s", result["case_id"], result["status"])
+                if on_result is not None:
+                    on_result(result)
+                if bar is not None:
+                    bar.update(1)
+        finally:
+            if bar is not None:
+                bar.close()
+    return ids
+
+
+def _result_of(future) -> dict:
+    """The task's summary dict; a task that died (e.g. a killed worker) counts as failed."""
+    try:
+        return future.result()
+    except Exception as exc:
+        return {"case_id": str(future.key).removeprefix("case-"), "status": "failed",
+                "error": f"{type(exc).__name__}: {exc}", "summary": {}}
+
+
+@contextmanager
+def local_client(n_workers: int = 2) -> Iterator:
+    """An embedded LocalCluster client (worker processes, one thread each), closed on exit."""
+    from distributed import Client, LocalCluster
+
+    with LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster, Client(cluster) as client:
+        yield client
+
+
+def _client_or_local(client):
+    return nullcontext(client) if client is not None else local_client()
+
+
+__all__ = ["MAX_SWEEP_CASES", "PATH_ALIASES", "Sweep", "SweepError", "expand_sweep",
+           "run_sweep", "sweep_size", "local_client"]
