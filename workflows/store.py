@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+import dask
 import xarray as xr
 
 import solver
@@ -107,7 +108,10 @@ def write_case(root: str | os.PathLike, ds: xr.Dataset) -> Path:
     target = case_path(root, case_id)
 
     def write(tmp: Path) -> None:
-        ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=_encoding(ds))
+        # in-memory data to a private file: no dask, and no cluster-wide write lock
+        # (xarray would take a distributed.Lock when called inside a dask worker)
+        with dask.config.set(scheduler="synchronous"):
+            ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=_encoding(ds))
 
     _write_atomically(target, write)
     error_path(root, case_id).unlink(missing_ok=True)

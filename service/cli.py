@@ -1,0 +1,84 @@
+"""``tunnel-contact``: command-line entry point (argument parsing only).
+
+The commands themselves live in :mod:`workflows.commands`; ``serve`` starts the
+REST service of :mod:`service.server`.
+"""
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import sys
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``tunnel-contact``."""
+    parser = argparse.ArgumentParser(
+        prog="tunnel-contact",
+        description="Tunnel lining / ground unilateral contact: solve cases and sweeps, show "
+                    "results, serve the REST API.")
+    parser.add_argument("-v", "--verbose", action="count", default=0,
+                        help="more log output (-v info, -vv debug)")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    def results(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--results", default="results", metavar="DIR",
+                       help="result store folder (default: ./results)")
+
+    def scheduler(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--scheduler", default=os.environ.get("DASK_SCHEDULER_ADDRESS") or None,
+                       metavar="ADDR", help="dask scheduler address (default: $DASK_SCHEDULER_ADDRESS; "
+                                            "unset: an embedded LocalCluster)")
+
+    p = sub.add_parser("run", help="solve one case and store it")
+    p.add_argument("case", nargs="?", metavar="CASE.json", help="case file (default: the default case)")
+    p.add_argument("--force", action="store_true", help="recompute even if stored")
+    results(p)
+
+    p = sub.add_parser("sweep", help="solve every case of a sweep on dask, print a comparison table")
+    p.add_argument("sweep", metavar="SWEEP.json", help="sweep file")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    scheduler(p)
+    results(p)
+
+    p = sub.add_parser("show", help="print a stored case's summary and write its plots")
+    p.add_argument("case_id", metavar="CASE_ID")
+    results(p)
+
+    p = sub.add_parser("serve", help="run the REST service")
+    p.add_argument("--host", default="127.0.0.1")
+    p.add_argument("--port", type=int, default=8000)
+    scheduler(p)
+    results(p)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``tunnel-contact`` with ``argv``; return the exit code (2: bad input)."""
+    args = build_parser().parse_args(argv)
+    level = (logging.WARNING, logging.INFO, logging.DEBUG)[min(args.verbose, 2)]
+    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    # dask configures its own loggers at INFO; keep them as quiet as ours
+    logging.getLogger("distributed").setLevel(level)
+    if args.command == "serve":
+        from service.server import serve
+
+        serve(host=args.host, port=args.port, scheduler=args.scheduler, results=args.results)
+        return 0
+
+    from workflows import commands
+
+    try:
+        if args.command == "run":
+            return commands.run_command(args.case, args.results, force=args.force)
+        if args.command == "sweep":
+            return commands.sweep_command(args.sweep, args.results, scheduler=args.scheduler,
+                                          progress=not args.no_progress)
+        return commands.show_command(args.case_id, args.results)
+    except commands.InputError as exc:
+        print(f"tunnel-contact: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,188 @@
+"""What the ``tunnel-contact`` commands do (``service/cli.py`` only parses arguments).
+
+Each command writes its human-readable report to ``out`` and returns an exit code.
+Bad input (unreadable or invalid JSON, a malformed or unknown case id) raises
+:class:`InputError` with a one-line message; the CLI prints it and exits with 2.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import os
+import sys
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any, TextIO
+
+import xarray as xr
+from pydantic import ValidationError
+
+from solver import CaseSpec, SolverError
+
+from .parameters import flat_parameters, varying_parameters
+from .store import OPEN_OPTIONS, case_path, check_case_id, is_stored, open_case, read_error, run_and_store
+from .summary import read_summary, summarize
+from .sweep import Sweep, SweepError, run_sweep
+
+logger = logging.getLogger(__name__)
+
+#: Columns of the comparison table: (summary scalar, header, divisor to the shown unit).
+TABLE_COLUMNS: tuple[tuple[str, str, float], ...] = (
+    ("max_contact_pressure", "max λ (kPa)", 1e3),
+    ("contact_extent", "contact (deg)", 1.0),
+    ("max_thrust", "max N (kN/m)", 1e3),
+    ("max_abs_moment", "max |M| (kN·m/m)", 1e3),
+    ("crown_settlement", "crown settl. (mm)", 1e-3),
+)
+
+
+class InputError(ValueError):
+    """Bad user input; the message is one line."""
+
+
+def load_case(path: str | os.PathLike | None) -> CaseSpec:
+    """The case in JSON file ``path`` (``None``: the default case)."""
+    if path is None:
+        return CaseSpec()
+    data = _read_json(path)
+    try:
+        return CaseSpec.model_validate(data)
+    except ValidationError as exc:
+        raise InputError(f"{path}: invalid case: {_one_line(exc)}") from None
+
+
+def load_sweep(path: str | os.PathLike) -> Sweep:
+    """The sweep in JSON file ``path`` (structure only; see :func:`expand_sweep`)."""
+    data = _read_json(path)
+    try:
+        return Sweep.model_validate(data)
+    except ValidationError as exc:
+        raise InputError(f"{path}: invalid sweep: {_one_line(exc)}") from None
+
+
+def _read_json(path: str | os.PathLike) -> Any:
+    try:
+        return json.loads(Path(path).read_text())
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: not valid JSON: {exc}") from None
+
+
+def _one_line(exc: ValidationError) -> str:
+    return "; ".join(f"{'.'.join(str(x) for x in e['loc']) or 'value'}: "
+                     f"{e['msg'].removeprefix('Value error, ')}" for e in exc.errors())
+
+
+def run_command(case_file: str | None, results: str, *, force: bool = False,
+                out: TextIO = sys.stdout) -> int:
+    """Solve one case into the store and print its summary; 1 if the solver fails."""
+    spec = load_case(case_file)
+    try:
+        case_id = run_and_store(spec, results, force=force)
+    except SolverError as exc:
+        print(f"case {spec.case_id} failed: {exc}", file=out)
+        return 1
+    print(f"case {case_id} stored in {Path(results) / 'cases' / (case_id + '.nc')}", file=out)
+    print(format_summary(read_summary(results, case_id)), file=out)
+    return 0
+
+
+def sweep_command(sweep_file: str, results: str, *, scheduler: str | None = None,
+                  progress: bool = True, out: TextIO = sys.stdout) -> int:
+    """Run a sweep on dask (``scheduler`` address or an embedded cluster); print a table.
+
+    Returns 1 if any case failed, else 0.
+    """
+    sweep = load_sweep(sweep_file)
+    client = None
+    if scheduler:
+        from distributed import Client
+
+        client = Client(scheduler, timeout="10s")
+    try:
+        case_ids = run_sweep(sweep, results, client=client, progress=progress)
+    except SweepError as exc:
+        raise InputError(f"{sweep_file}: {exc}") from None
+    finally:
+        if client is not None:
+            client.close()
+    rows = [case_row(results, c) for c in case_ids]
+    print(comparison_table(rows), file=out)
+    failed = [r for r in rows if r["status"] != "done"]
+    print(f"{len(rows) - len(failed)} of {len(rows)} cases done; results in {results}", file=out)
+    return 1 if failed else 0
+
+
+def show_command(case_id: str, results: str, *, out: TextIO = sys.stdout) -> int:
+    """Print a stored case's summary and write its plots to ``<results>/plots/<case_id>/``."""
+    from .plots import PLOTS
+
+    try:
+        check_case_id(case_id)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    if not is_stored(results, case_id):
+        error = read_error(results, case_id)
+        if error is None:
+            raise InputError(f"case {case_id} is not in {results}")
+        print(f"case {case_id} failed: {error['error']}", file=out)
+        return 1
+    ds = open_case(results, case_id)
+    params = flat_parameters(ds.attrs["case_spec"])
+    print(f"case {case_id}", file=out)
+    print("\n".join(f"  {k} = {v}" for k, v in params.items()), file=out)
+    print(format_summary(summarize(ds)), file=out)
+    folder = Path(results) / "plots" / case_id
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, plot in PLOTS.items():
+        path = folder / f"{name}.png"
+        plot(ds).savefig(path, dpi=120)
+        print(f"wrote {path}", file=out)
+    return 0
+
+
+def format_summary(summary: dict[str, float]) -> str:
+    """The scalars of one case, one per line."""
+    width = max((len(k) for k in summary), default=0)
+    return "\n".join(f"  {k:<{width}} = {v:.6g}" for k, v in summary.items())
+
+
+def case_row(results: str | os.PathLike, case_id: str) -> dict[str, Any]:
+    """``{"case_id", "status", "params", "summary", "error"}`` of a case in the store."""
+    if is_stored(results, case_id):
+        with xr.open_dataset(case_path(results, case_id), **OPEN_OPTIONS) as ds:
+            return {"case_id": case_id, "status": "done", "error": None,
+                    "params": flat_parameters(ds.attrs["case_spec"]), "summary": summarize(ds)}
+    error = read_error(results, case_id) or {}
+    return {"case_id": case_id, "status": "failed" if error else "missing",
+            "params": flat_parameters(error["spec"]) if "spec" in error else {},
+            "summary": {}, "error": error.get("error")}
+
+
+def comparison_table(rows: Iterable[dict[str, Any]]) -> str:
+    """Plain-text table: case id, the parameters that vary, the key results.
+
+    ``rows`` are :func:`case_row` dicts; failed cases show their status instead of numbers.
+    """
+    rows = list(rows)
+    varied = varying_parameters([r["params"] for r in rows if r["params"]])
+    header = ["case_id", *varied, *(h for _, h, _ in TABLE_COLUMNS)]
+    lines = []
+    for r in rows:
+        cells = [r["case_id"], *(_fmt(r["params"].get(n, "")) for n in varied)]
+        if r["status"] == "done":
+            cells += [_fmt(r["summary"][k] / scale) for k, _, scale in TABLE_COLUMNS]
+        else:
+            cells += [r["status"]] + [""] * (len(TABLE_COLUMNS) - 1)
+        lines.append(cells)
+    widths = [max(len(str(c)) for c in col) for col in zip(header, *lines)]
+    fmt = "  ".join(f"{{:>{w}}}" for w in widths)
+    text = [fmt.format(*header), fmt.format(*("-" * w for w in widths))]
+    text += [fmt.format(*cells) for cells in lines]
+    errors = [f"  {r['case_id']}: {r['error']}" for r in rows if r["error"]]
+    return "\n".join(text + (["failures:"] + errors if errors else []))
+
+
+def _fmt(value: Any) -> str:
+    return f"{value:.4g}" if isinstance(value, float) else str(value)
