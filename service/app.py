@@ -1,0 +1,69 @@
+"""The FastAPI application: ``create_app(settings)``.
+
+The dask client, the job records and the dispatcher are created in the ``lifespan``
+hook and kept on ``app.state``; routes only validate, record, submit and answer.
+"""
+from __future__ import annotations
+
+import logging
+from contextlib import asynccontextmanager
+from typing import Optional
+
+from fastapi import FastAPI
+from fastapi.exceptions import RequestValidationError
+
+from .cluster import cluster_connection
+from .errors import request_validation_handler
+from .guards import BodyLimitMiddleware
+from .jobs import Dispatcher
+from .routes import cases, health, sweeps
+from .settings import Settings, get_settings
+from .store import JobStore
+
+logger = logging.getLogger(__name__)
+
+
+@asynccontextmanager
+async def lifespan(app: FastAPI):
+    """Open the job records, connect to dask, recover unfinished cases; undo on shutdown."""
+    settings: Settings = app.state.settings
+    root = settings.results.resolve()
+    root.mkdir(parents=True, exist_ok=True)
+    store = JobStore(settings.database)
+    try:
+        async with cluster_connection(settings) as connect:
+            jobs = Dispatcher(connect, store, root, poll_interval=settings.poll_interval,
+                              reconcile_interval=settings.reconcile_interval)
+            await jobs.start()
+            app.state.jobs = jobs
+            logger.info("tunnel-contact service ready; results in %s", root)
+            try:
+                yield
+            finally:
+                await jobs.stop()
+    finally:
+        store.close()
+
+
+def create_app(settings: Optional[Settings] = None) -> FastAPI:
+    """The service as an ASGI app (``uvicorn --factory service.app:create_app`` works too).
+
+    Parameters
+    ----------
+    settings : defaults to :func:`service.settings.get_settings` (the environment).
+    """
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        app_version = version("tunnel-contact")
+    except PackageNotFoundError:
+        app_version = "0"
+    app = FastAPI(title="tunnel-contact", version=app_version, lifespan=lifespan,
+                  description="Tunnel lining / ground unilateral contact: submit cases and sweeps, "
+                              "fetch results (netCDF) and plots. Work runs on a dask cluster.")
+    app.state.settings = settings or get_settings()
+    app.add_middleware(BodyLimitMiddleware, max_bytes=app.state.settings.max_body_bytes)
+    app.add_exception_handler(RequestValidationError, request_validation_handler)
+    for module in (cases, sweeps, health):
+        app.include_router(module.router)
+    return app

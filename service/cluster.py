@@ -1,0 +1,52 @@
+"""Where the dask client comes from: an external scheduler or an embedded LocalCluster."""
+from __future__ import annotations
+
+import logging
+from contextlib import asynccontextmanager
+from typing import AsyncIterator, Awaitable, Callable
+
+import dask
+from distributed import Client, LocalCluster
+
+from .settings import Settings
+
+logger = logging.getLogger(__name__)
+
+#: One task per single-threaded worker at a time, so "processing" means "executing"
+#: (see :mod:`service.jobs`); the deployment sets the same on its scheduler.
+SCHEDULER_CONFIG = {"distributed.scheduler.worker-saturation": 1.0}
+#: Seconds to wait for an external scheduler before starting degraded (and retrying).
+CONNECT_TIMEOUT = 5.0
+
+
+@asynccontextmanager
+async def cluster_connection(settings: Settings) -> AsyncIterator[Callable[[], Awaitable[Client]]]:
+    """Yield a coroutine function that connects an asynchronous ``Client``.
+
+    With ``settings.scheduler`` the client connects there; otherwise a LocalCluster
+    (worker processes, one thread each, no dashboard) lives as long as this context.
+    """
+    if settings.scheduler:
+        address = settings.scheduler
+
+        async def connect() -> Client:
+            return await Client(address, asynchronous=True, timeout=CONNECT_TIMEOUT)
+
+        logger.info("using the dask scheduler at %s", address)
+        yield connect
+        return
+
+    with dask.config.set(SCHEDULER_CONFIG):
+        cluster = await LocalCluster(n_workers=settings.local_workers, processes=True,
+                                     threads_per_worker=1, dashboard_address=None,
+                                     asynchronous=True)
+    logger.info("embedded dask cluster at %s with %d workers",
+                cluster.scheduler_address, len(cluster.workers))
+
+    async def connect() -> Client:
+        return await Client(cluster, asynchronous=True)
+
+    try:
+        yield connect
+    finally:
+        await cluster.close()

@@ -1,0 +1,243 @@
+"""Submitting cases to dask and keeping their records true.
+
+Life of a case record
+---------------------
+``queued``
+    Recorded, and submitted to the scheduler with :func:`distributed.fire_and_forget`
+    under the stable key ``solve_and_store-<case_id>``, so the task runs to the end
+    even if this process goes away, and a resubmission after a restart attaches to
+    the task still on the scheduler instead of starting a second one.
+``running``
+    The scheduler has handed the task to a worker. A poll of
+    :meth:`distributed.Client.processing` every ``poll_interval`` seconds sets it.
+    With scheduler-side queuing a worker holds at most
+    ``ceil(worker-saturation x nthreads)`` tasks; the embedded cluster (and the
+    deployment) use ``worker-saturation = 1.0`` with one thread per worker, so a
+    ``running`` case really is executing.
+``done`` / ``failed``
+    Final. Set from the task's outcome (one asyncio watcher per submitted future):
+    the dict :func:`workflows.tasks.solve_and_store` returns, or the exception the task
+    raised (e.g. ``KilledWorker`` after repeated worker deaths).
+
+Why nothing stays open forever
+------------------------------
+Every open record either has a watched future here or is picked up by
+:meth:`Dispatcher.reconcile`, which runs at start-up and every ``reconcile_interval``
+seconds: a stored result file makes the case ``done``; otherwise the case is
+(re)submitted. A future cancelled because the scheduler connection was lost puts its
+record back to ``queued`` for the next reconciliation. A worker dying mid-task is
+handled by the scheduler (the task is rescheduled, the record stays ``running``).
+"""
+from __future__ import annotations
+
+import asyncio
+import json
+import logging
+from pathlib import Path
+from typing import Awaitable, Callable, Optional
+
+from distributed import Client, Future, fire_and_forget
+from distributed.client import FutureCancelledError
+
+from workflows.store import is_stored
+from workflows.summary import read_summary
+from workflows.tasks import solve_and_store
+
+from .store import JobStore
+
+logger = logging.getLogger(__name__)
+
+KEY_PREFIX = "solve_and_store-"
+
+
+def task_key(case_id: str) -> str:
+    """Dask key of the task computing ``case_id`` (stable across service restarts)."""
+    return f"{KEY_PREFIX}{case_id}"
+
+
+def stored_summary(root: Path, case_id: str) -> Optional[dict[str, float]]:
+    """Scalars of the stored result of ``case_id``, or None if it is not stored."""
+    return read_summary(root, case_id) if is_stored(root, case_id) else None
+
+
+class Dispatcher:
+    """Submits cases, watches their futures and keeps the job records in step.
+
+    Parameters
+    ----------
+    connect : coroutine function returning a connected asynchronous ``Client``;
+        called at start and again whenever the client has closed.
+    store : the job records.
+    root : results directory handed to the tasks (as seen by the workers).
+    poll_interval, reconcile_interval : seconds between scheduler polls for running
+        tasks and between reconciliations of open records.
+    """
+
+    def __init__(self, connect: Callable[[], Awaitable[Client]], store: JobStore, root: Path, *,
+                 poll_interval: float = 0.5, reconcile_interval: float = 5.0):
+        self._connect = connect
+        self.store = store
+        self.root = Path(root)
+        self.poll_interval = poll_interval
+        self.reconcile_interval = reconcile_interval
+        self.client: Optional[Client] = None
+        self._tracked: dict[str, Future] = {}
+        self._tasks: set[asyncio.Task] = set()
+
+    # -- life cycle ----------------------------------------------------------------------
+
+    async def start(self) -> None:
+        """Connect, recover open records left by an earlier run, start the background loops."""
+        self.client = await self._connect()
+        await self.reconcile()
+        self._spawn(self._poll_running())
+        self._spawn(self._reconcile_forever())
+
+    async def stop(self) -> None:
+        """Stop watching. Submitted tasks keep running on the scheduler (fire and forget)."""
+        for task in list(self._tasks):
+            task.cancel()
+        await asyncio.gather(*self._tasks, return_exceptions=True)
+        self._tracked.clear()
+        if self.client is not None:
+            await self.client.close()
+
+    def _spawn(self, coro) -> asyncio.Task:
+        task = asyncio.get_running_loop().create_task(coro)
+        self._tasks.add(task)
+        task.add_done_callback(self._tasks.discard)
+        return task
+
+    @property
+    def connected(self) -> bool:
+        return self.client is not None and self.client.status == "running"
+
+    # -- submission ----------------------------------------------------------------------
+
+    def submit(self, case_id: str, spec_json: str) -> bool:
+        """Send ``case_id`` to the scheduler unless already watched; True if it was sent.
+
+        Never raises for an unreachable scheduler: the record stays ``queued`` and the
+        next reconciliation tries again.
+        """
+        if case_id in self._tracked:
+            return False
+        if not self.connected:
+            logger.warning("scheduler not connected; case %s stays queued", case_id)
+            return False
+        try:
+            future = self.client.submit(solve_and_store, spec_json, str(self.root),
+                                        key=task_key(case_id), pure=False)
+            fire_and_forget(future)
+        except Exception:
+            logger.exception("could not submit case %s; it stays queued", case_id)
+            return False
+        self._tracked[case_id] = future
+        self.store.count_submission(case_id)
+        self._spawn(self._watch(case_id, future))
+        return True
+
+    async def _watch(self, case_id: str, future: Future) -> None:
+        """Wait for one task and record its outcome."""
+        try:
+            try:
+                outcome = await future
+            except FutureCancelledError as exc:
+                logger.warning("task of case %s cancelled (%s)", case_id, exc.reason)
+                if not await self._resolve_from_store(case_id):
+                    self.store.mark_queued(case_id)  # resubmitted by the next reconciliation
+                return
+            except Exception as exc:  # the task raised: KilledWorker, import errors, ...
+                logger.warning("task of case %s raised %s: %s", case_id, type(exc).__name__, exc)
+                if not await self._resolve_from_store(case_id):
+                    self.store.finish(case_id, status="failed", error=f"{type(exc).__name__}: {exc}")
+                return
+            self._record(case_id, outcome)
+        finally:
+            if self._tracked.get(case_id) is future:
+                del self._tracked[case_id]
+            future.release()
+
+    def _record(self, case_id: str, outcome: dict) -> None:
+        seconds = outcome.get("seconds")
+        if outcome.get("status") == "done":
+            self.store.finish(case_id, status="done", summary=outcome.get("summary"), seconds=seconds)
+        else:
+            self.store.finish(case_id, status="failed", error=outcome.get("error") or "unknown error",
+                              seconds=seconds)
+
+    async def _resolve_from_store(self, case_id: str) -> bool:
+        """Mark ``case_id`` done if its result file is stored; True if it was."""
+        try:
+            summary = await asyncio.to_thread(stored_summary, self.root, case_id)
+        except Exception:
+            logger.exception("stored result of case %s is unreadable", case_id)
+            return False
+        if summary is None:
+            return False
+        self.store.finish(case_id, status="done", summary=summary)
+        return True
+
+    # -- background loops ----------------------------------------------------------------
+
+    async def reconcile(self) -> None:
+        """Settle every open record that no watcher owns: done from the store, else resubmit."""
+        if not self.connected:
+            await self._reconnect()
+        for case_id in self.store.open_case_ids():
+            if case_id in self._tracked:
+                continue
+            if await self._resolve_from_store(case_id):
+                logger.info("case %s found in the store: done", case_id)
+                continue
+            record = self.store.get_case(case_id)
+            if record is not None and record.status in ("queued", "running"):
+                self.store.mark_queued(case_id)
+                spec_json = json.dumps(record.spec, sort_keys=True, separators=(",", ":"))
+                if self.submit(case_id, spec_json):
+                    logger.info("case %s resubmitted", case_id)
+
+    async def _reconnect(self) -> None:
+        if self.client is not None and self.client.status in ("connecting", "newly-created"):
+            return  # distributed is still trying on its own
+        logger.warning("dask client is %s; connecting again",
+                       None if self.client is None else self.client.status)
+        try:
+            self.client = await self._connect()
+        except Exception as exc:
+            logger.warning("scheduler unreachable: %s", exc)
+
+    async def _reconcile_forever(self) -> None:
+        while True:
+            await asyncio.sleep(self.reconcile_interval)
+            try:
+                await self.reconcile()
+            except Exception:
+                logger.exception("reconciliation failed; retrying in %s s", self.reconcile_interval)
+
+    async def _poll_running(self) -> None:
+        while True:
+            await asyncio.sleep(self.poll_interval)
+            if not self._tracked or not self.connected:
+                continue
+            try:
+                processing = await self.client.processing()
+            except Exception as exc:
+                logger.debug("processing poll failed: %s", exc)
+                continue
+            started = [key[len(KEY_PREFIX):] for keys in processing.values() for key in keys
+                       if isinstance(key, str) and key.startswith(KEY_PREFIX)]
+            if started:
+                self.store.mark_running(started)
+
+    # -- queries -------------------------------------------------------------------------
+
+    async def cluster_state(self, timeout: float = 3.0) -> tuple[bool, int]:
+        """Whether the scheduler answers within ``timeout`` s, and how many workers it has."""
+        if not self.connected:
+            return False, 0
+        try:
+            info = await asyncio.wait_for(self.client.scheduler.identity(), timeout)
+        except Exception:
+            return False, 0
+        return True, len(info.get("workers", {}))

@@ -1,0 +1,90 @@
+"""``/cases``: submit one case, follow it, fetch its result and plots."""
+from __future__ import annotations
+
+import asyncio
+from enum import Enum
+from typing import Optional
+
+from fastapi import APIRouter, Depends, Query, Request, Response
+from fastapi.responses import FileResponse
+
+from solver.spec import CaseSpec
+from workflows.plots import PLOTS
+from workflows.store import case_path
+
+from ..artifacts import render_plot
+from ..errors import responses
+from ..guards import require_token
+from ..schemas import Case, CaseAccepted, CasePage, Status
+from .common import NETCDF, CaseId, jobs_of, not_found, not_ready
+
+router = APIRouter(prefix="/cases", tags=["cases"])
+
+#: Plot names accepted in ``/cases/{id}/plots/{name}.png``.
+PlotName = Enum("PlotName", {name: name for name in PLOTS}, type=str)
+
+
+@router.post("", status_code=202, response_model=CaseAccepted,
+             dependencies=[Depends(require_token)], responses=responses(401, 413, 422))
+async def submit_case(spec: CaseSpec, request: Request, response: Response) -> CaseAccepted:
+    """Record a case and queue it; a case seen before is returned as it is, not recomputed."""
+    jobs = jobs_of(request)
+    spec_json = spec.canonical_json()
+    record, created = jobs.store.add_case(spec.case_id, spec_json)
+    if created:
+        jobs.submit(record.id, spec_json)
+    response.headers["Location"] = f"/cases/{record.id}"
+    return CaseAccepted(**Case.of(record).model_dump(), created=created)
+
+
+@router.get("", response_model=CasePage, responses=responses(422))
+async def list_cases(request: Request,
+                     status: Optional[Status] = Query(None, description="only cases in this status"),
+                     limit: int = Query(100, ge=1, le=1000),
+                     offset: int = Query(0, ge=0)) -> CasePage:
+    """Cases, oldest submission first, a page at a time."""
+    records, total = jobs_of(request).store.list_cases(status=status, limit=limit, offset=offset)
+    return CasePage(items=[Case.of(r) for r in records], total=total, limit=limit, offset=offset)
+
+
+@router.get("/{case_id}", response_model=Case, responses=responses(404))
+async def get_case(case_id: CaseId, request: Request) -> Case:
+    """A case's status, spec, summary scalars and error."""
+    record = jobs_of(request).store.get_case(case_id)
+    if record is None:
+        raise not_found("case", case_id)
+    return Case.of(record)
+
+
+def _done_case(request: Request, case_id: str):
+    record = jobs_of(request).store.get_case(case_id)
+    if record is None:
+        raise not_found("case", case_id)
+    if record.status != "done":
+        raise not_ready(f"case {case_id}", record.status)
+    return record
+
+
+@router.get("/{case_id}/result.nc", response_class=FileResponse, responses={
+    200: {"content": {NETCDF: {}}, "description": "the case's result (netCDF-4, SPEC §3)"},
+    **responses(404, 409)})
+async def get_case_result(case_id: CaseId, request: Request) -> FileResponse:
+    """The result file of a finished case (409 until it is done)."""
+    _done_case(request, case_id)
+    path = case_path(jobs_of(request).root, case_id)
+    if not path.is_file():
+        raise not_found("result file of case", case_id)
+    return FileResponse(path, media_type=NETCDF, filename=f"{case_id}.nc")
+
+
+@router.get("/{case_id}/plots/{name}.png", response_class=FileResponse, responses={
+    200: {"content": {"image/png": {}}, "description": "the figure, rendered once and cached"},
+    **responses(404, 409)})
+async def get_case_plot(case_id: CaseId, name: PlotName, request: Request) -> FileResponse:
+    """A figure of a finished case: ``contact_pressure``, ``lining_forces`` or ``deformed_mesh``."""
+    _done_case(request, case_id)
+    root = jobs_of(request).root
+    if not case_path(root, case_id).is_file():
+        raise not_found("result file of case", case_id)
+    path = await asyncio.to_thread(render_plot, root, case_id, name.value)
+    return FileResponse(path, media_type="image/png")

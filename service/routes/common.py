@@ -1,0 +1,31 @@
+"""What the routes share: path parameters and access to the app's dispatcher."""
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import HTTPException, Path, Request
+
+from ..jobs import Dispatcher
+from ..schemas import CASE_ID_PATTERN
+from ..settings import Settings
+
+CaseId = Annotated[str, Path(pattern=CASE_ID_PATTERN, description="case id, 16 lowercase hex digits")]
+SweepId = Annotated[str, Path(pattern=CASE_ID_PATTERN, description="sweep id, 16 lowercase hex digits")]
+
+NETCDF = "application/x-netcdf"
+
+
+def jobs_of(request: Request) -> Dispatcher:
+    return request.app.state.jobs
+
+
+def settings_of(request: Request) -> Settings:
+    return request.app.state.settings
+
+
+def not_found(kind: str, ident: str) -> HTTPException:
+    return HTTPException(status_code=404, detail=f"unknown {kind} {ident}")
+
+
+def not_ready(what: str, status: str) -> HTTPException:
+    return HTTPException(status_code=409, detail=f"{what} not ready: {status}")

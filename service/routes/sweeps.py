@@ -1,0 +1,77 @@
+"""``/sweeps``: submit a parametric study, follow it, fetch its combined result."""
+from __future__ import annotations
+
+import asyncio
+
+from fastapi import APIRouter, Depends, Request, Response
+from fastapi.responses import FileResponse, JSONResponse
+
+from workflows import Sweep, SweepError, expand_sweep
+from workflows.store import is_stored
+from workflows.sweep import sweep_size
+
+from ..artifacts import write_combined
+from ..errors import invalid, responses
+from ..guards import require_token
+from ..schemas import FieldError, Sweep as SweepOut, SweepAccepted
+from .common import NETCDF, SweepId, jobs_of, not_found, not_ready, settings_of
+
+router = APIRouter(prefix="/sweeps", tags=["sweeps"])
+
+
+@router.post("", status_code=202, response_model=SweepAccepted,
+             dependencies=[Depends(require_token)], responses=responses(401, 413, 422))
+async def submit_sweep(sweep: Sweep, request: Request, response: Response) -> SweepAccepted | JSONResponse:
+    """Expand a sweep into cases, record them and queue the ones not known before."""
+    jobs = jobs_of(request)
+    record = jobs.store.get_sweep(sweep.sweep_id)
+    created, new = False, []
+    if record is None:
+        cap = settings_of(request).max_sweep_cases
+        size = sweep_size(sweep)
+        if size > cap:
+            return invalid([FieldError(field="vary", type="too_many_cases",
+                                       reason=f"the sweep has {size:,} cases, over this service's cap of {cap:,}")])
+        try:
+            specs = await asyncio.to_thread(expand_sweep, sweep)
+        except SweepError as exc:
+            return invalid([FieldError(field=path, reason=message, type="value_error")
+                            for path, message in exc.errors])
+        cases = [(s.case_id, s.canonical_json()) for s in specs]
+        record, new = jobs.store.add_sweep(sweep.sweep_id, sweep.name, sweep.canonical_json(), cases)
+        created = True
+        specs_by_id = dict(cases)
+        for case_id in new:
+            jobs.submit(case_id, specs_by_id[case_id])
+    response.headers["Location"] = f"/sweeps/{record.id}"
+    counts = jobs.store.status_counts(record.case_ids)
+    return SweepAccepted(**SweepOut.of(record, counts).model_dump(), created=created, new_cases=len(new))
+
+
+@router.get("/{sweep_id}", response_model=SweepOut, responses=responses(404))
+async def get_sweep(sweep_id: SweepId, request: Request) -> SweepOut:
+    """A sweep's cases and how many are in each status."""
+    store = jobs_of(request).store
+    record = store.get_sweep(sweep_id)
+    if record is None:
+        raise not_found("sweep", sweep_id)
+    return SweepOut.of(record, store.status_counts(record.case_ids))
+
+
+@router.get("/{sweep_id}/result.nc", response_class=FileResponse, responses={
+    200: {"content": {NETCDF: {}}, "description": "combined results of the sweep's finished cases "
+                                                   "(header X-Cases-Included: done/total)"},
+    **responses(404, 409)})
+async def get_sweep_result(sweep_id: SweepId, request: Request) -> FileResponse:
+    """The combined dataset (dim ``case``) of the sweep's finished cases; 409 while none is done."""
+    jobs = jobs_of(request)
+    record = jobs.store.get_sweep(sweep_id)
+    if record is None:
+        raise not_found("sweep", sweep_id)
+    statuses = jobs.store.statuses(record.case_ids)
+    done = [c for c in record.case_ids if statuses.get(c) == "done" and is_stored(jobs.root, c)]
+    if not done:
+        raise not_ready(f"sweep {sweep_id}", "no case is done yet")
+    path = await asyncio.to_thread(write_combined, jobs.root, sweep_id, done)
+    return FileResponse(path, media_type=NETCDF, filename=f"sweep-{sweep_id}.nc",
+                        headers={"X-Cases-Included": f"{len(done)}/{len(record.case_ids)}"})

@@ -1,0 +1,118 @@
+"""Response bodies of the REST API (they are the OpenAPI schema's components)."""
+from __future__ import annotations
+
+from datetime import datetime, timezone
+from typing import Literal, Optional
+
+from pydantic import BaseModel, Field
+
+from .store import CaseRecord, SweepRecord
+
+Status = Literal["queued", "running", "done", "failed"]
+CASE_ID_PATTERN = r"^[0-9a-f]{16}$"
+
+
+def _time(t: float | None) -> datetime | None:
+    return None if t is None else datetime.fromtimestamp(t, tz=timezone.utc)
+
+
+class Case(BaseModel):
+    """A case's record: what was asked and what became of it."""
+
+    id: str = Field(description="case id: 16 hex digits of the hash of the canonical case JSON")
+    status: Status
+    spec: dict = Field(description="the case with every default filled in")
+    summary: Optional[dict[str, float]] = Field(None, description="result scalars (SPEC §3) once done")
+    error: Optional[str] = Field(None, description="why the case failed")
+    submitted_at: datetime
+    started_at: Optional[datetime] = None
+    finished_at: Optional[datetime] = None
+    result: Optional[str] = Field(None, description="URL of the netCDF result once done")
+
+    @classmethod
+    def of(cls, record: CaseRecord) -> "Case":
+        return cls(
+            id=record.id, status=record.status, spec=record.spec, summary=record.summary,
+            error=record.error, submitted_at=_time(record.submitted_at),
+            started_at=_time(record.started_at), finished_at=_time(record.finished_at),
+            result=f"/cases/{record.id}/result.nc" if record.status == "done" else None)
+
+
+class CaseAccepted(Case):
+    """Answer to ``POST /cases``."""
+
+    created: bool = Field(description="false when the case was already known (nothing recomputed)")
+
+
+class CasePage(BaseModel):
+    """A page of ``GET /cases``."""
+
+    items: list[Case]
+    total: int = Field(description="cases matching the filter, over all pages")
+    limit: int
+    offset: int
+
+
+class StatusCounts(BaseModel):
+    """Number of cases in each status."""
+
+    queued: int = 0
+    running: int = 0
+    done: int = 0
+    failed: int = 0
+
+
+class Sweep(BaseModel):
+    """A sweep's record and the state of its cases."""
+
+    id: str = Field(description="sweep id: 16 hex digits of the hash of the canonical sweep JSON")
+    name: str
+    case_ids: list[str] = Field(description="its cases, in expansion order")
+    counts: StatusCounts
+    total: int
+    finished: bool = Field(description="true when no case is queued or running")
+    submitted_at: datetime
+    result: Optional[str] = Field(None, description="URL of the combined netCDF once a case is done")
+
+    @classmethod
+    def of(cls, record: SweepRecord, counts: dict[str, int]) -> "Sweep":
+        return cls(
+            id=record.id, name=record.name, case_ids=list(record.case_ids),
+            counts=StatusCounts(**counts), total=len(record.case_ids),
+            finished=counts["queued"] + counts["running"] == 0,
+            submitted_at=_time(record.submitted_at),
+            result=f"/sweeps/{record.id}/result.nc" if counts["done"] else None)
+
+
+class SweepAccepted(Sweep):
+    """Answer to ``POST /sweeps``."""
+
+    created: bool = Field(description="false when the same sweep was posted before")
+    new_cases: int = Field(description="cases not known before this request (the others are reused)")
+
+
+class Health(BaseModel):
+    """``GET /health``: 200 when everything is reachable, else 503 with the same body."""
+
+    status: Literal["ok", "degraded"]
+    scheduler: Optional[str] = Field(description="scheduler address")
+    scheduler_reachable: bool
+    workers: int = Field(description="workers connected to the scheduler")
+    results_writable: bool = Field(description="results directory and job database accept writes")
+    queued: int
+    running: int
+
+
+class FieldError(BaseModel):
+    """One reason a request was refused."""
+
+    field: str = Field(description="dotted path of the offending field, e.g. 'geometry.depth'")
+    reason: str
+    type: str = Field(description="machine-readable error kind")
+
+
+class ErrorBody(BaseModel):
+    """Error responses: ``detail`` says what went wrong; ``errors`` lists invalid fields (422)."""
+
+    detail: str
+    errors: list[FieldError] = []

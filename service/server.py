@@ -1,0 +1,29 @@
+"""Run the service with uvicorn (what ``tunnel-contact serve`` calls)."""
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+from typing import Optional
+
+import uvicorn
+
+from .app import create_app
+from .settings import Settings
+
+logger = logging.getLogger(__name__)
+
+
+def serve(*, host: str = "127.0.0.1", port: int = 8000, scheduler: Optional[str] = None,
+          results: str | Path | None = None, token: Optional[str] = None) -> None:
+    """Serve the API until interrupted.
+
+    Parameters
+    ----------
+    host, port : bind address; loopback unless asked otherwise.
+    scheduler : dask scheduler address; None: ``DASK_SCHEDULER_ADDRESS`` or an embedded cluster.
+    results : results directory; None: ``TUNNEL_CONTACT_RESULTS`` or ``./results``.
+    token : bearer token required on POST; None: ``TUNNEL_CONTACT_TOKEN`` (or none).
+    """
+    settings = Settings.from_env(host=host, port=port, scheduler=scheduler, results=results, token=token)
+    logger.info("serving on http://%s:%d", settings.host, settings.port)
+    uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_level="info")

@@ -1,0 +1,79 @@
+"""Service settings, read once from the environment.
+
+Environment variables
+---------------------
+``DASK_SCHEDULER_ADDRESS``
+    Address of an external dask scheduler (``tcp://host:8786``). Unset: the
+    service starts an embedded ``LocalCluster`` (one process per worker, one
+    thread each).
+``TUNNEL_CONTACT_RESULTS``
+    Results directory (default ``./results``): case files, plots, combined
+    sweep files and the job database ``jobs.sqlite``.
+``TUNNEL_CONTACT_HOST`` / ``TUNNEL_CONTACT_PORT``
+    Bind address (default ``127.0.0.1:8000``; loopback unless asked otherwise).
+``TUNNEL_CONTACT_TOKEN``
+    When set, every ``POST`` needs ``Authorization: Bearer <token>``.
+``TUNNEL_CONTACT_MAX_BODY_BYTES`` / ``TUNNEL_CONTACT_MAX_SWEEP_CASES``
+    Request body cap (default 1 MiB) and sweep size cap (default 1000 cases).
+``TUNNEL_CONTACT_LOCAL_WORKERS``
+    Worker processes of the embedded cluster (default: one per CPU).
+"""
+from __future__ import annotations
+
+import os
+from functools import lru_cache
+from pathlib import Path
+from typing import Mapping, Optional
+
+from pydantic import BaseModel, ConfigDict, Field
+
+#: Environment variable for each settings field.
+ENVIRONMENT = {
+    "scheduler": "DASK_SCHEDULER_ADDRESS",
+    "results": "TUNNEL_CONTACT_RESULTS",
+    "host": "TUNNEL_CONTACT_HOST",
+    "port": "TUNNEL_CONTACT_PORT",
+    "token": "TUNNEL_CONTACT_TOKEN",
+    "max_body_bytes": "TUNNEL_CONTACT_MAX_BODY_BYTES",
+    "max_sweep_cases": "TUNNEL_CONTACT_MAX_SWEEP_CASES",
+    "local_workers": "TUNNEL_CONTACT_LOCAL_WORKERS",
+}
+
+
+class Settings(BaseModel):
+    """Everything the service needs to know about its surroundings."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    scheduler: Optional[str] = Field(None, description="external dask scheduler address; None: embedded cluster")
+    results: Path = Field(Path("results"), description="results directory (case files and job database)")
+    host: str = Field("127.0.0.1", description="bind address")
+    port: int = Field(8000, ge=0, le=65535, description="bind port")
+    token: Optional[str] = Field(None, description="bearer token required on POST; None: no authentication")
+    max_body_bytes: int = Field(1 << 20, gt=0, description="largest accepted request body (bytes)")
+    max_sweep_cases: int = Field(1000, gt=0, description="largest sweep (cases) accepted")
+    local_workers: Optional[int] = Field(None, gt=0, description="embedded cluster worker processes")
+    poll_interval: float = Field(0.5, gt=0, description="seconds between scheduler polls for running tasks")
+    reconcile_interval: float = Field(5.0, gt=0, description="seconds between record/store reconciliations")
+
+    @property
+    def database(self) -> Path:
+        """The SQLite job database inside the results directory."""
+        return self.results / "jobs.sqlite"
+
+    @classmethod
+    def from_env(cls, environ: Mapping[str, str] | None = None, **overrides) -> "Settings":
+        """Settings from environment variables, then keyword overrides (``None`` ignored).
+
+        Empty variables count as unset.
+        """
+        environ = os.environ if environ is None else environ
+        values = {field: environ[var] for field, var in ENVIRONMENT.items() if environ.get(var)}
+        values.update({k: v for k, v in overrides.items() if v is not None})
+        return cls(**values)
+
+
+@lru_cache
+def get_settings() -> Settings:
+    """The process-wide settings (cached; tests override via ``create_app(settings)``)."""
+    return Settings.from_env()

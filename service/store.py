@@ -1,0 +1,263 @@
+"""Job records: cases and sweeps in one SQLite file (WAL mode) under the results directory.
+
+The database holds what the service promised (which cases were asked for, in which
+sweeps) and what it last learnt about each (status, timestamps, summary, error).
+The result files themselves live next to it and are written by :mod:`workflows`.
+One connection, serialised by a lock, is shared by the event loop and worker
+threads; every write is one short transaction, committed before a response goes out.
+"""
+from __future__ import annotations
+
+import json
+import sqlite3
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterable, Optional, Sequence
+
+#: Case states. ``queued`` and ``running`` are open; ``done`` and ``failed`` are final.
+STATUSES = ("queued", "running", "done", "failed")
+OPEN_STATUSES = ("queued", "running")
+
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS cases (
+    id           TEXT PRIMARY KEY,
+    spec         TEXT NOT NULL,
+    status       TEXT NOT NULL CHECK (status IN ('queued', 'running', 'done', 'failed')),
+    summary      TEXT,
+    error        TEXT,
+    submitted_at REAL NOT NULL,
+    started_at   REAL,
+    finished_at  REAL,
+    submissions  INTEGER NOT NULL DEFAULT 0
+);
+CREATE INDEX IF NOT EXISTS cases_by_status ON cases (status, submitted_at);
+CREATE TABLE IF NOT EXISTS sweeps (
+    id           TEXT PRIMARY KEY,
+    name         TEXT NOT NULL,
+    spec         TEXT NOT NULL,
+    submitted_at REAL NOT NULL
+);
+CREATE TABLE IF NOT EXISTS sweep_cases (
+    sweep_id     TEXT NOT NULL REFERENCES sweeps (id),
+    position     INTEGER NOT NULL,
+    case_id      TEXT NOT NULL REFERENCES cases (id),
+    PRIMARY KEY (sweep_id, position)
+);
+"""
+
+
+@dataclass(frozen=True)
+class CaseRecord:
+    """One row of ``cases``; times are Unix seconds."""
+
+    id: str
+    spec: dict
+    status: str
+    summary: Optional[dict]
+    error: Optional[str]
+    submitted_at: float
+    started_at: Optional[float]
+    finished_at: Optional[float]
+    submissions: int
+
+
+@dataclass(frozen=True)
+class SweepRecord:
+    """One row of ``sweeps`` with its case ids in sweep order."""
+
+    id: str
+    name: str
+    spec: dict
+    submitted_at: float
+    case_ids: tuple[str, ...]
+
+
+def _case(row: sqlite3.Row) -> CaseRecord:
+    return CaseRecord(
+        id=row["id"], spec=json.loads(row["spec"]), status=row["status"],
+        summary=json.loads(row["summary"]) if row["summary"] else None, error=row["error"],
+        submitted_at=row["submitted_at"], started_at=row["started_at"],
+        finished_at=row["finished_at"], submissions=row["submissions"])
+
+
+class JobStore:
+    """Case and sweep records in ``path`` (created with its parent directory if missing)."""
+
+    def __init__(self, path: Path | str):
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._lock = threading.Lock()
+        self._db = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None, timeout=30)
+        self._db.row_factory = sqlite3.Row
+        with self._lock:
+            self._db.execute("PRAGMA journal_mode=WAL")
+            # NORMAL in WAL mode: a commit survives the process being killed (not power loss).
+            self._db.execute("PRAGMA synchronous=NORMAL")
+            self._db.execute("PRAGMA foreign_keys=ON")
+            self._db.executescript(_SCHEMA)
+
+    def close(self) -> None:
+        with self._lock:
+            self._db.close()
+
+    def _write(self, sql: str, params: Sequence = ()) -> int:
+        with self._lock:
+            return self._db.execute(sql, params).rowcount
+
+    def _read(self, sql: str, params: Sequence = ()) -> list[sqlite3.Row]:
+        with self._lock:
+            return self._db.execute(sql, params).fetchall()
+
+    # -- cases ---------------------------------------------------------------------------
+
+    def add_case(self, case_id: str, spec_json: str) -> tuple[CaseRecord, bool]:
+        """Record a case as queued unless it exists; return the record and whether it is new."""
+        created = self._write(
+            "INSERT OR IGNORE INTO cases (id, spec, status, submitted_at) VALUES (?, ?, 'queued', ?)",
+            (case_id, spec_json, time.time())) == 1
+        return self.get_case(case_id), created
+
+    def add_cases(self, cases: Iterable[tuple[str, str]]) -> list[str]:
+        """Record many ``(case_id, spec_json)`` as queued in one transaction; return the new ids."""
+        now = time.time()
+        new = []
+        with self._lock:
+            self._db.execute("BEGIN IMMEDIATE")
+            try:
+                for case_id, spec_json in cases:
+                    cursor = self._db.execute(
+                        "INSERT OR IGNORE INTO cases (id, spec, status, submitted_at) "
+                        "VALUES (?, ?, 'queued', ?)", (case_id, spec_json, now))
+                    if cursor.rowcount == 1:
+                        new.append(case_id)
+                self._db.execute("COMMIT")
+            except BaseException:
+                self._db.execute("ROLLBACK")
+                raise
+        return new
+
+    def get_case(self, case_id: str) -> Optional[CaseRecord]:
+        rows = self._read("SELECT * FROM cases WHERE id = ?", (case_id,))
+        return _case(rows[0]) if rows else None
+
+    def list_cases(self, *, status: str | None = None, limit: int = 100,
+                   offset: int = 0) -> tuple[list[CaseRecord], int]:
+        """A page of cases, oldest submission first, and the total matching ``status``."""
+        where, params = ("WHERE status = ?", [status]) if status else ("", [])
+        with self._lock:
+            total = self._db.execute(f"SELECT count(*) FROM cases {where}", params).fetchone()[0]
+            rows = self._db.execute(
+                f"SELECT * FROM cases {where} ORDER BY submitted_at, id LIMIT ? OFFSET ?",
+                [*params, limit, offset]).fetchall()
+        return [_case(r) for r in rows], total
+
+    def open_case_ids(self) -> list[str]:
+        """Ids of cases still ``queued`` or ``running``, oldest first."""
+        rows = self._read("SELECT id FROM cases WHERE status IN ('queued', 'running') "
+                          "ORDER BY submitted_at, id")
+        return [r["id"] for r in rows]
+
+    def count_submission(self, case_id: str) -> None:
+        """Note that the case was (re)submitted to the scheduler."""
+        self._write("UPDATE cases SET submissions = submissions + 1 WHERE id = ?", (case_id,))
+
+    def mark_running(self, case_ids: Iterable[str]) -> int:
+        """Move queued cases to running (others untouched); return how many moved."""
+        now = time.time()
+        with self._lock:
+            return sum(self._db.execute(
+                "UPDATE cases SET status = 'running', started_at = coalesce(started_at, ?) "
+                "WHERE id = ? AND status = 'queued'", (now, cid)).rowcount for cid in case_ids)
+
+    def mark_queued(self, case_id: str) -> None:
+        """Put an open case back in the queue (its task was lost and will be resubmitted)."""
+        self._write("UPDATE cases SET status = 'queued', started_at = NULL "
+                    "WHERE id = ? AND status IN ('queued', 'running')", (case_id,))
+
+    def finish(self, case_id: str, *, status: str, summary: dict | None = None,
+               error: str | None = None, seconds: float | None = None) -> None:
+        """Record a final outcome (``done`` or ``failed``).
+
+        ``seconds``, the task's run time, dates the start when no poll saw it running.
+        """
+        if status not in ("done", "failed"):
+            raise ValueError(f"status: {status!r} is not final")
+        now = time.time()
+        started = now - seconds if seconds is not None else None
+        self._write(
+            "UPDATE cases SET status = ?, summary = ?, error = ?, finished_at = ?, "
+            "started_at = coalesce(started_at, ?) WHERE id = ?",
+            (status, json.dumps(summary) if summary is not None else None, error, now, started, case_id))
+
+    def status_counts(self, case_ids: Sequence[str] | None = None) -> dict[str, int]:
+        """Cases per status (every status present, zero if none), optionally among ``case_ids``."""
+        counts = dict.fromkeys(STATUSES, 0)
+        if case_ids is None:
+            rows = self._read("SELECT status, count(*) AS n FROM cases GROUP BY status")
+        else:
+            rows = self._read(
+                "SELECT status, count(*) AS n FROM cases WHERE id IN "
+                "(SELECT value FROM json_each(?)) GROUP BY status", (json.dumps(list(case_ids)),))
+        counts.update({r["status"]: r["n"] for r in rows})
+        return counts
+
+    def statuses(self, case_ids: Sequence[str]) -> dict[str, str]:
+        """Status of each of ``case_ids`` that has a record."""
+        rows = self._read("SELECT id, status FROM cases WHERE id IN (SELECT value FROM json_each(?))",
+                          (json.dumps(list(case_ids)),))
+        return {r["id"]: r["status"] for r in rows}
+
+    # -- sweeps --------------------------------------------------------------------------
+
+    def add_sweep(self, sweep_id: str, name: str, spec_json: str,
+                  cases: Sequence[tuple[str, str]]) -> tuple[SweepRecord, list[str]]:
+        """Record a sweep and its cases (new cases queued) in one transaction.
+
+        Returns the sweep record and the ids of cases that were not known before.
+        An existing sweep is returned unchanged with no new cases.
+        """
+        now = time.time()
+        new: list[str] = []
+        with self._lock:
+            self._db.execute("BEGIN IMMEDIATE")
+            try:
+                cursor = self._db.execute(
+                    "INSERT OR IGNORE INTO sweeps (id, name, spec, submitted_at) VALUES (?, ?, ?, ?)",
+                    (sweep_id, name, spec_json, now))
+                if cursor.rowcount == 1:
+                    for position, (case_id, case_json) in enumerate(cases):
+                        inserted = self._db.execute(
+                            "INSERT OR IGNORE INTO cases (id, spec, status, submitted_at) "
+                            "VALUES (?, ?, 'queued', ?)", (case_id, case_json, now)).rowcount
+                        if inserted == 1:
+                            new.append(case_id)
+                        self._db.execute(
+                            "INSERT INTO sweep_cases (sweep_id, position, case_id) VALUES (?, ?, ?)",
+                            (sweep_id, position, case_id))
+                self._db.execute("COMMIT")
+            except BaseException:
+                self._db.execute("ROLLBACK")
+                raise
+        return self.get_sweep(sweep_id), new
+
+    def get_sweep(self, sweep_id: str) -> Optional[SweepRecord]:
+        with self._lock:
+            row = self._db.execute("SELECT * FROM sweeps WHERE id = ?", (sweep_id,)).fetchone()
+            if row is None:
+                return None
+            ids = self._db.execute("SELECT case_id FROM sweep_cases WHERE sweep_id = ? ORDER BY position",
+                                   (sweep_id,)).fetchall()
+        return SweepRecord(id=row["id"], name=row["name"], spec=json.loads(row["spec"]),
+                           submitted_at=row["submitted_at"], case_ids=tuple(r["case_id"] for r in ids))
+
+    def writable(self) -> bool:
+        """Whether the database accepts a write (checked inside a rolled-back transaction)."""
+        try:
+            with self._lock:
+                self._db.execute("BEGIN IMMEDIATE")
+                self._db.execute("ROLLBACK")
+            return True
+        except sqlite3.Error:
+            return False
