@@ -71,7 +71,7 @@ def _near(values: np.ndarray, target: float, scale: float) -> np.ndarray:
 def _gravity(density: float, g: float) -> LinearForm:
     @LinearForm
     def load(v, w):
-        return -density * g * v.value[1]
+        return -density * g * v[1]
 
     return load
 
@@ -110,7 +110,7 @@ def _assemble_ground(spec: CaseSpec, body: BodyMesh) -> BodySystem:
 
     @LinearForm
     def surface(v, w):
-        return -q * v.value[1]
+        return -q * v[1]
 
     f = f + asm(surface, top)
 
@@ -131,7 +131,7 @@ def _assemble_ground(spec: CaseSpec, body: BodyMesh) -> BodySystem:
 
         @LinearForm
         def side_pressure(v, w):
-            return -k0 * (q - rho_g * w.x[1]) * v.value[0]
+            return -k0 * (q - rho_g * w.x[1]) * v[0]
 
         f = f + asm(side_pressure, right)
     return _condense(basis, K, f, fixed)

@@ -30,7 +30,7 @@ def nested_dissection(A: sp.spmatrix) -> np.ndarray:
     G.setdiag(0)
     G.eliminate_zeros()
     G.sort_indices()
-    perm, _ = pymetis.nested_dissection(xadj=G.indptr, adjncy=G.indices)
+    perm, _ = pymetis.nested_dissection(adjacency=pymetis.CSRAdjacency(G.indptr, G.indices))
     return np.asarray(perm, dtype=np.int64)
 
 

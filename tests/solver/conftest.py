@@ -1,0 +1,36 @@
+"""Shared checks for solved cases: the lining balance and the discrete KKT conditions."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+
+def assert_kkt(ds, *, tol: float = 1e-7) -> None:
+    """Check balance, λ >= 0, gap >= 0, λ·gap = 0 from the stored arrays (not from kkt_residual)."""
+    lam = ds.contact_pressure.values
+    gap = ds.gap.values
+    w = ds.weight.values
+    nu2 = ds.normal_y.values
+    weight = float(ds.lining_weight)
+    # paper Def. 2.6: ∫F''_2 + I(λ ν2) = 0, F''_2 the (downward) lining weight
+    assert abs(-weight + np.sum(w * lam * nu2)) <= 1e-8 * weight
+    p_ref = max(lam.max(), weight / np.sum(np.abs(nu2) * w) * 2)
+    u_ref = max(np.abs(ds.displacement_x).max(), np.abs(ds.displacement_y).max())
+    assert lam.min() >= -tol * p_ref
+    assert gap.min() >= -tol * u_ref
+    assert np.max(np.abs(lam * gap)) <= tol * p_ref * u_ref
+    # the stored gap is what the stored displacements say
+    gn, ln = ds.ground_node.values, ds.lining_node.values
+    ux, uy = ds.displacement_x.values, ds.displacement_y.values
+    nx, ny = ds.normal_x.values, ds.normal_y.values
+    jump = (ux[gn] - ux[ln]) * nx + (uy[gn] - uy[ln]) * ny
+    np.testing.assert_allclose(ds.normal_jump.values, jump, rtol=0, atol=1e-12 * u_ref)
+    g0 = __import__("json").loads(ds.attrs["case_spec"])["geometry"]["gap"]
+    np.testing.assert_allclose(gap, g0 - jump, rtol=0, atol=1e-12 * u_ref)
+    assert float(ds.kkt_residual) <= tol
+    assert int(ds.converged) == 1
+
+
+@pytest.fixture
+def kkt():
+    return assert_kkt

@@ -1,0 +1,94 @@
+"""CaseSpec validation, case ids, and the mesh contract."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from solver import CaseSpec
+from solver.mesh import build_mesh
+from solver.spec import MAX_ELEMENTS, estimated_elements
+
+
+def test_default_case_and_stable_id():
+    a = CaseSpec()
+    b = CaseSpec.model_validate_json("{}")
+    c = CaseSpec.model_validate({"geometry": {"thickness": 0.3}, "lining": {"young": 3e10}})
+    assert a.case_id == b.case_id == c.case_id
+    assert len(a.case_id) == 16 and int(a.case_id, 16) >= 0
+    assert CaseSpec(geometry=dict(thickness=0.35)).case_id != a.case_id
+    canon = json.loads(a.canonical_json())
+    assert canon["solver"]["bolt"] == "auto" and list(canon) == sorted(canon)
+    with pytest.raises(ValidationError):  # frozen
+        a.geometry.thickness = 1.0  # type: ignore[misc]
+
+
+@pytest.mark.parametrize("patch, field, reason", [
+    ({"ground": {"poisson": 0.5}}, "ground.poisson", "less than 0.5"),
+    ({"lining": {"poisson": -0.1}}, "lining.poisson", "greater than or equal to 0"),
+    ({"ground": {"young": 0}}, "ground.young", "greater than 0"),
+    ({"lining": {"density": 0}}, "lining.density", "greater than 0"),
+    ({"loads": {"gravity": 0}}, "loads.gravity", "greater than 0"),
+    ({"geometry": {"thickness": -0.1}}, "geometry.thickness", "greater than 0"),
+    ({"geometry": {"depth": 3.0}}, "geometry", "depth: cover above"),
+    ({"geometry": {"height": 17.0}}, "geometry", "height: room below"),
+    ({"geometry": {"width": 3.0}}, "geometry", "width: room beside"),
+    ({"geometry": {"gap": 0.5}}, "geometry", "gap:"),
+    ({"mesh": {"interface_size": 1e-3, "far_size": 0.5}}, "", "mesh.interface_size: this mesh would have"),
+    ({"mesh": {"far_size": 0.05}}, "", "mesh.far_size"),
+    ({"solver": {"inner": "newton"}}, "solver.inner", "'active-set' or 'uzawa'"),
+    ({"solver": {"bolt": 200.0}}, "solver.bolt", "outside [0, 180]"),
+    ({"boundaries": {"side": "free"}}, "boundaries.side", "'fixed', 'roller' or 'pressure'"),
+    ({"geometry": {"radius": 3.0}}, "geometry.radius", "Extra inputs are not permitted"),
+    ({"colour": "red"}, "colour", "Extra inputs are not permitted"),
+])
+def test_invalid_cases_name_the_field(patch, field, reason):
+    with pytest.raises(ValidationError) as err:
+        CaseSpec.model_validate(patch)
+    errors = err.value.errors()
+    locs = [".".join(str(p) for p in e["loc"] if not str(p).startswith("function-after")) for e in errors]
+    assert any(loc == field or loc.startswith(field + ".") for loc in locs), locs
+    assert reason in str(err.value)
+
+
+def test_element_cap_is_stated_and_estimate_is_close():
+    spec = CaseSpec()
+    n = estimated_elements(spec)
+    mesh = build_mesh(spec)
+    actual = mesh.ground.t.shape[1] + mesh.lining.t.shape[1]
+    assert 0.7 * actual < n < 1.3 * actual
+    assert MAX_ELEMENTS >= 100_000
+
+
+@pytest.mark.parametrize("gap", [0.0, 0.01])
+def test_mesh_contract(gap):
+    spec = CaseSpec(geometry=dict(gap=gap, thickness=0.2), mesh=dict(interface_size=0.1, far_size=4.0))
+    mesh = build_mesh(spec)
+    iface = mesh.interface
+    c = np.array(mesh.center)
+    # interface ordered crown to invert, duplicated per body, matched in angle
+    assert iface.theta[0] == 0 and iface.theta[-1] == 180 and np.all(np.diff(iface.theta) > 0)
+    pg = mesh.ground.p[:, iface.ground_node]
+    pl = mesh.lining.p[:, iface.lining_node]
+    np.testing.assert_allclose(np.hypot(*(pg - c[:, None])), spec.geometry.hole_radius, rtol=1e-12)
+    np.testing.assert_allclose(np.hypot(*(pl - c[:, None])), spec.geometry.outer_radius, rtol=1e-12)
+    # normals: unit, towards the tunnel axis
+    np.testing.assert_allclose(np.hypot(*iface.normal), 1.0)
+    assert np.all(np.sum(iface.normal * (c[:, None] - pg), axis=0) > 0)
+    # trapezoid weights sum to the polygonal arc length ~ pi * r
+    assert iface.weight.sum() == pytest.approx(math.pi * spec.geometry.hole_radius, rel=1e-3)
+    # at least four elements through the lining thickness
+    assert mesh.layers >= 4
+    r = np.hypot(*(mesh.lining.p - c[:, None]))
+    assert np.unique(np.round(r, 9)).size == mesh.layers + 1
+    # triangles counter-clockwise, all positive area
+    for body in (mesh.ground, mesh.lining):
+        x, y = body.p[:, body.t]
+        area = 0.5 * ((x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]))
+        assert area.min() > 0
+    # interface element size near the requested one
+    seg = np.diff(np.radians(iface.theta)) * spec.geometry.hole_radius
+    assert seg.max() <= spec.mesh.interface_size * 1.0001
