@@ -1,0 +1,97 @@
+"""Combined results: one theta grid, varied parameters as coordinates, scalars stacked."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from solver import CaseSpec
+from workflows import open_case, open_results, run_and_store
+from workflows.combine import INTERPOLATED, THETA
+
+# different lining thicknesses and, for the last case, a different mesh
+CASES = [
+    {"geometry": {"thickness": 0.25}, "mesh": {"interface_size": 0.25, "far_size": 8.0}},
+    {"geometry": {"thickness": 0.35}, "mesh": {"interface_size": 0.25, "far_size": 8.0}},
+    {"geometry": {"thickness": 0.35}, "mesh": {"interface_size": 0.3, "far_size": 8.0}},
+]
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory):
+    root = tmp_path_factory.mktemp("combine")
+    ids = [run_and_store(CaseSpec.model_validate(c), root) for c in CASES]
+    return root, ids
+
+
+def test_layout(store):
+    root, ids = store
+    combined = open_results(root, ids)
+    assert combined.sizes["case"] == 3
+    assert list(combined["case_id"].values) == ids
+    np.testing.assert_array_equal(combined["theta"], np.arange(0.0, 181.0))
+    # exactly the parameters that vary become coordinates, under their flat names
+    params = {n for n in combined.coords if combined[n].dims == ("case",)} - {"case_id"}
+    assert params == {"lining_thickness", "mesh_interface_size"}
+    np.testing.assert_array_equal(combined["lining_thickness"], [0.25, 0.35, 0.35])
+    np.testing.assert_array_equal(combined["mesh_interface_size"], [0.25, 0.25, 0.3])
+    for name in INTERPOLATED + ("in_contact",):
+        assert combined[name].dims == ("case", "theta")
+    assert combined["max_thrust"].dims == ("case",)
+    assert combined.attrs["Conventions"].startswith("CF-")
+
+
+def test_values_match_the_case_files(store):
+    root, ids = store
+    combined = open_results(root, ids)
+    for i, case_id in enumerate(ids):
+        ds = open_case(root, case_id)
+        for name in ("max_contact_pressure", "contact_extent", "crown_settlement", "max_thrust",
+                     "max_abs_moment", "lining_weight", "converged"):
+            assert combined[name].values[i] == ds[name].values
+        theta = ds["theta"].values
+        on_grid = np.isclose(theta, np.round(theta), atol=1e-9)
+        assert on_grid.sum() >= 2  # crown and invert at least
+        for name in INTERPOLATED + ("in_contact",):
+            scale = np.abs(ds[name].values).max()
+            # stations sit on the grid up to rounding of theta (~1e-9 deg)
+            at_stations = combined[name].isel(case=i).sel(theta=np.round(theta[on_grid])).values
+            np.testing.assert_allclose(at_stations, ds[name].values[on_grid], rtol=0, atol=1e-7 * scale)
+            # between stations linear interpolation stays within the neighbouring values
+            k = np.searchsorted(theta, THETA, side="right").clip(1, theta.size - 1)
+            lo = np.minimum(ds[name].values[k - 1], ds[name].values[k])
+            hi = np.maximum(ds[name].values[k - 1], ds[name].values[k])
+            values = combined[name].isel(case=i).values
+            assert np.all(values >= lo - 1e-12 * scale) and np.all(values <= hi + 1e-12 * scale)
+            if name != "in_contact":  # linear between the two neighbouring stations
+                v = ds[name].values
+                w = (THETA - theta[k - 1]) / (theta[k] - theta[k - 1])
+                np.testing.assert_allclose(values, v[k - 1] + w * (v[k] - v[k - 1]),
+                                           rtol=0, atol=1e-9 * scale)
+
+
+def test_meshes_differ_but_combine(store):
+    root, ids = store
+    sizes = {open_case(root, c).sizes["interface"] for c in ids}
+    assert len(sizes) == 2
+
+
+def test_all_cases_by_default_and_netcdf_round_trip(store, tmp_path):
+    root, ids = store
+    combined = open_results(root)
+    assert sorted(combined["case_id"].values) == sorted(ids)
+    combined.to_netcdf(tmp_path / "combined.nc", engine="netcdf4")
+    with xr.open_dataset(tmp_path / "combined.nc", engine="netcdf4") as back:
+        xr.testing.assert_allclose(back.load(), combined)
+
+
+def test_subset_and_errors(store, tmp_path):
+    root, ids = store
+    one = open_results(root, [ids[1], ids[1]])
+    assert list(one["case_id"].values) == [ids[1]]
+    with pytest.raises(FileNotFoundError):
+        open_results(root, [ids[0], "0123456789abcdef"])
+    with pytest.raises(ValueError):
+        open_results(root, ["../secret"])
+    with pytest.raises(ValueError, match="no cases"):
+        open_results(tmp_path)

@@ -1,0 +1,141 @@
+"""Result store: exact round trip, atomic writes, error records, standard readers."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+import solver
+from solver import CaseSpec, SolverError
+from workflows import open_case, run_and_store
+from workflows.store import (case_path, check_case_id, error_path, read_error, stored_case_ids,
+                             write_case)
+
+COARSE = {"mesh": {"interface_size": 0.25, "far_size": 8.0}}
+CHECKER = Path(sys.executable).with_name("ugrid-checker")
+
+
+@pytest.fixture(scope="module")
+def solved() -> xr.Dataset:
+    return solver.run_case(CaseSpec.model_validate(COARSE))
+
+
+@pytest.fixture(scope="module")
+def stored(tmp_path_factory, solved) -> Path:
+    root = tmp_path_factory.mktemp("store")
+    write_case(root, solved)
+    return case_path(root, solved.attrs["case_id"])
+
+
+def test_round_trip_is_identical(tmp_path, solved):
+    write_case(tmp_path, solved)
+    back = open_case(tmp_path, solved.attrs["case_id"])
+    xr.testing.assert_identical(back, solved)
+    assert back["face_nodes"].dtype == solved["face_nodes"].dtype
+    # fully in memory: the file can be removed while the data stays usable
+    case_path(tmp_path, solved.attrs["case_id"]).unlink()
+    assert float(back["displacement_y"].sum()) == pytest.approx(float(solved["displacement_y"].sum()))
+
+
+def test_stored_case_is_not_recomputed_unless_forced(tmp_path, monkeypatch, solved):
+    calls = []
+
+    def counting(spec):
+        calls.append(spec.case_id)
+        return solved
+
+    monkeypatch.setattr(solver, "run_case", counting)
+    spec = CaseSpec.model_validate(COARSE)
+    assert run_and_store(spec, tmp_path) == spec.case_id
+    assert run_and_store(spec, tmp_path) == spec.case_id
+    assert len(calls) == 1
+    run_and_store(spec, tmp_path, force=True)
+    assert len(calls) == 2
+    assert stored_case_ids(tmp_path) == [spec.case_id]
+
+
+def test_crash_mid_write_leaves_no_file(tmp_path, monkeypatch, solved):
+    def crash(self, path, *args, **kwargs):
+        Path(path).write_bytes(b"CDF partial")  # the temporary file exists, half written
+        raise OSError("disk full")
+
+    monkeypatch.setattr(xr.Dataset, "to_netcdf", crash)
+    with pytest.raises(OSError, match="disk full"):
+        write_case(tmp_path, solved)
+    folder = tmp_path / "cases"
+    assert not case_path(tmp_path, solved.attrs["case_id"]).exists()
+    assert list(folder.iterdir()) == []  # no stray temporary file either
+
+
+def test_failure_is_recorded_and_cleared_by_a_later_success(tmp_path, monkeypatch, solved):
+    spec = CaseSpec.model_validate(COARSE)
+
+    def failing(spec):
+        raise SolverError("no admissible bolt")
+
+    monkeypatch.setattr(solver, "run_case", failing)
+    with pytest.raises(SolverError):
+        run_and_store(spec, tmp_path)
+    record = read_error(tmp_path, spec.case_id)
+    assert record["case_id"] == spec.case_id
+    assert record["error"] == "SolverError: no admissible bolt"
+    assert CaseSpec.model_validate(record["spec"]) == spec
+    assert json.loads(error_path(tmp_path, spec.case_id).read_text()) == record
+    assert not case_path(tmp_path, spec.case_id).exists()
+
+    monkeypatch.setattr(solver, "run_case", lambda spec: solved)
+    run_and_store(spec, tmp_path)
+    assert read_error(tmp_path, spec.case_id) is None
+    assert sorted(p.name for p in (tmp_path / "cases").iterdir()) == [f"{spec.case_id}.nc"]
+
+
+@pytest.mark.parametrize("bad", ["../../etc/passwd", "0123456789ABCDEF", "0123456789abcde",
+                                 "0123456789abcdef0", "0123456789abcdeg", "", None])
+def test_malformed_case_ids_never_reach_a_path(tmp_path, bad):
+    with pytest.raises(ValueError, match="16 lowercase hex"):
+        check_case_id(bad)
+    with pytest.raises(ValueError):
+        open_case(tmp_path, bad)
+
+
+def test_unknown_case_raises_file_not_found(tmp_path):
+    with pytest.raises(FileNotFoundError):
+        open_case(tmp_path, "0123456789abcdef")
+
+
+def test_ugrid_checker_finds_no_errors(stored, tmp_path):
+    good = subprocess.run([str(CHECKER), "-e", str(stored)], capture_output=True, text=True)
+    assert good.returncode == 0, good.stdout + good.stderr
+    assert "No problems found" in good.stdout
+    # the check can fail: the same file without the connectivity's cf_role is an error
+    with xr.open_dataset(stored, mask_and_scale=False) as ds:
+        broken = ds.load()
+    del broken["face_nodes"].attrs["cf_role"]
+    broken.to_netcdf(tmp_path / "broken.nc")
+    bad = subprocess.run([str(CHECKER), "-e", str(tmp_path / "broken.nc")], capture_output=True, text=True)
+    assert bad.returncode != 0 and "R301" in bad.stdout
+
+
+def test_standard_readers_open_the_file(stored, solved):
+    import xugrid
+
+    with xr.open_dataset(stored) as plain:
+        assert plain.attrs["case_id"] == solved.attrs["case_id"]
+        assert "CF-1.10" in plain.attrs["Conventions"] and "UGRID-1.0" in plain.attrs["Conventions"]
+        np.testing.assert_array_equal(plain["contact_pressure"], solved["contact_pressure"])
+    uds = xugrid.open_dataset(stored)
+    grid = uds.ugrid.grid
+    assert grid.n_face == solved.sizes["face"] and grid.n_node == solved.sizes["node"]
+    np.testing.assert_array_equal(grid.face_node_connectivity, solved["face_nodes"].values)
+    np.testing.assert_array_equal(uds["displacement_x"].values, solved["displacement_x"].values)
+    # the mesh is the one the solver produced: total triangle area is the model area
+    x, y = grid.node_x[grid.face_node_connectivity], grid.node_y[grid.face_node_connectivity]
+    area = 0.5 * np.abs((x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0]))
+    g = CaseSpec.model_validate(COARSE).geometry
+    expected = g.width * g.height - 0.5 * np.pi * g.hole_radius**2 + 0.5 * np.pi * (g.outer_radius**2 - g.inner_radius**2)
+    assert area.sum() == pytest.approx(expected, rel=2e-3)

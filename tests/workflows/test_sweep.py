@@ -1,0 +1,171 @@
+"""Sweeps: expansion and its validation, and running on a real 2-process LocalCluster."""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from solver import CaseSpec
+from workflows import MAX_SWEEP_CASES, Sweep, SweepError, expand_sweep, open_case, open_results, run_sweep
+from workflows.store import case_path, error_path, read_error, stored_case_ids
+from workflows.tasks import solve_and_store
+
+COARSE = {"mesh": {"interface_size": 0.25, "far_size": 8.0}}
+
+
+def sweep(vary, mode="grid", base=COARSE) -> Sweep:
+    return Sweep.model_validate({"name": "t", "base": base, "vary": vary, "mode": mode})
+
+
+@pytest.mark.parametrize("vary, mode, n", [
+    ({}, "grid", 1),
+    ({"ground.young": [2e7, 5e7, 8e7]}, "grid", 3),
+    ({"lining.thickness": [0.2, 0.3, 0.4], "ground.young": [2e7, 5e7]}, "grid", 6),
+    ({"lining.thickness": [0.2, 0.3, 0.4], "ground.young": [2e7, 5e7, 8e7]}, "zip", 3),
+    ({"geometry.gap": [0.0, 0.01], "boundaries.side": ["fixed", "roller", "pressure"],
+      "solver.inner": ["uzawa"]}, "grid", 6),
+    ({"ground.young": [2e7, 2e7, 2.0e7]}, "grid", 1),  # the same case is listed once
+])
+def test_expansion_sizes(vary, mode, n):
+    cases = expand_sweep(sweep(vary, mode))
+    assert len(cases) == n
+    assert len({c.case_id for c in cases}) == n
+
+
+def test_expanded_values():
+    cases = expand_sweep(sweep({"lining.thickness": [0.2, 0.4], "ground.young": [2e7, 5e7]}))
+    assert [(c.geometry.thickness, c.ground.young) for c in cases] == [
+        (0.2, 2e7), (0.2, 5e7), (0.4, 2e7), (0.4, 5e7)]
+    # everything not varied comes from the base
+    assert all(c.mesh.interface_size == 0.25 and c.lining == CaseSpec().lining for c in cases)
+    zipped = expand_sweep(sweep({"geometry.thickness": [0.2, 0.4], "ground.young": [2e7, 5e7]}, "zip"))
+    assert [(c.geometry.thickness, c.ground.young) for c in zipped] == [(0.2, 2e7), (0.4, 5e7)]
+
+
+def test_all_errors_are_reported_at_once():
+    bad = sweep({"geometry.colour": [1], "ground.young": [], "lining.thickness": [0.3, -0.1],
+                 "loads.gravity": [9.81, "lots"]})
+    with pytest.raises(SweepError) as info:
+        expand_sweep(bad)
+    errors = dict(info.value.errors)
+    assert len(info.value.errors) == 4
+    assert "unknown parameter" in errors["geometry.colour"]
+    assert "empty" in errors["ground.young"]
+    assert "-0.1" in errors["lining.thickness"] and "greater than 0" in errors["lining.thickness"]
+    assert "'lots'" in errors["loads.gravity"]
+    assert isinstance(info.value, ValueError)
+    assert "geometry.colour" in str(info.value) and "lining.thickness" in str(info.value)
+
+
+def test_unequal_zip_and_too_many_cases_reported_together():
+    n = int(np.ceil(np.sqrt(MAX_SWEEP_CASES))) + 1
+    big = sweep({"ground.young": list(np.linspace(1e7, 9e7, n)),
+                 "lining.young": list(np.linspace(1e10, 4e10, n)), "nope.x": [1]})
+    with pytest.raises(SweepError) as info:
+        expand_sweep(big)
+    paths = [p for p, _ in info.value.errors]
+    assert "nope.x" in paths and "vary" in paths
+    assert f"{n * n:,} cases" in dict(info.value.errors)["vary"]
+
+    unequal = sweep({"ground.young": [2e7, 5e7], "lining.young": [3e10], "geometry.depth": [1.0]}, "zip")
+    with pytest.raises(SweepError) as info:
+        expand_sweep(unequal)
+    messages = dict(info.value.errors)
+    assert set(messages) == {"ground.young", "lining.young", "geometry.depth"}
+    assert "zip" in messages["ground.young"]
+    assert any("cover above the tunnel" in m for p, m in info.value.errors if p == "geometry.depth")
+
+
+def test_invalid_combination_is_reported_with_its_case():
+    # each value is fine alone; together the mesh is coarser than the lining allows
+    with pytest.raises(SweepError) as info:
+        expand_sweep(sweep({"geometry.inner_radius": [0.6, 2.5], "mesh.interface_size": [0.1, 0.25]},
+                           base={"mesh": {"interface_size": 0.1, "far_size": 8.0}}))
+    [(path, message)] = info.value.errors
+    assert path == "case" or path.startswith("mesh")
+    assert "geometry.inner_radius=0.6" in message and "mesh.interface_size=0.25" in message
+
+
+def test_sweep_model_rejects_unknown_fields():
+    with pytest.raises(ValidationError):
+        Sweep.model_validate({"name": "t", "colour": "red"})
+    with pytest.raises(ValidationError):
+        Sweep.model_validate({"name": "t", "mode": "product"})
+    with pytest.raises(ValidationError):
+        Sweep.model_validate({"name": "t", "base": {"ground": {"young": -1}}})
+
+
+def test_task_function(tmp_path):
+    spec = CaseSpec.model_validate(COARSE)
+    first = solve_and_store(spec.canonical_json(), str(tmp_path))
+    assert first["status"] == "done" and first["error"] is None and first["computed"]
+    assert first["case_id"] == spec.case_id
+    assert first["summary"]["converged"] == 1.0
+    assert all(isinstance(v, float) for v in first["summary"].values())
+    ds = open_case(tmp_path, spec.case_id)
+    assert first["summary"]["max_thrust"] == float(ds["max_thrust"])
+    second = solve_and_store(spec.canonical_json(), str(tmp_path))
+    assert not second["computed"] and second["summary"] == first["summary"]
+
+    failing = CaseSpec.model_validate({**COARSE, "solver": {"inner": "uzawa", "max_iterations": 1}})
+    result = solve_and_store(failing.canonical_json(), str(tmp_path))
+    assert result["status"] == "failed" and result["summary"] == {}
+    assert "NotConvergedError" in result["error"]
+    assert read_error(tmp_path, failing.case_id)["error"] == result["error"]
+
+
+@pytest.fixture(scope="module")
+def client():
+    from distributed import Client, LocalCluster
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            Client(cluster) as c:
+        yield c
+
+
+def test_run_sweep_on_two_worker_processes(tmp_path, client):
+    thicknesses = [0.2, 0.25, 0.3, 0.35, 0.3]
+    study = sweep({"lining.thickness": thicknesses,
+                   "solver.inner": ["active-set"] * 4 + ["uzawa"],
+                   "solver.max_iterations": [100_000] * 4 + [1]}, mode="zip")
+    results = []
+    ids = run_sweep(study, tmp_path, client=client, on_result=results.append)
+    expected = [c.case_id for c in expand_sweep(study)]
+    assert ids == expected and len(ids) == 5
+    by_id = {r["case_id"]: r for r in results}
+    assert sorted(by_id) == sorted(ids) and len(results) == 5  # one task per case
+    failed = ids[-1]
+    assert by_id[failed]["status"] == "failed" and "did not converge" in by_id[failed]["error"]
+    assert error_path(tmp_path, failed).exists() and not case_path(tmp_path, failed).exists()
+    done = ids[:-1]
+    assert all(by_id[c]["status"] == "done" and by_id[c]["computed"] for c in done)
+    assert stored_case_ids(tmp_path) == sorted(done)
+    # both workers took part
+    assert len(client.scheduler_info()["workers"]) == 2
+
+    combined = open_results(tmp_path, done)
+    np.testing.assert_array_equal(combined["lining_thickness"], thicknesses[:4])
+    for i, case_id in enumerate(done):
+        ds = open_case(tmp_path, case_id)
+        assert by_id[case_id]["summary"]["max_contact_pressure"] == float(ds["max_contact_pressure"])
+        np.testing.assert_allclose(combined["thrust"].isel(case=i).sel(theta=[0.0, 180.0]),
+                                   ds["thrust"].values[[0, -1]], rtol=1e-12)
+
+    # the second run computes nothing that is stored; only the failed case is retried
+    mtimes = {c: os.stat(case_path(tmp_path, c)).st_mtime_ns for c in done}
+    again = []
+    assert run_sweep(study, tmp_path, client=client, on_result=again.append) == ids
+    assert [r["case_id"] for r in again] == [failed]
+    assert {c: os.stat(case_path(tmp_path, c)).st_mtime_ns for c in done} == mtimes
+
+
+def test_run_sweep_skips_everything_stored(tmp_path, client):
+    study = sweep({"ground.young": [3e7, 6e7]})
+    first = []
+    ids = run_sweep(study, tmp_path, client=client, on_result=first.append)
+    assert {r["status"] for r in first} == {"done"} and len(first) == 2
+    second = []
+    assert run_sweep(study, tmp_path, client=client, on_result=second.append) == ids
+    assert second == []
