@@ -12,11 +12,11 @@ from typing import Optional
 from fastapi import FastAPI
 from fastapi.exceptions import RequestValidationError
 
+from . import cases, health, sweeps
 from .cluster import cluster_connection
 from .errors import request_validation_handler
 from .guards import BodyLimitMiddleware
 from .jobs import Dispatcher
-from .routes import cases, health, sweeps
 from .settings import Settings, get_settings
 from .store import JobStore
 

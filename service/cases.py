@@ -12,11 +12,11 @@ from solver.spec import CaseSpec
 from workflows.plots import PLOTS
 from workflows.store import case_path
 
-from ..artifacts import render_plot
-from ..errors import responses
-from ..guards import require_token
-from ..schemas import Case, CaseAccepted, CasePage, Status
-from .common import NETCDF, CaseId, jobs_of, not_found, not_ready
+from .artifacts import render_plot
+from .errors import responses
+from .guards import require_token
+from .params import NETCDF, CaseId, jobs_of, not_found, not_ready
+from .schemas import Case, CaseAccepted, CasePage, Status
 
 router = APIRouter(prefix="/cases", tags=["cases"])
 

@@ -8,8 +8,8 @@ import tempfile
 from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
 
-from ..schemas import Health
-from .common import jobs_of, settings_of
+from .params import jobs_of, settings_of
+from .schemas import Health
 
 router = APIRouter(tags=["health"])
 

@@ -1,13 +1,13 @@
-"""What the routes share: path parameters and access to the app's dispatcher."""
+"""What the routers share: id path parameters, access to app state, common errors."""
 from __future__ import annotations
 
 from typing import Annotated
 
 from fastapi import HTTPException, Path, Request
 
-from ..jobs import Dispatcher
-from ..schemas import CASE_ID_PATTERN
-from ..settings import Settings
+from .jobs import Dispatcher
+from .schemas import CASE_ID_PATTERN
+from .settings import Settings
 
 CaseId = Annotated[str, Path(pattern=CASE_ID_PATTERN, description="case id, 16 lowercase hex digits")]
 SweepId = Annotated[str, Path(pattern=CASE_ID_PATTERN, description="sweep id, 16 lowercase hex digits")]

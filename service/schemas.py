@@ -62,7 +62,7 @@ class StatusCounts(BaseModel):
     failed: int = 0
 
 
-class Sweep(BaseModel):
+class SweepStatus(BaseModel):
     """A sweep's record and the state of its cases."""
 
     id: str = Field(description="sweep id: 16 hex digits of the hash of the canonical sweep JSON")
@@ -75,7 +75,7 @@ class Sweep(BaseModel):
     result: Optional[str] = Field(None, description="URL of the combined netCDF once a case is done")
 
     @classmethod
-    def of(cls, record: SweepRecord, counts: dict[str, int]) -> "Sweep":
+    def of(cls, record: SweepRecord, counts: dict[str, int]) -> "SweepStatus":
         return cls(
             id=record.id, name=record.name, case_ids=list(record.case_ids),
             counts=StatusCounts(**counts), total=len(record.case_ids),
@@ -84,7 +84,7 @@ class Sweep(BaseModel):
             result=f"/sweeps/{record.id}/result.nc" if counts["done"] else None)
 
 
-class SweepAccepted(Sweep):
+class SweepAccepted(SweepStatus):
     """Answer to ``POST /sweeps``."""
 
     created: bool = Field(description="false when the same sweep was posted before")

@@ -10,11 +10,11 @@ from workflows import Sweep, SweepError, expand_sweep
 from workflows.store import is_stored
 from workflows.sweep import sweep_size
 
-from ..artifacts import write_combined
-from ..errors import invalid, responses
-from ..guards import require_token
-from ..schemas import FieldError, Sweep as SweepOut, SweepAccepted
-from .common import NETCDF, SweepId, jobs_of, not_found, not_ready, settings_of
+from .artifacts import write_combined
+from .errors import invalid, responses
+from .guards import require_token
+from .params import NETCDF, SweepId, jobs_of, not_found, not_ready, settings_of
+from .schemas import FieldError, SweepAccepted, SweepStatus
 
 router = APIRouter(prefix="/sweeps", tags=["sweeps"])
 
@@ -45,17 +45,17 @@ async def submit_sweep(sweep: Sweep, request: Request, response: Response) -> Sw
             jobs.submit(case_id, specs_by_id[case_id])
     response.headers["Location"] = f"/sweeps/{record.id}"
     counts = jobs.store.status_counts(record.case_ids)
-    return SweepAccepted(**SweepOut.of(record, counts).model_dump(), created=created, new_cases=len(new))
+    return SweepAccepted(**SweepStatus.of(record, counts).model_dump(), created=created, new_cases=len(new))
 
 
-@router.get("/{sweep_id}", response_model=SweepOut, responses=responses(404))
-async def get_sweep(sweep_id: SweepId, request: Request) -> SweepOut:
+@router.get("/{sweep_id}", response_model=SweepStatus, responses=responses(404))
+async def get_sweep(sweep_id: SweepId, request: Request) -> SweepStatus:
     """A sweep's cases and how many are in each status."""
     store = jobs_of(request).store
     record = store.get_sweep(sweep_id)
     if record is None:
         raise not_found("sweep", sweep_id)
-    return SweepOut.of(record, store.status_counts(record.case_ids))
+    return SweepStatus.of(record, store.status_counts(record.case_ids))
 
 
 @router.get("/{sweep_id}/result.nc", response_class=FileResponse, responses={

@@ -1,0 +1,343 @@
+"""The REST API in process (TestClient) on an embedded two-worker LocalCluster.
+
+Every endpoint of SPEC §6, its status codes and error bodies.
+"""
+from __future__ import annotations
+
+import json
+
+import pytest
+import xarray as xr
+from fastapi.testclient import TestClient
+
+from service_helpers import COARSE, coarse_case, wait_until
+from service.app import create_app
+from service.settings import Settings
+from solver.spec import CaseSpec
+from workflows.plots import PLOTS
+from workflows.store import case_path
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+NETCDF_MAGIC = b"\x89HDF"
+
+
+@pytest.fixture(scope="module")
+def app(tmp_path_factory):
+    # reconciliation is left to the tests (they call it), so records planted in the
+    # store stay as planted until then
+    settings = Settings(results=tmp_path_factory.mktemp("results"), local_workers=2,
+                        max_sweep_cases=50, poll_interval=0.1, reconcile_interval=3600)
+    return create_app(settings)
+
+
+@pytest.fixture(scope="module")
+def client(app):
+    with TestClient(app) as c:
+        yield c
+
+
+def finished(client, case_id: str) -> dict:
+    def check():
+        body = client.get(f"/cases/{case_id}").json()
+        return body if body["status"] in ("done", "failed") else None
+    return wait_until(check, what=f"case {case_id}")
+
+
+@pytest.fixture(scope="module")
+def done_case(client) -> dict:
+    response = client.post("/cases", json=COARSE)
+    assert response.status_code == 202
+    return finished(client, response.json()["id"])
+
+
+def plant(app, spec: dict) -> str:
+    """Record a case as queued without submitting it (as a crash would leave it)."""
+    case = CaseSpec.model_validate(spec)
+    app.state.jobs.store.add_case(case.case_id, case.canonical_json())
+    return case.case_id
+
+
+# -- health ---------------------------------------------------------------------------------
+
+def test_health_reports_scheduler_workers_and_store(client):
+    response = client.get("/health")
+    assert response.status_code == 200
+    body = response.json()
+    assert body["status"] == "ok"
+    assert body["scheduler_reachable"] and body["results_writable"]
+    assert body["workers"] == 2
+
+
+def test_openapi_lists_every_endpoint_with_response_models(client):
+    schema = client.get("/openapi.json").json()
+    assert set(schema["paths"]) == {
+        "/cases", "/cases/{case_id}", "/cases/{case_id}/result.nc", "/cases/{case_id}/plots/{name}.png",
+        "/sweeps", "/sweeps/{sweep_id}", "/sweeps/{sweep_id}/result.nc", "/health"}
+    post = schema["paths"]["/cases"]["post"]
+    assert "202" in post["responses"] and "422" in post["responses"]
+    assert {"Case", "CaseAccepted", "CasePage", "SweepStatus", "SweepAccepted", "Health"} <= set(
+        schema["components"]["schemas"])
+    assert client.get("/docs").status_code == 200
+
+
+# -- cases ----------------------------------------------------------------------------------
+
+def test_post_case_answers_202_with_location_then_solves(client, done_case):
+    spec = CaseSpec.model_validate(COARSE)
+    assert done_case["id"] == spec.case_id
+    assert done_case["status"] == "done", done_case["error"]
+    assert done_case["spec"] == json.loads(spec.canonical_json())
+    assert done_case["summary"]["converged"] == 1.0
+    assert done_case["summary"]["max_contact_pressure"] > 0
+    assert done_case["error"] is None
+    assert done_case["submitted_at"] <= done_case["started_at"] <= done_case["finished_at"]
+
+
+def test_post_existing_case_returns_it_without_recomputing(client, app, done_case):
+    path = case_path(app.state.jobs.root, done_case["id"])
+    stamp = path.stat().st_mtime_ns
+    response = client.post("/cases", json=COARSE)
+    assert response.status_code == 202
+    assert response.headers["location"] == f"/cases/{done_case['id']}"
+    body = response.json()
+    assert (body["id"], body["status"], body["created"]) == (done_case["id"], "done", False)
+    assert app.state.jobs.store.get_case(done_case["id"]).submissions == 1
+    assert path.stat().st_mtime_ns == stamp
+
+
+def test_a_new_case_is_queued_and_created(client):
+    response = client.post("/cases", json=coarse_case(loads={"surface_load": 1.234e5}))
+    assert response.status_code == 202
+    body = response.json()
+    assert body["created"] is True and body["status"] in ("queued", "running", "done")
+    assert response.headers["location"] == f"/cases/{body['id']}"
+    assert finished(client, body["id"])["status"] == "done"
+
+
+def test_solver_failure_is_recorded_as_failed_with_its_error(client):
+    bad = coarse_case(solver={"inner": "uzawa", "max_iterations": 1})
+    body = finished(client, client.post("/cases", json=bad).json()["id"])
+    assert body["status"] == "failed"
+    assert "NotConvergedError" in body["error"]
+    assert client.get(f"/cases/{body['id']}/result.nc").status_code == 409
+
+
+def test_list_cases_filters_by_status_and_pages(client, done_case):
+    everything = client.get("/cases", params={"limit": 1000}).json()
+    assert everything["total"] == len(everything["items"]) >= 1
+    done = client.get("/cases", params={"status": "done"}).json()
+    assert done["items"] and all(c["status"] == "done" for c in done["items"])
+    assert done_case["id"] in {c["id"] for c in done["items"]}
+    first = client.get("/cases", params={"limit": 1, "offset": 0}).json()
+    second = client.get("/cases", params={"limit": 1, "offset": 1}).json()
+    assert len(first["items"]) == 1 and first["total"] == everything["total"]
+    if everything["total"] > 1:
+        assert first["items"][0]["id"] != second["items"][0]["id"]
+    response = client.get("/cases", params={"status": "sleeping"})
+    assert response.status_code == 422
+    assert response.json()["errors"][0]["field"] == "status"
+    assert client.get("/cases", params={"limit": 0}).status_code == 422
+
+
+def downloaded(response, tmp_path) -> xr.Dataset:
+    """The netCDF body of ``response``, loaded."""
+    assert response.content.startswith(NETCDF_MAGIC)
+    path = tmp_path / "download.nc"
+    path.write_bytes(response.content)
+    with xr.open_dataset(path, engine="netcdf4") as ds:
+        return ds.load()
+
+
+def test_result_file_of_a_done_case(client, done_case, tmp_path):
+    response = client.get(f"/cases/{done_case['id']}/result.nc")
+    assert response.status_code == 200
+    assert response.headers["content-type"] == "application/x-netcdf"
+    with downloaded(response, tmp_path) as ds:
+        assert ds.attrs["case_id"] == done_case["id"]
+        assert float(ds["max_contact_pressure"]) == pytest.approx(
+            done_case["summary"]["max_contact_pressure"])
+
+
+def test_result_and_plots_of_an_unfinished_case_are_409(client, app):
+    case_id = plant(app, coarse_case(loads={"surface_load": 7.77e4}))
+    assert client.get(f"/cases/{case_id}").json()["status"] == "queued"
+    for url in (f"/cases/{case_id}/result.nc", f"/cases/{case_id}/plots/contact_pressure.png"):
+        response = client.get(url)
+        assert response.status_code == 409
+        assert "queued" in response.json()["detail"]
+
+
+@pytest.mark.parametrize("name", sorted(PLOTS))
+def test_plots_are_png_rendered_once_and_cached(client, app, done_case, name):
+    url = f"/cases/{done_case['id']}/plots/{name}.png"
+    response = client.get(url)
+    assert response.status_code == 200
+    assert response.headers["content-type"] == "image/png"
+    assert response.content.startswith(PNG_MAGIC)
+    cached = app.state.jobs.root / "plots" / done_case["id"] / f"{name}.png"
+    stamp = cached.stat().st_mtime_ns
+    assert client.get(url).content == response.content
+    assert cached.stat().st_mtime_ns == stamp
+
+
+def test_unknown_plot_name_is_404(client, done_case):
+    assert client.get(f"/cases/{done_case['id']}/plots/stress_field.png").status_code == 404
+
+
+@pytest.mark.parametrize("url", [
+    "/cases/0123456789abcdef", "/cases/0123456789abcdef/result.nc",
+    "/cases/0123456789abcdef/plots/contact_pressure.png",
+    "/cases/NOTANID", "/cases/0123456789ABCDEF", "/cases/..%2F..%2Fjobs.sqlite/result.nc",
+    "/sweeps/0123456789abcdef", "/sweeps/0123456789abcdef/result.nc", "/sweeps/xyz"])
+def test_unknown_or_malformed_ids_are_404(client, url):
+    response = client.get(url)
+    assert response.status_code == 404
+    assert response.json()["detail"]
+
+
+# -- invalid input --------------------------------------------------------------------------
+
+@pytest.mark.parametrize("body, field, words", [
+    (coarse_case(geometry={"depth": 1.0}), "geometry.depth", "cover"),
+    (coarse_case(ground={"poisson": 0.5}), "ground.poisson", "less than 0.5"),
+    (coarse_case(ground={"young": "soft"}), "ground.young", "number"),
+    (coarse_case(lining={"colour": "grey"}), "lining.colour", "Extra inputs"),
+    (coarse_case(solver={"bolt": 200}), "solver.bolt", "outside"),
+    (coarse_case(solver={"inner": "magic"}), "solver.inner", "active-set"),
+    ({"mesh": {"interface_size": 5.0, "far_size": 1.0}}, "mesh.far_size", "smaller"),
+    ({"tunnel": {}}, "tunnel", "Extra inputs"),
+])
+def test_invalid_case_is_422_naming_the_field(client, body, field, words):
+    response = client.post("/cases", json=body)
+    assert response.status_code == 422
+    errors = response.json()["errors"]
+    assert field in {e["field"] for e in errors}, errors
+    assert any(words in e["reason"] for e in errors if e["field"] == field), errors
+    assert field in response.json()["detail"]
+
+
+@pytest.mark.parametrize("content", [b"{not json", b"[1, 2]", b""])
+def test_malformed_body_is_422(client, content):
+    response = client.post("/cases", content=content, headers={"content-type": "application/json"})
+    assert response.status_code == 422
+    assert response.json()["errors"][0]["field"] == "body"
+
+
+def test_oversized_body_is_413_before_parsing(client):
+    big = b'{"pad": "' + b"x" * (1 << 20) + b'"}'
+    response = client.post("/cases", content=big, headers={"content-type": "application/json"})
+    assert response.status_code == 413
+
+    def chunks():  # no Content-Length: the cap is enforced while reading
+        for _ in range(20):
+            yield b" " * 65536
+    response = client.post("/sweeps", content=chunks(), headers={"content-type": "application/json"})
+    assert response.status_code == 413
+
+
+def test_body_just_under_the_cap_is_parsed(client):
+    padded = json.dumps(COARSE).encode() + b" " * ((1 << 20) - 100)
+    response = client.post("/cases", content=padded, headers={"content-type": "application/json"})
+    assert response.status_code == 202
+
+
+# -- sweeps ---------------------------------------------------------------------------------
+
+SWEEP = {"name": "thickness", "base": COARSE,
+         "vary": {"lining.thickness": [0.2, 0.3], "ground.young": [2e7, 5e7]}, "mode": "grid"}
+
+
+def test_sweep_runs_and_combines(client, tmp_path):
+    response = client.post("/sweeps", json=SWEEP)
+    assert response.status_code == 202
+    body = response.json()
+    assert response.headers["location"] == f"/sweeps/{body['id']}"
+    assert len(body["case_ids"]) == 4 and body["created"] is True
+    assert sum(body["counts"].values()) == 4
+
+    status = wait_until(lambda: (s := client.get(f"/sweeps/{body['id']}").json())["finished"] and s,
+                        what="the sweep")
+    assert status["counts"] == {"queued": 0, "running": 0, "done": 4, "failed": 0}
+
+    again = client.post("/sweeps", json=SWEEP).json()
+    assert (again["id"], again["created"], again["new_cases"]) == (body["id"], False, 0)
+
+    response = client.get(f"/sweeps/{body['id']}/result.nc")
+    assert response.status_code == 200
+    assert response.headers["x-cases-included"] == "4/4"
+    with downloaded(response, tmp_path) as ds:
+        assert ds.sizes["case"] == 4
+        assert list(ds["case_id"].values) == body["case_ids"]
+        assert sorted(set(ds["lining_thickness"].values)) == [0.2, 0.3]
+        assert ds["contact_pressure"].dims == ("case", "theta")
+
+
+def test_sweep_sharing_cases_reuses_them(client):
+    first = client.post("/sweeps", json=SWEEP).json()
+    other = dict(SWEEP, name="thickness again", vary={"lining.thickness": [0.2, 0.3], "ground.young": [5e7]})
+    body = client.post("/sweeps", json=other).json()
+    assert body["created"] is True and body["id"] != first["id"]
+    assert set(body["case_ids"]) <= set(first["case_ids"]) and body["new_cases"] == 0
+
+
+def test_sweep_result_is_409_until_a_case_is_done(client, app):
+    spec = CaseSpec.model_validate(coarse_case(loads={"surface_load": 9.99e4}))
+    app.state.jobs.store.add_sweep("00000000000000ff", "planted", "{}", [(spec.case_id, spec.canonical_json())])
+    assert client.get("/sweeps/00000000000000ff").json()["counts"]["queued"] == 1
+    assert client.get("/sweeps/00000000000000ff/result.nc").status_code == 409
+
+
+@pytest.mark.parametrize("sweep, field, words", [
+    (dict(SWEEP, vary={"lining.colour": [1, 2]}), "lining.colour", "unknown parameter"),
+    (dict(SWEEP, vary={"ground.young": [2e7, -1.0]}), "ground.young", "greater than 0"),
+    (dict(SWEEP, vary={"ground.young": []}), "ground.young", "empty"),
+    (dict(SWEEP, mode="zip", vary={"lining.thickness": [0.2, 0.3, 0.4], "ground.young": [2e7, 5e7]}),
+     "lining.thickness", "equally long"),
+    (dict(SWEEP, base={"geometry": {"depth": 1.0}}), "base.geometry.depth", "cover"),
+    (dict(SWEEP, mode="diagonal"), "mode", "grid"),
+    ({"base": COARSE, "vary": {}}, "name", "required"),
+    (dict(SWEEP, vary={"ground.young": list(range(1, 11)), "loads.surface_load": list(range(1, 11))}),
+     "vary", "cap"),
+])
+def test_invalid_sweep_is_422_naming_the_field(client, sweep, field, words):
+    response = client.post("/sweeps", json=sweep)
+    assert response.status_code == 422
+    errors = response.json()["errors"]
+    assert any(e["field"] == field and words in e["reason"] for e in errors), errors
+
+
+# -- authentication -------------------------------------------------------------------------
+
+def test_token_guards_every_post_but_not_gets(client, app):
+    original = app.state.settings
+    app.state.settings = original.model_copy(update={"token": "s3cret"})
+    try:
+        for url, body in (("/cases", COARSE), ("/sweeps", SWEEP)):
+            assert client.post(url, json=body).status_code == 401
+            wrong = client.post(url, json=body, headers={"Authorization": "Bearer nope"})
+            assert wrong.status_code == 401 and wrong.headers["www-authenticate"] == "Bearer"
+            right = client.post(url, json=body, headers={"Authorization": "Bearer s3cret"})
+            assert right.status_code == 202
+        assert client.get("/cases").status_code == 200
+        assert client.get("/health").status_code == 200
+    finally:
+        app.state.settings = original
+
+
+# -- recovery -------------------------------------------------------------------------------
+
+def test_reconcile_resubmits_orphans_and_adopts_stored_results(client, app, done_case):
+    jobs = app.state.jobs
+    orphan = plant(app, coarse_case(loads={"surface_load": 8.88e4}))
+    jobs.store.mark_running([orphan])  # left running by a process that died
+    assert client.get(f"/cases/{orphan}").json()["status"] == "running"
+    client.portal.call(jobs.reconcile)
+    assert finished(client, orphan)["status"] == "done"
+
+    # a record that lost its outcome but whose result file exists is done without solving
+    jobs.store._write("UPDATE cases SET status = 'running', summary = NULL WHERE id = ?", (done_case["id"],))
+    submissions = jobs.store.get_case(done_case["id"]).submissions
+    client.portal.call(jobs.reconcile)
+    record = jobs.store.get_case(done_case["id"])
+    assert record.status == "done" and record.summary["converged"] == 1.0
+    assert record.submissions == submissions
