@@ -46,6 +46,14 @@ class BodySystem:
         u[mask] = u_free[self.free_of[mask]]
         return u
 
+    def node_of_dof(self) -> np.ndarray:
+        """(n,) mesh node of each free DOF."""
+        out = np.empty(self.n, np.int64)
+        nodes = np.broadcast_to(np.arange(self.free_of.shape[1]), self.free_of.shape)
+        mask = self.free_of >= 0
+        out[self.free_of[mask]] = nodes[mask]
+        return out
+
     def rigid_vertical(self) -> np.ndarray:
         """Free-DOF vector of the rigid upward translation u_y = 1 (the lining's zero mode)."""
         r = np.zeros(self.n)

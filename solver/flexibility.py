@@ -59,14 +59,12 @@ def interface_operator(body: BodySystem, nodes: np.ndarray, normal: np.ndarray, 
 
 def _factor_body(body: BodySystem, B: sp.csr_matrix, pin: int | None) -> BodyInterface:
     dofs = np.unique(B.indices)
-    K = body.K
+    K, groups = body.K, body.node_of_dof()
     if pin is not None:
         keep = np.flatnonzero(np.arange(body.n) != pin)
-        K = K[keep][:, keep]
-        shifted = dofs - (dofs > pin)
-        factor = InterfaceFactor(K, shifted)
+        factor = InterfaceFactor(K[keep][:, keep], dofs - (dofs > pin), groups[keep])
     else:
-        factor = InterfaceFactor(K, dofs)
+        factor = InterfaceFactor(K, dofs, groups)
     return BodyInterface(system=body, B=B, factor=factor, dofs=dofs,
                          Bd=B[:, dofs].toarray(), fixed_dof=pin)
 
@@ -90,7 +88,7 @@ def condense_interface(system: System, iface: Interface, g0: float):
     S = np.zeros((iface.size, iface.size))
     d = np.zeros(iface.size)
     for body in (g, l):
-        S += body.Bd @ body.factor.G @ body.Bd.T
+        S += body.factor.flexibility(body.Bd)
         d += body.B @ body.solve(body.system.f)
     F2 = float(lining.rigid_vertical() @ lining.f)
     dual = DualProblem(S=0.5 * (S + S.T), d=d, g0=np.full(iface.size, g0), w=iface.weight,

@@ -1,10 +1,11 @@
 """Sparse factorization with a block of "interface" unknowns eliminated last.
 
 The contact problem only needs the stiffness inverse on the interface DOFs,
-``G = (K^-1)[Γ, Γ]``. Ordering the interface DOFs last (the rest by METIS nested
-dissection) makes the trailing block of the LU factors the Schur complement
-``S_Γ = K_ΓΓ - K_ΓI K_II^-1 K_IΓ``, so ``G = S_Γ^-1`` costs one factorization
-plus a small dense inverse instead of one solve per interface DOF.
+``(K^-1)[Γ, Γ]``, seen through the normals. Ordering the interface DOFs last (the
+rest by METIS nested dissection) makes the trailing block of the LU factors the
+Schur complement ``S_Γ = K_ΓΓ - K_ΓI K_II^-1 K_IΓ``, so ``(K^-1)[Γ, Γ] = S_Γ^-1``
+costs one factorization plus one small dense triangular solve instead of one
+sparse solve per interface DOF.
 """
 from __future__ import annotations
 
@@ -18,20 +19,30 @@ import scipy.sparse.linalg as spla
 log = logging.getLogger(__name__)
 
 
-def nested_dissection(A: sp.spmatrix) -> np.ndarray:
-    """Fill-reducing ordering of the symmetric pattern of ``A`` (METIS)."""
+def nested_dissection(A: sp.spmatrix, groups: np.ndarray | None = None) -> np.ndarray:
+    """Fill-reducing ordering of the symmetric pattern of ``A`` (METIS).
+
+    ``groups`` (n,) assigns each unknown to a mesh node; METIS then orders the
+    (4x smaller) node graph and the unknowns of a node stay together.
+    """
     import pymetis
 
     A = sp.csr_matrix(A)
     n = A.shape[0]
     if n < 64:
         return np.arange(n)
-    G = (A + A.T).tocsr()
+    if groups is None:
+        groups = np.arange(n)
+    _, groups = np.unique(groups, return_inverse=True)
+    P = sp.csr_matrix((np.ones(n), (groups, np.arange(n))), shape=(groups.max() + 1, n))
+    G = (P @ (abs(A) + abs(A.T)) @ P.T).tocsr()
     G.setdiag(0)
     G.eliminate_zeros()
     G.sort_indices()
-    perm, _ = pymetis.nested_dissection(adjacency=pymetis.CSRAdjacency(G.indptr, G.indices))
-    return np.asarray(perm, dtype=np.int64)
+    node_perm, _ = pymetis.nested_dissection(adjacency=pymetis.CSRAdjacency(G.indptr, G.indices))
+    rank = np.empty(len(node_perm), np.int64)
+    rank[np.asarray(node_perm)] = np.arange(len(node_perm))
+    return np.argsort(rank[groups], kind="stable")
 
 
 class InterfaceFactor:
@@ -41,43 +52,47 @@ class InterfaceFactor:
     ----------
     K : (n, n) sparse SPD matrix.
     last : (k,) indices of the interface unknowns.
-
-    Attributes
-    ----------
-    G : (k, k) dense ``(K^-1)[last][:, last]``.
+    groups : (n,) optional mesh node of each unknown (see :func:`nested_dissection`).
     """
 
-    def __init__(self, K: sp.spmatrix, last: np.ndarray):
+    def __init__(self, K: sp.spmatrix, last: np.ndarray, groups: np.ndarray | None = None):
         K = sp.csr_matrix(K)
         n = K.shape[0]
         last = np.asarray(last, dtype=np.int64)
         rest = np.setdiff1d(np.arange(n), last)
-        inner = rest[nested_dissection(K[rest][:, rest])]
+        inner = rest[nested_dissection(K[rest][:, rest], None if groups is None else groups[rest])]
         self.perm = np.concatenate([inner, last])
         Kp = sp.csc_matrix(K[self.perm][:, self.perm])
+        # Symmetric pivoting keeps the ordering (K is SPD): U = D L^T.
         self._lu = spla.splu(Kp, permc_spec="NATURAL", diag_pivot_thresh=0.0,
                              options={"SymmetricMode": True})
         self.n, self.k = n, last.size
-        self.G = self._trailing_inverse()
 
-    def _trailing_inverse(self) -> np.ndarray:
+    def flexibility(self, Bd: np.ndarray) -> np.ndarray:
+        """``Bd (K^-1)[last, last] Bd^T`` for a dense (m, k) ``Bd`` acting on ``last``.
+
+        With the interface block trailing, ``(K^-1)[last, last] = S_Γ^-1`` where
+        ``S_Γ = U_tt^T D^-1 U_tt`` is the trailing block of the factors, so the
+        result is ``Y^T D Y`` with ``Y = U_tt^-T Bd^T``: one dense triangular solve.
+        """
         lu, n, k = self._lu, self.n, self.k
         if k == 0:
-            return np.zeros((0, 0))
-        ok = (np.array_equal(lu.perm_c, lu.perm_r)
-              and np.array_equal(np.sort(lu.perm_c[n - k:]), np.arange(n - k, n)))
-        if ok:
-            # SuperLU may postorder the trailing columns; map them back.
-            pos = lu.perm_c[n - k:] - (n - k)
-            L = lu.L.tocsc()[n - k:, n - k:].toarray()
-            U = lu.U.tocsc()[n - k:, n - k:].toarray()
-            S = L @ U  # Schur complement in factor order
-            Ginv = la.inv(S)
-            return Ginv[np.ix_(pos, pos)]
-        log.warning("SuperLU reordered the interface block; computing G by %d solves", k)
-        E = np.zeros((n, k))
-        E[np.arange(n - k, n), np.arange(k)] = 1.0
-        return self._lu.solve(E)[n - k:]
+            return np.zeros((Bd.shape[0], Bd.shape[0]))
+        trailing = lu.perm_c[n - k:]
+        if not (np.array_equal(lu.perm_c, lu.perm_r)
+                and np.array_equal(np.sort(trailing), np.arange(n - k, n))):
+            log.warning("SuperLU reordered the interface block; using %d solves", k)
+            E = np.zeros((n, k))
+            E[np.arange(n - k, n), np.arange(k)] = 1.0
+            G = self._lu.solve(E)[n - k:]
+            return Bd @ G @ Bd.T
+        # SuperLU may postorder the trailing columns: factor position of each interface unknown
+        pos = trailing - (n - k)
+        U = lu.U.tocsc()[n - k:, n - k:].toarray()
+        BdT = np.zeros((k, Bd.shape[0]))
+        BdT[pos] = Bd.T
+        Y = la.solve_triangular(U, BdT, trans="T", lower=False, check_finite=False)
+        return Y.T @ (np.diag(U)[:, None] * Y)
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """``K^-1 b`` for a vector or an (n, j) block."""
