@@ -5,30 +5,15 @@ import numpy as np
 import pytest
 
 from solver import CaseSpec, run_case
+from solver.analytic import ring_in_medium_case as ring_case
+from solver.analytic import ring_pressure, thin_ring_cos2
 
 P = 1.0e5  # far-field vertical pressure (surface load), Pa
 E, NU = 5.0e7, 0.3
 
 
-def ring_case(*, radii: float, K: float, young_l: float = 3e10, thickness: float = 0.3,
-              h: float = 0.1, inner: str = "active-set") -> CaseSpec:
-    """Weightless ground, far field P vertical and K P horizontal, domain `radii` radii each way."""
-    b = 2.5 + thickness
-    return CaseSpec(
-        geometry=dict(inner_radius=2.5, thickness=thickness, width=radii * b + 1,
-                      depth=radii * b + 1, height=2 * radii * b + 2),
-        ground=dict(young=E, poisson=NU, density=0.0),
-        lining=dict(young=young_l, poisson=0.2, density=1.0),
-        loads=dict(surface_load=P, lateral_ratio=K),
-        boundaries=dict(side="pressure", bottom="roller"),
-        mesh=dict(interface_size=h, far_size=16.0),
-        solver=dict(inner=inner),
-    )
-
-
-def exact_pressure(young_l: float, nu_l: float = 0.2, a: float = 2.5, b: float = 2.8) -> float:
-    lam_l = (1 + nu_l) * ((1 - 2 * nu_l) * b**2 + a**2) / (young_l * (b**2 - a**2))
-    return 2 * (1 - NU) * P / (1 + E * lam_l / (1 + NU))
+def exact_pressure(young_l: float) -> float:
+    return ring_pressure(P, E, NU, young_l, 0.2, 2.5, 2.8)
 
 
 def mean_pressure(ds) -> float:
@@ -65,17 +50,6 @@ def test_error_against_exact_ring_falls_as_mesh_halves():
     assert errs_n[2] < 0.25 * errs_n[0]  # at least first order; measured ~O(h^2)
 
 
-def thin_ring(K: float, young_l: float, R: float, t: float) -> tuple[float, float]:
-    """Full-slip, external-loading thin-ring solution: M2 (N·m/m) and p2 (Pa), springline angle."""
-    nu_l = 0.2
-    inertia = t**3 / 12
-    C = E * R * (1 - nu_l**2) / (young_l * t * (1 - NU**2))
-    F = E * R**3 * (1 - nu_l**2) / (young_l * inertia * (1 - NU**2))
-    D2 = (C + F) * (1 - NU) + 15 - 18 * NU
-    M2 = 6 * P * R**2 * (1 - K) * (1 - NU) / D2
-    return M2, -3 * M2 / R**2
-
-
 def test_anisotropic_far_field_matches_thin_ring_cos2theta_terms(kkt):
     """K = 0.5: cos 2θ parts of pressure and moment against the thin-ring solution.
 
@@ -93,7 +67,7 @@ def test_anisotropic_far_field_matches_thin_ring_cos2theta_terms(kkt):
     def cos2(f):
         return -2 * np.trapezoid(f * np.cos(2 * th), th) / np.pi
 
-    M2, p2 = thin_ring(0.5, 3e10, R, t)
+    M2, p2 = thin_ring_cos2(P, 0.5, E, NU, 3e10, 0.2, R, t)
     tol = t / (2 * R)
     assert cos2(ds.contact_pressure.values) == pytest.approx(p2, rel=tol)
     assert cos2(ds.moment.values) == pytest.approx(M2, rel=1.5 * tol)
