@@ -5,16 +5,12 @@ import logging
 from contextlib import asynccontextmanager
 from typing import AsyncIterator, Awaitable, Callable
 
-import dask
 from distributed import Client, LocalCluster
 
 from .settings import Settings
 
 logger = logging.getLogger(__name__)
 
-#: One task per single-threaded worker at a time, so "processing" means "executing"
-#: (see :mod:`service.jobs`); the deployment sets the same on its scheduler.
-SCHEDULER_CONFIG = {"distributed.scheduler.worker-saturation": 1.0}
 #: Seconds to wait for an external scheduler before starting degraded (and retrying).
 CONNECT_TIMEOUT = 5.0
 
@@ -36,10 +32,8 @@ async def cluster_connection(settings: Settings) -> AsyncIterator[Callable[[], A
         yield connect
         return
 
-    with dask.config.set(SCHEDULER_CONFIG):
-        cluster = await LocalCluster(n_workers=settings.local_workers, processes=True,
-                                     threads_per_worker=1, dashboard_address=None,
-                                     asynchronous=True)
+    cluster = await LocalCluster(n_workers=settings.local_workers, processes=True,
+                                 threads_per_worker=1, dashboard_address=None, asynchronous=True)
     logger.info("embedded dask cluster at %s with %d workers",
                 cluster.scheduler_address, len(cluster.workers))
 

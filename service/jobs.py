@@ -8,12 +8,11 @@ Life of a case record
     even if this process goes away, and a resubmission after a restart attaches to
     the task still on the scheduler instead of starting a second one.
 ``running``
-    The scheduler has handed the task to a worker. A poll of
-    :meth:`distributed.Client.processing` every ``poll_interval`` seconds sets it.
-    With scheduler-side queuing a worker holds at most
-    ``ceil(worker-saturation x nthreads)`` tasks; the embedded cluster (and the
-    deployment) use ``worker-saturation = 1.0`` with one thread per worker, so a
-    ``running`` case really is executing.
+    A worker is executing the task: a poll every ``poll_interval`` seconds asks the
+    workers (:meth:`distributed.Client.call_stack`, which lists only tasks in a
+    worker thread right now) and moves ``queued`` records it finds to ``running``.
+    A task too short to be seen by a poll goes from ``queued`` to ``done``; its
+    ``started_at`` is then dated back by the run time the task reports.
 ``done`` / ``failed``
     Final. Set from the task's outcome (one asyncio watcher per submitted future):
     the dict :func:`workflows.tasks.solve_and_store` returns, or the exception the task
@@ -221,11 +220,11 @@ class Dispatcher:
             if not self._tracked or not self.connected:
                 continue
             try:
-                processing = await self.client.processing()
+                executing = await self.client.call_stack()
             except Exception as exc:
-                logger.debug("processing poll failed: %s", exc)
+                logger.debug("poll of executing tasks failed: %s", exc)
                 continue
-            started = [key[len(KEY_PREFIX):] for keys in processing.values() for key in keys
+            started = [key[len(KEY_PREFIX):] for keys in executing.values() for key in keys
                        if isinstance(key, str) and key.startswith(KEY_PREFIX)]
             if started:
                 self.store.mark_running(started)

@@ -1,0 +1,108 @@
+"""Running the service as child processes on loopback: for the demo, the benchmark and tests.
+
+Each child gets its own process group, so stopping it also stops what it spawned
+(a dask worker's nanny and worker, an embedded cluster's worker processes).
+"""
+from __future__ import annotations
+
+import logging
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from contextlib import contextmanager
+from pathlib import Path
+from typing import IO, Iterator, Optional, Sequence
+
+import httpx
+
+logger = logging.getLogger(__name__)
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that nothing listens on right now."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def start(args: Sequence[str], *, log: Optional[Path] = None, env: Optional[dict] = None) -> subprocess.Popen:
+    """Start ``args`` in a new process group, output to ``log`` (or discarded)."""
+    out: IO | int = open(log, "ab") if log is not None else subprocess.DEVNULL
+    try:
+        return subprocess.Popen(list(args), stdout=out, stderr=subprocess.STDOUT, start_new_session=True,
+                                env={**os.environ, **(env or {})})
+    finally:
+        if log is not None:
+            out.close()
+
+
+def stop(process: subprocess.Popen, *, timeout: float = 10.0, sig: int = signal.SIGTERM) -> None:
+    """Signal ``process``'s group (SIGTERM by default), then SIGKILL it if it lingers."""
+    if process.poll() is None:
+        try:
+            os.killpg(process.pid, sig)
+        except ProcessLookupError:
+            pass
+    try:
+        process.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        pass
+    try:  # children of a killed leader may survive it
+        os.killpg(process.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    process.wait(timeout=timeout)
+
+
+def api_command(*, port: int, results: Path, scheduler: Optional[str] = None) -> list[str]:
+    """Command line of ``tunnel-contact -v serve`` on 127.0.0.1:``port`` with this interpreter."""
+    args = [sys.executable, "-m", "service.cli", "-v", "serve", "--host", "127.0.0.1", "--port", str(port),
+            "--results", str(results)]
+    return args + (["--scheduler", scheduler] if scheduler else [])
+
+
+def wait_healthy(url: str, *, timeout: float = 60.0, workers: int = 1,
+                 process: Optional[subprocess.Popen] = None) -> dict:
+    """Poll ``url``/health until it answers 200 with at least ``workers`` workers; return the body.
+
+    Raises
+    ------
+    RuntimeError
+        If ``process`` exits first, or ``timeout`` s pass.
+    """
+    deadline = time.monotonic() + timeout
+    last = "no answer"
+    while time.monotonic() < deadline:
+        if process is not None and process.poll() is not None:
+            raise RuntimeError(f"service exited with code {process.returncode} before it was healthy")
+        try:
+            response = httpx.get(f"{url}/health", timeout=2.0)
+            last = f"{response.status_code} {response.text}"
+            if response.status_code == 200 and response.json()["workers"] >= workers:
+                return response.json()
+        except httpx.HTTPError as exc:
+            last = str(exc)
+        time.sleep(0.2)
+    raise RuntimeError(f"{url} not healthy after {timeout} s: {last}")
+
+
+@contextmanager
+def running_service(results: Path, *, scheduler: Optional[str] = None, log: Optional[Path] = None,
+                    timeout: float = 90.0, env: Optional[dict] = None) -> Iterator[str]:
+    """Run the service (embedded cluster unless ``scheduler``) on a free port; yield its URL.
+
+    The service is stopped on exit, also on an exception or Ctrl-C.
+    """
+    port = free_port()
+    url = f"http://127.0.0.1:{port}"
+    process = start(api_command(port=port, results=Path(results), scheduler=scheduler), log=log, env=env)
+    logger.info("service starting at %s (pid %d)", url, process.pid)
+    try:
+        wait_healthy(url, timeout=timeout, process=process)
+        yield url
+    finally:
+        stop(process)
+        logger.info("service at %s stopped", url)

@@ -1,0 +1,141 @@
+"""The deployment topology without containers: scheduler, two workers and the API as processes.
+
+Submits a sweep over HTTP, kills the API (SIGKILL) and restarts it, and kills it
+again right after queuing work: every record and result must survive and every
+queued case must complete after the restart.
+"""
+from __future__ import annotations
+
+import signal
+import sys
+from pathlib import Path
+
+import httpx
+import pytest
+import xarray as xr
+
+from service.process import api_command, free_port, start, stop, wait_healthy
+from service_helpers import COARSE, coarse_case, wait_until
+from workflows.store import case_path
+
+DASK = str(Path(sys.executable).with_name("dask"))
+SWEEP = {"name": "integration", "base": COARSE,
+         "vary": {"lining.thickness": [0.2, 0.3], "ground.young": [2e7, 5e7]}, "mode": "grid"}
+
+
+@pytest.fixture(scope="module")
+def cluster(tmp_path_factory):
+    """A dask scheduler and two single-threaded workers on loopback; yields the address."""
+    logs = tmp_path_factory.mktemp("logs")
+    port = free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    processes = []
+    try:
+        processes.append(start([DASK, "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                                "--no-dashboard"], log=logs / "scheduler.log"))
+        for i in range(2):
+            processes.append(start([DASK, "worker", address, "--nthreads", "1", "--host", "127.0.0.1",
+                                    "--no-dashboard", "--name", f"worker-{i}"], log=logs / f"worker-{i}.log"))
+        yield address
+    finally:
+        for process in reversed(processes):
+            stop(process)
+
+
+class Api:
+    """The API process, restartable on the same port and results directory."""
+
+    def __init__(self, scheduler: str, results: Path, log: Path):
+        self.scheduler, self.results, self.log = scheduler, results, log
+        self.port = free_port()
+        self.url = f"http://127.0.0.1:{self.port}"
+        self.process = None
+
+    def start(self) -> None:
+        self.process = start(api_command(port=self.port, results=self.results, scheduler=self.scheduler),
+                             log=self.log)
+        wait_healthy(self.url, timeout=60, workers=2, process=self.process)
+
+    def kill(self) -> None:
+        """SIGKILL: no shutdown hook runs."""
+        stop(self.process, sig=signal.SIGKILL)
+
+    def get(self, path: str) -> httpx.Response:
+        return httpx.get(self.url + path, timeout=30)
+
+    def post(self, path: str, body: dict) -> httpx.Response:
+        return httpx.post(self.url + path, json=body, timeout=30)
+
+
+@pytest.fixture(scope="module")
+def api(cluster, tmp_path_factory):
+    results = tmp_path_factory.mktemp("results")
+    api = Api(cluster, results, results.parent / "api.log")
+    try:
+        api.start()
+        yield api
+    finally:
+        if api.process is not None:
+            stop(api.process)
+
+
+def sweep_finished(api: Api, sweep_id: str):
+    body = api.get(f"/sweeps/{sweep_id}").json()
+    return body if body["finished"] else None
+
+
+def all_done(api: Api, case_ids: list[str]) -> bool:
+    return all(api.get(f"/cases/{c}").json()["status"] == "done" for c in case_ids)
+
+
+def test_sweep_over_http_then_records_survive_sigkill(api, tmp_path):
+    health = api.get("/health").json()
+    assert health["workers"] == 2 and health["scheduler"] == api.scheduler
+
+    response = api.post("/sweeps", SWEEP)
+    assert response.status_code == 202
+    sweep = response.json()
+    status = wait_until(lambda: sweep_finished(api, sweep["id"]), timeout=90, what="the sweep")
+    assert status["counts"]["done"] == 4, status
+
+    download = api.get(f"/sweeps/{sweep['id']}/result.nc")
+    assert download.status_code == 200
+    (tmp_path / "sweep.nc").write_bytes(download.content)
+    with xr.open_dataset(tmp_path / "sweep.nc", engine="netcdf4") as ds:
+        assert ds.sizes["case"] == 4
+        assert sorted(set(ds["ground_young"].values)) == [2e7, 5e7]
+    before = {c["id"]: c for c in api.get("/cases").json()["items"]}
+
+    api.kill()
+    api.start()
+
+    after = {c["id"]: c for c in api.get("/cases").json()["items"]}
+    assert after.keys() == before.keys()
+    assert all(after[c]["status"] == "done" and after[c]["summary"] == before[c]["summary"] for c in after)
+    assert api.get(f"/sweeps/{sweep['id']}").json()["counts"]["done"] == 4
+    again = api.get(f"/sweeps/{sweep['id']}/result.nc")
+    assert again.status_code == 200 and again.content == download.content
+    assert api.post("/sweeps", SWEEP).json()["created"] is False
+
+
+def test_cases_queued_when_the_api_is_killed_complete_after_restart(api):
+    cases = [coarse_case(loads={"surface_load": 5e4 + 1e4 * i}, lining={"young": 2.5e10}) for i in range(6)]
+    ids = []
+    for case in cases:
+        response = api.post("/cases", case)
+        assert response.status_code == 202 and response.json()["created"] is True
+        ids.append(response.json()["id"])
+    api.kill()  # most are still queued on the scheduler, some maybe not even sent
+    assert not all(case_path(api.results, c).is_file() for c in ids[-2:]), "too late to test anything"
+
+    api.start()
+    wait_until(lambda: all_done(api, ids), timeout=90, what="the cases queued before the kill")
+    recovered = api.log.read_text()
+    assert "resubmitted" in recovered or "found in the store" in recovered
+    for case_id in ids:
+        assert case_path(api.results, case_id).is_file()
+        record = api.get(f"/cases/{case_id}").json()
+        assert record["summary"]["converged"] == 1.0
+        assert record["finished_at"] >= record["submitted_at"]
+    assert api.get("/cases").json()["total"] == 4 + len(ids)
+    assert api.get("/health").json()["queued"] == 0
