@@ -6,7 +6,6 @@ REST service of :mod:`service.server`.
 from __future__ import annotations
 
 import argparse
-import logging
 import os
 import sys
 
@@ -56,10 +55,9 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Run ``tunnel-contact`` with ``argv``; return the exit code (2: bad input)."""
     args = build_parser().parse_args(argv)
-    level = (logging.WARNING, logging.INFO, logging.DEBUG)[min(args.verbose, 2)]
-    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    # dask configures its own loggers at INFO; keep them as quiet as ours
-    logging.getLogger("distributed").setLevel(level)
+    from workflows.commands import configure_logging
+
+    configure_logging(args.verbose)
     if args.command == "serve":
         from service.server import serve
 

@@ -36,6 +36,21 @@ TABLE_COLUMNS: tuple[tuple[str, str, float], ...] = (
 )
 
 
+def configure_logging(verbose: int = 0) -> None:
+    """Logging for the command line: warnings by default, ``-v`` info, ``-vv`` debug.
+
+    dask's loggers stay at warning level unless ``verbose >= 2`` (distributed would
+    otherwise log every connection at info level).
+    """
+    import dask
+
+    level = (logging.WARNING, logging.INFO, logging.DEBUG)[min(verbose, 2)]
+    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    dask_level = level if verbose >= 2 else logging.WARNING
+    dask.config.set({"logging.distributed": logging.getLevelName(dask_level).lower()})
+    logging.getLogger("distributed").setLevel(dask_level)  # in case it is already imported
+
+
 class InputError(ValueError):
     """Bad user input; the message is one line."""
 

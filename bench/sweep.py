@@ -1,0 +1,70 @@
+"""Sweep throughput on one and on two dask worker processes.
+
+``python -m bench.sweep [--json] [--cases N]``: the same sweep of N default-size cases
+(lining thickness varied) is solved into a fresh result folder on an embedded
+LocalCluster with 1 and then 2 worker processes (one thread each). Cluster start-up
+and worker warm-up (imports, first mesh) are excluded from the timings. Reports
+cases/minute and the parallel efficiency rate2 / (2 rate1).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+
+def _warm_up() -> None:
+    """Import the solver stack and mesh once, so the timing sees steady-state workers."""
+    import solver
+    from solver.mesh import build_mesh
+
+    build_mesh(solver.CaseSpec.model_validate({"mesh": {"interface_size": 0.5, "far_size": 8.0}}))
+
+
+def measure(n_workers: int, cases: int) -> dict:
+    """Solve the benchmark sweep on ``n_workers`` processes; return timings."""
+    from workflows.sweep import Sweep, local_client, run_sweep
+
+    thicknesses = [round(float(t), 4) for t in np.linspace(0.2, 0.45, cases)]
+    sweep = Sweep(name=f"bench-{n_workers}", vary={"lining.thickness": thicknesses})
+    statuses = []
+    with tempfile.TemporaryDirectory(prefix="bench-sweep-") as root, local_client(n_workers) as client:
+        client.run(_warm_up)
+        start = time.perf_counter()
+        run_sweep(sweep, root, client=client, on_result=statuses.append)
+        seconds = time.perf_counter() - start
+    failed = sum(s["status"] != "done" for s in statuses)
+    solve = [s["summary"].get("solve_seconds", np.nan) for s in statuses]
+    return {"workers": n_workers, "cases": cases, "failed": failed, "seconds": seconds,
+            "cases_per_minute": 60.0 * cases / seconds, "mean_solve_seconds": float(np.nanmean(solve))}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m bench.sweep", description=__doc__.splitlines()[0])
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--cases", type=int, default=8, help="cases in the sweep (default 8)")
+    args = parser.parse_args(argv)
+    from workflows.commands import configure_logging
+
+    configure_logging()
+    one, two = measure(1, args.cases), measure(2, args.cases)
+    report = {"cpu_count": os.cpu_count(), "one_worker": one, "two_workers": two,
+              "efficiency": two["cases_per_minute"] / (2.0 * one["cases_per_minute"])}
+    if args.json:
+        print(json.dumps(report, indent=1))
+    else:
+        for r in (one, two):
+            print(f"{r['workers']} worker(s): {r['cases']} cases in {r['seconds']:.2f} s = "
+                  f"{r['cases_per_minute']:.1f} cases/min (mean solve {r['mean_solve_seconds']:.2f} s, "
+                  f"{r['failed']} failed)")
+        print(f"efficiency rate2 / (2 rate1) = {report['efficiency']:.2f} on {report['cpu_count']} CPUs")
+    return 0 if one["failed"] == two["failed"] == 0 else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

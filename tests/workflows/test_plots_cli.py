@@ -1,0 +1,112 @@
+"""Plots of a case and of combined results; the tunnel-contact command line."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+
+from solver import CaseSpec
+from workflows import open_case, open_results, run_and_store
+from workflows.plots import PLOTS, plot_comparison, plot_contact_pressure, plot_lining_forces
+
+COARSE = {"mesh": {"interface_size": 0.25, "far_size": 8.0}}
+CLI = Path(sys.executable).with_name("tunnel-contact")
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory):
+    root = tmp_path_factory.mktemp("plots")
+    ids = [run_and_store(CaseSpec.model_validate({**COARSE, "geometry": {"thickness": t}}), root)
+           for t in (0.25, 0.35)]
+    return root, ids
+
+
+@pytest.mark.parametrize("name", sorted(PLOTS))
+def test_case_plots_render(store, tmp_path, name):
+    root, ids = store
+    fig = PLOTS[name](open_case(root, ids[0]))
+    assert isinstance(fig, Figure)
+    fig.savefig(tmp_path / f"{name}.png")
+    assert (tmp_path / f"{name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_plotted_curves_are_the_data(store):
+    root, ids = store
+    ds = open_case(root, ids[0])
+    [line] = plot_contact_pressure(ds).axes[0].get_lines()
+    np.testing.assert_allclose(line.get_ydata(), ds["contact_pressure"].values / 1e3)
+    thrust_ax, moment_ax = plot_lining_forces(ds).axes[:2]
+    np.testing.assert_allclose(thrust_ax.get_lines()[0].get_ydata(), ds["thrust"].values / 1e3)
+    np.testing.assert_allclose(moment_ax.get_lines()[0].get_ydata(), ds["moment"].values / 1e3)
+
+
+def test_comparison_plot_has_one_line_per_case(store):
+    root, ids = store
+    combined = open_results(root, ids)
+    lines = plot_comparison(combined, "thrust").axes[0].get_lines()
+    assert len(lines) == 2
+    for i, line in enumerate(lines):
+        np.testing.assert_allclose(line.get_ydata(), combined["thrust"].isel(case=i))
+        assert "lining_thickness=" in line.get_label()
+    with pytest.raises(ValueError):
+        plot_comparison(combined, "max_thrust")
+
+
+def cli(*args, cwd):
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    env.pop("DASK_SCHEDULER_ADDRESS", None)
+    return subprocess.run([str(CLI), *args], cwd=cwd, capture_output=True, text=True, env=env, timeout=120)
+
+
+def test_cli_run_sweep_show(tmp_path):
+    (tmp_path / "case.json").write_text(json.dumps(COARSE))
+    run = cli("run", "case.json", cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    case_id = CaseSpec.model_validate(COARSE).case_id
+    assert (tmp_path / "results" / "cases" / f"{case_id}.nc").is_file()  # ./results by default
+    assert "max_contact_pressure" in run.stdout
+
+    (tmp_path / "sweep.json").write_text(json.dumps(
+        {"name": "cli", "base": COARSE, "vary": {"lining.thickness": [0.25, 0.3]}}))
+    sweep = cli("sweep", "sweep.json", "--results", "out", cwd=tmp_path)
+    assert sweep.returncode == 0, sweep.stderr
+    ids = [c.case_id for c in (CaseSpec.model_validate({**COARSE, "geometry": {"thickness": t}})
+                               for t in (0.25, 0.3))]
+    rows = [line for line in sweep.stdout.splitlines() if line.split()[:1] in ([ids[0]], [ids[1]])]
+    assert len(rows) == 2 and "lining_thickness" in sweep.stdout
+    combined = open_results(tmp_path / "out", ids)
+    assert f"{float(combined['max_contact_pressure'][0]) / 1e3:.4g}" in rows[0]
+    assert "Traceback" not in sweep.stderr
+
+    show = cli("show", ids[1], "--results", "out", cwd=tmp_path)
+    assert show.returncode == 0, show.stderr
+    for name in PLOTS:
+        png = tmp_path / "out" / "plots" / ids[1] / f"{name}.png"
+        assert png.is_file() and png.stat().st_size > 1000
+    assert "lining_thickness = 0.3" in show.stdout
+
+
+@pytest.mark.parametrize("args, content, message", [
+    (["run", "bad.json"], "{not json", "not valid JSON"),
+    (["run", "bad.json"], '{"geometry": {"thickness": -1}}', "geometry.thickness"),
+    (["run", "bad.json"], '{"colour": "red"}', "colour"),
+    (["run", "missing.json"], None, "cannot read"),
+    (["sweep", "bad.json"], '{"name": "x", "vary": {"lining.colour": [1]}}', "lining.colour"),
+    (["sweep", "bad.json"], '{"vary": {}}', "name"),
+    (["show", "not-an-id"], None, "16 lowercase hex"),
+    (["show", "0123456789abcdef"], None, "not in"),
+])
+def test_cli_bad_input_is_one_line_and_exit_2(tmp_path, args, content, message):
+    if content is not None:
+        (tmp_path / "bad.json").write_text(content)
+    result = cli(*args, cwd=tmp_path)
+    assert result.returncode == 2
+    assert "Traceback" not in result.stderr
+    [line] = result.stderr.strip().splitlines()
+    assert line.startswith("tunnel-contact: error:") and message in line
