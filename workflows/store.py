@@ -75,7 +75,7 @@ def stored_case_ids(root: str | os.PathLike) -> list[str]:
     return sorted(p.stem for p in folder.glob("*.nc") if _CASE_ID.fullmatch(p.stem))
 
 
-def run_and_store(spec: CaseSpec, root: str | os.PathLike, *, force: bool = False) -> str:
+def run_and_store(spec: CaseSpec | dict[str, Any], root: str | os.PathLike, *, force: bool = False) -> str:
     """Solve ``spec`` and store its result; return the case id.
 
     A case already stored is returned without computing unless ``force``. When the
@@ -84,10 +84,11 @@ def run_and_store(spec: CaseSpec, root: str | os.PathLike, *, force: bool = Fals
 
     Parameters
     ----------
-    spec : the case.
+    spec : the case (a :class:`CaseSpec` or its dict).
     root : folder of the store (created if missing).
     force : recompute even if the result exists.
     """
+    spec = CaseSpec.model_validate(spec)
     case_id = spec.case_id
     if not force and is_stored(root, case_id):
         logger.info("case %s already stored, not recomputed", case_id)
@@ -177,7 +178,11 @@ def read_error(root: str | os.PathLike, case_id: str) -> dict[str, Any] | None:
 
 
 def remove_stale_temporaries(root: str | os.PathLike, *, older_than: float = 3600.0) -> int:
-    """Delete temporary files left by crashed writers (older than ``older_than`` s)."""
+    """Delete temporary files left by killed writers (older than ``older_than`` s); return how many.
+
+    Writers that fail normally remove their own temporary file; this is for
+    processes that died mid-write (e.g. a killed worker).
+    """
     folder = cases_dir(root)
     removed = 0
     for tmp in folder.glob(f"*{_TMP_SUFFIX}") if folder.is_dir() else ():

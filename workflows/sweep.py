@@ -72,8 +72,11 @@ def sweep_size(sweep: Sweep) -> int:
     return math.prod(lengths) if sweep.mode == "grid" else max(lengths)
 
 
-def expand_sweep(sweep: Sweep) -> list[CaseSpec]:
+def expand_sweep(sweep: Sweep | dict[str, Any]) -> list[CaseSpec]:
     """The cases of ``sweep``, validated, without duplicates, in expansion order.
+
+    ``sweep`` may also be its JSON-like dict (then a ``pydantic.ValidationError`` is
+    raised if it is not a :class:`Sweep` at all).
 
     Checks, all reported together in one :class:`SweepError`: every varied path is
     a parameter of the case model (aliases: :data:`~workflows.parameters.PATH_ALIASES`),
@@ -81,6 +84,7 @@ def expand_sweep(sweep: Sweep) -> list[CaseSpec]:
     lengths, the sweep has at most :data:`MAX_SWEEP_CASES` cases, and every expanded
     case is a valid :class:`CaseSpec`.
     """
+    sweep = Sweep.model_validate(sweep)
     errors = _structure_errors(sweep)
     base = sweep.base.model_dump(mode="json")
     # each value on its own first: the errors then name the varied path and value
@@ -157,7 +161,7 @@ def _messages(exc: ValidationError) -> list[tuple[str, str]]:
              err["msg"].removeprefix("Value error, ")) for err in exc.errors()]
 
 
-def run_sweep(sweep: Sweep, root: str | os.PathLike, client=None, *, progress: bool = False,
+def run_sweep(sweep: Sweep | dict[str, Any], root: str | os.PathLike, client=None, *, progress: bool = False,
               force: bool = False, on_result: Callable[[dict], None] | None = None) -> list[str]:
     """Solve every case of ``sweep`` on dask and store the results; return the case ids.
 
@@ -167,7 +171,7 @@ def run_sweep(sweep: Sweep, root: str | os.PathLike, client=None, *, progress: b
 
     Parameters
     ----------
-    sweep : the study.
+    sweep : the study (a :class:`Sweep` or its dict).
     root : folder of the result store (it must be reachable from the workers).
     client : a ``distributed.Client``; ``None`` starts an embedded LocalCluster
         (2 worker processes, 1 thread each) and closes it afterwards.
@@ -178,10 +182,12 @@ def run_sweep(sweep: Sweep, root: str | os.PathLike, client=None, *, progress: b
     from distributed import as_completed
     from tqdm import tqdm
 
-    from .store import is_stored
+    from .store import is_stored, remove_stale_temporaries
     from .tasks import solve_and_store
 
+    sweep = Sweep.model_validate(sweep)
     specs = expand_sweep(sweep)
+    remove_stale_temporaries(root)
     ids = [s.case_id for s in specs]
     todo = [s for s in specs if force or not is_stored(root, s.case_id)]
     logger.info("sweep %r: %d cases, %d to compute", sweep.name, len(ids), len(todo))

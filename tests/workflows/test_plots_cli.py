@@ -110,3 +110,15 @@ def test_cli_bad_input_is_one_line_and_exit_2(tmp_path, args, content, message):
     assert "Traceback" not in result.stderr
     [line] = result.stderr.strip().splitlines()
     assert line.startswith("tunnel-contact: error:") and message in line
+
+
+def test_cli_run_reports_a_solver_failure(tmp_path):
+    case = {**COARSE, "solver": {"inner": "uzawa", "max_iterations": 1}}
+    (tmp_path / "case.json").write_text(json.dumps(case))
+    result = cli("run", "case.json", cwd=tmp_path)
+    assert result.returncode == 1
+    assert "did not converge" in result.stdout and "Traceback" not in result.stderr
+    case_id = CaseSpec.model_validate(case).case_id
+    assert (tmp_path / "results" / "cases" / f"{case_id}.error.json").is_file()
+    show = cli("show", case_id, cwd=tmp_path)
+    assert show.returncode == 1 and "did not converge" in show.stdout

@@ -169,3 +169,21 @@ def test_run_sweep_skips_everything_stored(tmp_path, client):
     second = []
     assert run_sweep(study, tmp_path, client=client, on_result=second.append) == ids
     assert second == []
+
+
+def test_examples_are_valid():
+    from workflows.commands import load_case, load_sweep
+
+    root = __import__("pathlib").Path(__file__).parents[2] / "examples"
+    assert load_case(root / "case.json") == CaseSpec()  # the example is the default case
+    cases = expand_sweep(load_sweep(root / "sweep.json"))
+    assert 4 <= len(cases) <= 8
+    assert all(c.mesh == CaseSpec().mesh for c in cases)
+
+
+def test_dict_input_and_alias():
+    data = {"name": "t", "base": COARSE, "vary": {"lining.thickness": [0.2, 0.4]}}
+    assert [c.geometry.thickness for c in expand_sweep(data)] == [0.2, 0.4]
+    with pytest.raises(SweepError) as info:
+        expand_sweep({**data, "vary": {"lining.thickness": [0.2], "geometry.thickness": [0.3]}})
+    assert info.value.errors[0][0] == "geometry.thickness"
