@@ -18,6 +18,7 @@ import os
 import re
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -114,7 +115,7 @@ def write_case(root: str | os.PathLike, ds: xr.Dataset) -> Path:
         with dask.config.set(scheduler="synchronous"):
             ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=_encoding(ds))
 
-    _write_atomically(target, write)
+    write_atomically(target, write)
     error_path(root, case_id).unlink(missing_ok=True)
     logger.info("stored case %s in %s", case_id, target)
     return target
@@ -164,7 +165,7 @@ def write_error(root: str | os.PathLike, spec: CaseSpec, exc: BaseException) -> 
     def write(tmp: Path) -> None:
         tmp.write_text(json.dumps(record, indent=1, sort_keys=True))
 
-    _write_atomically(target, write)
+    write_atomically(target, write)
     logger.warning("case %s failed: %s", spec.case_id, record["error"])
     return target
 
@@ -192,8 +193,12 @@ def remove_stale_temporaries(root: str | os.PathLike, *, older_than: float = 360
     return removed
 
 
-def _write_atomically(target: Path, write) -> None:
-    """Call ``write(tmp)`` on a temporary file next to ``target``, then rename it into place."""
+def write_atomically(target: Path, write: Callable[[Path], object]) -> None:
+    """Call ``write(tmp)`` on a temporary file next to ``target``, then rename it into place.
+
+    The temporary file is flushed and fsynced before ``os.replace``; if ``write``
+    raises, it is removed and nothing appears under ``target``.
+    """
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=_TMP_SUFFIX, dir=target.parent)
     os.close(fd)
@@ -209,6 +214,9 @@ def _write_atomically(target: Path, write) -> None:
         tmp.unlink(missing_ok=True)
         raise
     _fsync_dir(target.parent)
+
+
+_write_atomically = write_atomically  # the name service/artifacts.py imports
 
 
 def _fsync_dir(folder: Path) -> None:

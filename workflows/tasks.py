@@ -6,7 +6,7 @@ import time
 
 from solver.spec import CaseSpec
 
-from .store import is_stored, read_error, run_and_store
+from .store import is_stored, run_and_store
 from .summary import read_summary
 
 logger = logging.getLogger(__name__)
@@ -43,9 +43,8 @@ def solve_and_store(spec_json: str, root: str, force: bool = False) -> dict:
     start = time.perf_counter()
     try:
         run_and_store(spec, root, force=force)
-    except Exception:  # recorded by run_and_store; the sweep goes on
-        record = read_error(root, case_id) or {}
-        return {"case_id": case_id, "status": "failed", "error": record.get("error", "unknown error"),
+    except Exception as exc:  # recorded in the store by run_and_store; the sweep goes on
+        return {"case_id": case_id, "status": "failed", "error": f"{type(exc).__name__}: {exc}",
                 "summary": {}, "computed": True, "seconds": time.perf_counter() - start}
     return {"case_id": case_id, "status": "done", "error": None,
             "summary": read_summary(root, case_id), "computed": computed,
