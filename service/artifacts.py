@@ -22,7 +22,7 @@ from typing import Sequence
 
 from workflows import open_case, open_results
 from workflows.plots import PLOTS
-from workflows.store import _write_atomically  # the store's one atomic writer
+from workflows.store import write_atomically
 
 logger = logging.getLogger(__name__)
 
@@ -53,7 +53,7 @@ def render_plot(root: Path, case_id: str, name: str) -> Path:
     with _BUILD_LOCK:
         if not target.is_file():
             figure = plot(open_case(root, case_id))
-            _write_atomically(target, lambda tmp: figure.savefig(tmp, format="png", dpi=110))
+            write_atomically(target, lambda tmp: figure.savefig(tmp, format="png", dpi=110))
             logger.info("rendered %s of case %s", name, case_id)
     return target
 
@@ -76,7 +76,7 @@ def write_combined(root: Path, sweep_id: str, case_ids: Sequence[str]) -> Path:
     with _BUILD_LOCK:
         if not target.is_file():
             combined = open_results(root, case_ids=list(case_ids))
-            _write_atomically(target, lambda tmp: combined.to_netcdf(tmp, engine="netcdf4"))
+            write_atomically(target, lambda tmp: combined.to_netcdf(tmp, engine="netcdf4"))
             logger.info("combined %d cases of sweep %s into %s", len(case_ids), sweep_id, target.name)
             for old in target.parent.glob(f"{sweep_id}-*.nc"):
                 if old != target and time.time() - old.stat().st_mtime > _STALE_AFTER:

@@ -11,8 +11,8 @@ from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 _bearer = HTTPBearer(auto_error=False, description="required on POST when TUNNEL_CONTACT_TOKEN is set")
 
 
-def require_token(request: Request,
-                  credentials: Optional[HTTPAuthorizationCredentials] = Depends(_bearer)) -> None:
+async def require_token(request: Request,
+                        credentials: Optional[HTTPAuthorizationCredentials] = Depends(_bearer)) -> None:
     """Refuse (401) a request without the configured bearer token; no-op when none is configured."""
     expected = request.app.state.settings.token
     if not expected:

@@ -89,9 +89,40 @@ def wait_healthy(url: str, *, timeout: float = 60.0, workers: int = 1,
     raise RuntimeError(f"{url} not healthy after {timeout} s: {last}")
 
 
+def dask_command(*args: str) -> list[str]:
+    """Command line of the ``dask`` CLI installed next to this interpreter."""
+    return [str(Path(sys.executable).with_name("dask")), *args]
+
+
+@contextmanager
+def running_cluster(n_workers: int = 2, *, logs: Optional[Path] = None, nice: int = 0) -> Iterator[str]:
+    """A ``dask scheduler`` and ``n_workers`` single-threaded ``dask worker`` processes on
+    loopback (the deployment's topology); yield the scheduler address, stop them on exit.
+
+    ``nice`` > 0 lowers the workers' CPU priority (so the API stays responsive when
+    they share its cores).
+    """
+    port = free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    log = (lambda name: logs / f"{name}.log") if logs is not None else (lambda name: None)
+    processes = []
+    try:
+        processes.append(start(dask_command("scheduler", "--host", "127.0.0.1", "--port", str(port),
+                                             "--no-dashboard"), log=log("scheduler")))
+        for i in range(n_workers):
+            niced = ["nice", "-n", str(nice)] if nice else []
+            processes.append(start(niced + dask_command("worker", address, "--nthreads", "1", "--host", "127.0.0.1",
+                                                "--no-dashboard", "--name", f"worker-{i}"),
+                                   log=log(f"worker-{i}")))
+        yield address
+    finally:
+        for process in reversed(processes):
+            stop(process)
+
+
 @contextmanager
 def running_service(results: Path, *, scheduler: Optional[str] = None, log: Optional[Path] = None,
-                    timeout: float = 90.0, env: Optional[dict] = None) -> Iterator[str]:
+                    timeout: float = 90.0, env: Optional[dict] = None, workers: int = 1) -> Iterator[str]:
     """Run the service (embedded cluster unless ``scheduler``) on a free port; yield its URL.
 
     The service is stopped on exit, also on an exception or Ctrl-C.
@@ -101,7 +132,7 @@ def running_service(results: Path, *, scheduler: Optional[str] = None, log: Opti
     process = start(api_command(port=port, results=Path(results), scheduler=scheduler), log=log, env=env)
     logger.info("service starting at %s (pid %d)", url, process.pid)
     try:
-        wait_healthy(url, timeout=timeout, process=process)
+        wait_healthy(url, timeout=timeout, process=process, workers=workers)
         yield url
     finally:
         stop(process)

@@ -7,18 +7,16 @@ queued case must complete after the restart.
 from __future__ import annotations
 
 import signal
-import sys
 from pathlib import Path
 
 import httpx
 import pytest
 import xarray as xr
 
-from service.process import api_command, free_port, start, stop, wait_healthy
+from service.process import api_command, free_port, running_cluster, start, stop, wait_healthy
 from service_helpers import COARSE, coarse_case, wait_until
 from workflows.store import case_path
 
-DASK = str(Path(sys.executable).with_name("dask"))
 SWEEP = {"name": "integration", "base": COARSE,
          "vary": {"lining.thickness": [0.2, 0.3], "ground.young": [2e7, 5e7]}, "mode": "grid"}
 
@@ -26,20 +24,8 @@ SWEEP = {"name": "integration", "base": COARSE,
 @pytest.fixture(scope="module")
 def cluster(tmp_path_factory):
     """A dask scheduler and two single-threaded workers on loopback; yields the address."""
-    logs = tmp_path_factory.mktemp("logs")
-    port = free_port()
-    address = f"tcp://127.0.0.1:{port}"
-    processes = []
-    try:
-        processes.append(start([DASK, "scheduler", "--host", "127.0.0.1", "--port", str(port),
-                                "--no-dashboard"], log=logs / "scheduler.log"))
-        for i in range(2):
-            processes.append(start([DASK, "worker", address, "--nthreads", "1", "--host", "127.0.0.1",
-                                    "--no-dashboard", "--name", f"worker-{i}"], log=logs / f"worker-{i}.log"))
+    with running_cluster(2, logs=tmp_path_factory.mktemp("logs")) as address:
         yield address
-    finally:
-        for process in reversed(processes):
-            stop(process)
 
 
 class Api:

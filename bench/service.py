@@ -1,0 +1,124 @@
+"""Service benchmark: request latency while the workers are busy solving.
+
+Starts the deployment's topology on loopback (a ``dask scheduler``, two single-threaded
+``dask worker`` processes and the API), keeps the workers busy with a backlog of
+cases, then has 20 concurrent clients submit 200 distinct cases (``POST /cases``)
+and read each back (``GET /cases/{id}``). Reports p50/p99/max latency of both and
+the error count (any non-2xx answer or transport error). Target: p99 < 50 ms, no errors.
+
+    python -m bench.service [--json] [--clients 20] [--submissions 200] [--scheduler ADDR]
+"""
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import tempfile
+import time
+from contextlib import ExitStack
+from pathlib import Path
+
+import httpx
+import numpy as np
+
+from service.process import running_cluster, running_service
+
+#: Cases that take a while on a worker (default mesh), to keep the workers busy.
+BACKLOG = {"name": "bench-backlog", "base": {},
+           "vary": {"loads.surface_load": [float(v) for v in np.linspace(5e4, 1.5e5, 16)]}}
+
+
+def submission(i: int) -> dict:
+    """The i-th benchmark case: coarse, distinct (so every POST creates a record and a task)."""
+    return {"mesh": {"interface_size": 0.25, "far_size": 8.0},
+            "loads": {"surface_load": 1.0e5 + 10.0 * i, "lateral_ratio": 0.45}}
+
+
+async def client_loop(http: httpx.AsyncClient, jobs: list[int], posts: list, gets: list, errors: list) -> None:
+    """One client: submit its cases one after the other, reading each back."""
+    for i in jobs:
+        try:
+            start = time.perf_counter()
+            response = await http.post("/cases", json=submission(i))
+            posts.append(time.perf_counter() - start)
+            if response.status_code != 202:
+                errors.append(f"POST {response.status_code}")
+                continue
+            start = time.perf_counter()
+            check = await http.get(response.headers["location"])
+            gets.append(time.perf_counter() - start)
+            if check.status_code != 200:
+                errors.append(f"GET {check.status_code}")
+        except httpx.HTTPError as exc:
+            errors.append(f"{type(exc).__name__}: {exc}")
+
+
+async def load(url: str, clients: int, submissions: int) -> dict:
+    """Run the load; return latencies (s) and errors."""
+    posts: list[float] = []
+    gets: list[float] = []
+    errors: list[str] = []
+    limits = httpx.Limits(max_connections=clients)
+    async with httpx.AsyncClient(base_url=url, timeout=30, limits=limits) as http:
+        backlog = (await http.post("/sweeps", json=BACKLOG)).json()
+        busy_before = (await http.get("/health")).json()
+        shares = [list(range(k, submissions, clients)) for k in range(clients)]
+        start = time.perf_counter()
+        await asyncio.gather(*(client_loop(http, share, posts, gets, errors) for share in shares))
+        wall = time.perf_counter() - start
+        busy_after = (await http.get("/health")).json()
+        backlog_state = (await http.get(f"/sweeps/{backlog['id']}")).json()["counts"]
+    return {"posts": posts, "gets": gets, "errors": errors, "wall": wall,
+            "busy_before": busy_before, "busy_after": busy_after, "backlog": backlog_state}
+
+
+def percentiles(samples: list[float]) -> dict:
+    ms = np.asarray(samples) * 1e3
+    return {"n": int(ms.size), "p50_ms": float(np.percentile(ms, 50)), "p99_ms": float(np.percentile(ms, 99)),
+            "max_ms": float(ms.max())}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m bench.service", description=__doc__.splitlines()[0])
+    parser.add_argument("--json", action="store_true", help="print the report as JSON")
+    parser.add_argument("--clients", type=int, default=20)
+    parser.add_argument("--submissions", type=int, default=200)
+    parser.add_argument("--scheduler", default=None, help="use this scheduler instead of starting one")
+    args = parser.parse_args(argv)
+
+    with ExitStack() as stack:
+        work = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="bench-service-")))
+        scheduler = args.scheduler or stack.enter_context(running_cluster(2, logs=work))
+        url = stack.enter_context(running_service(work / "results", scheduler=scheduler,
+                                                  log=work / "api.log", workers=2))
+        raw = asyncio.run(load(url, args.clients, args.submissions))
+
+    report = {
+        "clients": args.clients, "submissions": args.submissions, "wall_s": raw["wall"],
+        "requests_per_s": (len(raw["posts"]) + len(raw["gets"])) / raw["wall"],
+        "post_cases": percentiles(raw["posts"]), "get_case": percentiles(raw["gets"]),
+        "errors": len(raw["errors"]), "error_samples": raw["errors"][:5],
+        "queued_running_at_start": [raw["busy_before"]["queued"], raw["busy_before"]["running"]],
+        "queued_running_at_end": [raw["busy_after"]["queued"], raw["busy_after"]["running"]],
+        "target_met": bool(raw["posts"] and raw["gets"] and not raw["errors"]
+                           and percentiles(raw["posts"])["p99_ms"] < 50
+                           and percentiles(raw["gets"])["p99_ms"] < 50),
+    }
+    if args.json:
+        print(json.dumps(report, indent=1))
+    else:
+        print(f"{report['submissions']} submissions from {report['clients']} concurrent clients in "
+              f"{report['wall_s']:.2f} s ({report['requests_per_s']:.0f} requests/s); workers busy: "
+              f"queued/running {report['queued_running_at_start']} at start, "
+              f"{report['queued_running_at_end']} at end")
+        for name, key in (("POST /cases", "post_cases"), ("GET /cases/{id}", "get_case")):
+            p = report[key]
+            print(f"  {name:<16} n={p['n']:<4} p50 {p['p50_ms']:6.1f} ms  p99 {p['p99_ms']:6.1f} ms  "
+                  f"max {p['max_ms']:6.1f} ms")
+        print(f"  errors: {report['errors']}  target (p99 < 50 ms, no errors): "
+              f"{'met' if report['target_met'] else 'NOT met'}")
+    return 0 if report["target_met"] else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
