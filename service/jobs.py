@@ -86,8 +86,11 @@ class Dispatcher:
     # -- life cycle ----------------------------------------------------------------------
 
     async def start(self) -> None:
-        """Connect, recover open records left by an earlier run, start the background loops."""
-        self.client = await self._connect()
+        """Connect, recover open records left by an earlier run, start the background loops.
+
+        An unreachable scheduler does not stop the start: the service answers (``/health``
+        says 503), records new cases as queued and connects when the scheduler appears.
+        """
         await self.reconcile()
         self._spawn(self._poll_running())
         self._spawn(self._reconcile_forever())

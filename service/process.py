@@ -95,14 +95,15 @@ def dask_command(*args: str) -> list[str]:
 
 
 @contextmanager
-def running_cluster(n_workers: int = 2, *, logs: Optional[Path] = None, nice: int = 0) -> Iterator[str]:
+def running_cluster(n_workers: int = 2, *, logs: Optional[Path] = None, nice: int = 0,
+                    port: Optional[int] = None) -> Iterator[str]:
     """A ``dask scheduler`` and ``n_workers`` single-threaded ``dask worker`` processes on
     loopback (the deployment's topology); yield the scheduler address, stop them on exit.
 
     ``nice`` > 0 lowers the workers' CPU priority (so the API stays responsive when
-    they share its cores).
+    they share its cores); ``port`` is the scheduler's (default: a free one).
     """
-    port = free_port()
+    port = port or free_port()
     address = f"tcp://127.0.0.1:{port}"
     log = (lambda name: logs / f"{name}.log") if logs is not None else (lambda name: None)
     processes = []

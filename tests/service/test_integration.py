@@ -125,3 +125,29 @@ def test_cases_queued_when_the_api_is_killed_complete_after_restart(api):
         assert record["finished_at"] >= record["submitted_at"]
     assert api.get("/cases").json()["total"] == 4 + len(ids)
     assert api.get("/health").json()["queued"] == 0
+
+
+def test_api_started_before_the_scheduler_catches_up(tmp_path):
+    """Compose may start the API first: it serves degraded, then connects and runs what was queued."""
+    port = free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    api = Api(address, tmp_path / "results", tmp_path / "api.log")
+    api.process = start(api_command(port=api.port, results=api.results, scheduler=address), log=api.log)
+    try:
+        health = wait_until(lambda: _answer(api, "/health"), timeout=60, what="the API to answer")
+        assert health.status_code == 503 and health.json()["scheduler_reachable"] is False
+        queued = api.post("/cases", coarse_case(loads={"surface_load": 6.5e4}))
+        assert queued.status_code == 202 and queued.json()["status"] == "queued"
+
+        with running_cluster(1, logs=tmp_path, port=port):
+            wait_healthy(api.url, timeout=60, workers=1, process=api.process)
+            wait_until(lambda: all_done(api, [queued.json()["id"]]), timeout=60, what="the queued case")
+    finally:
+        stop(api.process)
+
+
+def _answer(api: Api, path: str):
+    try:
+        return api.get(path)
+    except httpx.HTTPError:
+        return None
