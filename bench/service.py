@@ -2,8 +2,8 @@
 
 Starts the deployment's topology on loopback (a ``dask scheduler``, two single-threaded
 ``dask worker`` processes and the API), keeps the workers busy with a backlog of
-cases, then has 20 concurrent clients submit 200 distinct cases (``POST /cases``)
-and read each back (``GET /cases/{id}``). Reports p50/p99/max latency of both and
+cases, then has 20 concurrent clients (threads, one connection each) submit 200
+distinct cases (``POST /cases``) and read each back (``GET /cases/{id}``). Reports p50/p99/max latency of both and
 the error count (any non-2xx answer or transport error). Target: p99 < 50 ms, no errors.
 
     python -m bench.service [--json] [--clients 20] [--submissions 200] [--scheduler ADDR]
@@ -11,10 +11,10 @@ the error count (any non-2xx answer or transport error). Target: p99 < 50 ms, no
 from __future__ import annotations
 
 import argparse
-import asyncio
 import json
 import tempfile
 import time
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack
 from pathlib import Path
 
@@ -34,18 +34,18 @@ def submission(i: int) -> dict:
             "loads": {"surface_load": 1.0e5 + 10.0 * i, "lateral_ratio": 0.45}}
 
 
-async def client_loop(http: httpx.AsyncClient, jobs: list[int], posts: list, gets: list, errors: list) -> None:
+def client_loop(http: httpx.Client, jobs: list[int], posts: list, gets: list, errors: list) -> None:
     """One client: submit its cases one after the other, reading each back."""
     for i in jobs:
         try:
             start = time.perf_counter()
-            response = await http.post("/cases", json=submission(i))
+            response = http.post("/cases", json=submission(i))
             posts.append(time.perf_counter() - start)
             if response.status_code != 202:
                 errors.append(f"POST {response.status_code}")
                 continue
             start = time.perf_counter()
-            check = await http.get(response.headers["location"])
+            check = http.get(response.headers["location"])
             gets.append(time.perf_counter() - start)
             if check.status_code != 200:
                 errors.append(f"GET {check.status_code}")
@@ -53,21 +53,36 @@ async def client_loop(http: httpx.AsyncClient, jobs: list[int], posts: list, get
             errors.append(f"{type(exc).__name__}: {exc}")
 
 
-async def load(url: str, clients: int, submissions: int) -> dict:
-    """Run the load; return latencies (s) and errors."""
+def wait_busy(http: httpx.Client, workers: int, timeout: float = 60.0) -> None:
+    """Wait until every worker is executing a case (they have imported the solver and run)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if http.get("/health").json()["running"] >= workers:
+            return
+        time.sleep(0.2)
+    raise RuntimeError(f"workers not busy after {timeout} s")
+
+
+def load(url: str, clients: int, submissions: int) -> dict:
+    """Keep the workers busy, then run the load from ``clients`` threads; return latencies (s) and errors."""
     posts: list[float] = []
     gets: list[float] = []
     errors: list[str] = []
-    limits = httpx.Limits(max_connections=clients)
-    async with httpx.AsyncClient(base_url=url, timeout=30, limits=limits) as http:
-        backlog = (await http.post("/sweeps", json=BACKLOG)).json()
-        busy_before = (await http.get("/health")).json()
-        shares = [list(range(k, submissions, clients)) for k in range(clients)]
+    with ExitStack() as stack:
+        http = stack.enter_context(httpx.Client(base_url=url, timeout=30))
+        pool = stack.enter_context(ThreadPoolExecutor(clients))
+        each = [stack.enter_context(httpx.Client(base_url=url, timeout=30)) for _ in range(clients)]
+        backlog = http.post("/sweeps", json=BACKLOG).raise_for_status().json()
+        wait_busy(http, http.get("/health").json()["workers"])
+        # warm-up, not measured: open each client's connection, every route once
+        list(pool.map(lambda k: client_loop(each[k], [submissions + k], [], [], []), range(clients)))
+        busy_before = http.get("/health").json()
         start = time.perf_counter()
-        await asyncio.gather(*(client_loop(http, share, posts, gets, errors) for share in shares))
+        list(pool.map(lambda k: client_loop(each[k], list(range(k, submissions, clients)), posts, gets, errors),
+                      range(clients)))
         wall = time.perf_counter() - start
-        busy_after = (await http.get("/health")).json()
-        backlog_state = (await http.get(f"/sweeps/{backlog['id']}")).json()["counts"]
+        busy_after = http.get("/health").json()
+        backlog_state = http.get(f"/sweeps/{backlog['id']}").json()["counts"]
     return {"posts": posts, "gets": gets, "errors": errors, "wall": wall,
             "busy_before": busy_before, "busy_after": busy_after, "backlog": backlog_state}
 
@@ -84,14 +99,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--clients", type=int, default=20)
     parser.add_argument("--submissions", type=int, default=200)
     parser.add_argument("--scheduler", default=None, help="use this scheduler instead of starting one")
+    parser.add_argument("--workers", type=int, default=2, help="worker processes to start")
+    parser.add_argument("--nice", type=int, default=0, help="CPU niceness of the started workers")
     args = parser.parse_args(argv)
 
     with ExitStack() as stack:
         work = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="bench-service-")))
-        scheduler = args.scheduler or stack.enter_context(running_cluster(2, logs=work))
+        scheduler = args.scheduler or stack.enter_context(running_cluster(args.workers, logs=work, nice=args.nice))
         url = stack.enter_context(running_service(work / "results", scheduler=scheduler,
-                                                  log=work / "api.log", workers=2))
-        raw = asyncio.run(load(url, args.clients, args.submissions))
+                                                  log=work / "api.log", workers=1))
+        raw = load(url, args.clients, args.submissions)
 
     report = {
         "clients": args.clients, "submissions": args.submissions, "wall_s": raw["wall"],

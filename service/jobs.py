@@ -3,8 +3,10 @@
 Life of a case record
 ---------------------
 ``queued``
-    Recorded, and submitted to the scheduler with :func:`distributed.fire_and_forget`
-    under the stable key ``solve_and_store-<case_id>``, so the task runs to the end
+    Recorded, then submitted to the scheduler (batched: every case that arrives within
+    ``batch_delay`` = 10 ms goes in one graph update) with
+    :func:`distributed.fire_and_forget` under the stable key
+    ``solve_and_store-<case_id>``, so the task runs to the end
     even if this process goes away, and a resubmission after a restart attaches to
     the task still on the scheduler instead of starting a second one.
 ``running``
@@ -70,17 +72,21 @@ class Dispatcher:
     root : results directory handed to the tasks (as seen by the workers).
     poll_interval, reconcile_interval : seconds between scheduler polls for running
         tasks and between reconciliations of open records.
+    batch_delay : seconds a submission waits for others to go to the scheduler with it.
     """
 
     def __init__(self, connect: Callable[[], Awaitable[Client]], store: JobStore, root: Path, *,
-                 poll_interval: float = 0.5, reconcile_interval: float = 5.0):
+                 poll_interval: float = 0.5, reconcile_interval: float = 5.0, batch_delay: float = 0.01):
         self._connect = connect
         self.store = store
         self.root = Path(root)
         self.poll_interval = poll_interval
         self.reconcile_interval = reconcile_interval
+        self.batch_delay = batch_delay
         self.client: Optional[Client] = None
         self._tracked: dict[str, Future] = {}
+        self._pending: dict[str, str] = {}
+        self._flush_timer: Optional[asyncio.TimerHandle] = None
         self._tasks: set[asyncio.Task] = set()
 
     # -- life cycle ----------------------------------------------------------------------
@@ -96,7 +102,10 @@ class Dispatcher:
         self._spawn(self._reconcile_forever())
 
     async def stop(self) -> None:
-        """Stop watching. Submitted tasks keep running on the scheduler (fire and forget)."""
+        """Stop watching. Submitted tasks keep running on the scheduler (fire and forget);
+        cases not sent yet stay ``queued`` in the records for the next start."""
+        if self._flush_timer is not None:
+            self._flush_timer.cancel()
         for task in list(self._tasks):
             task.cancel()
         await asyncio.gather(*self._tasks, return_exceptions=True)
@@ -117,27 +126,42 @@ class Dispatcher:
     # -- submission ----------------------------------------------------------------------
 
     def submit(self, case_id: str, spec_json: str) -> bool:
-        """Send ``case_id`` to the scheduler unless already watched; True if it was sent.
+        """Queue ``case_id`` for the next batch to the scheduler; False if already on its way.
 
-        Never raises for an unreachable scheduler: the record stays ``queued`` and the
-        next reconciliation tries again.
+        Batches go out ``batch_delay`` seconds after their first case, as one scheduler
+        update (a sweep, or many clients posting at once, cost the scheduler one graph
+        update instead of one each). Call from the event loop. Never raises for an
+        unreachable scheduler: the record stays ``queued`` for the next reconciliation.
         """
-        if case_id in self._tracked:
+        if case_id in self._tracked or case_id in self._pending:
             return False
-        if not self.connected:
-            logger.warning("scheduler not connected; case %s stays queued", case_id)
-            return False
-        try:
-            future = self.client.submit(solve_and_store, spec_json, str(self.root),
-                                        key=task_key(case_id), pure=False)
-            fire_and_forget(future)
-        except Exception:
-            logger.exception("could not submit case %s; it stays queued", case_id)
-            return False
-        self._tracked[case_id] = future
-        self.store.count_submission(case_id)
-        self._spawn(self._watch(case_id, future))
+        self._pending[case_id] = spec_json
+        if self._flush_timer is None:
+            self._flush_timer = asyncio.get_running_loop().call_later(self.batch_delay, self._flush)
         return True
+
+    def _flush(self) -> None:
+        """Send the pending cases to the scheduler, fire-and-forget, and watch them."""
+        self._flush_timer = None
+        batch, self._pending = self._pending, {}
+        if not batch:
+            return
+        if not self.connected:
+            logger.warning("scheduler not connected; %d cases stay queued", len(batch))
+            return
+        ids = list(batch)
+        try:
+            futures = self.client.map(solve_and_store, [batch[c] for c in ids], [str(self.root)] * len(ids),
+                                      key=[task_key(c) for c in ids], pure=False)
+            fire_and_forget(futures)
+        except Exception:
+            logger.exception("could not submit %d cases; they stay queued", len(ids))
+            return
+        for case_id, future in zip(ids, futures):
+            self._tracked[case_id] = future
+            self._spawn(self._watch(case_id, future))
+        self.store.count_submissions(ids)
+        logger.debug("submitted %d cases", len(ids))
 
     async def _watch(self, case_id: str, future: Future) -> None:
         """Wait for one task and record its outcome."""
@@ -187,7 +211,7 @@ class Dispatcher:
         if not self.connected:
             await self._reconnect()
         for case_id in self.store.open_case_ids():
-            if case_id in self._tracked:
+            if case_id in self._tracked or case_id in self._pending:
                 continue
             if await self._resolve_from_store(case_id):
                 logger.info("case %s found in the store: done", case_id)

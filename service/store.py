@@ -159,9 +159,13 @@ class JobStore:
                           "ORDER BY submitted_at, id")
         return [r["id"] for r in rows]
 
-    def count_submission(self, case_id: str) -> None:
-        """Note that the case was (re)submitted to the scheduler."""
-        self._write("UPDATE cases SET submissions = submissions + 1 WHERE id = ?", (case_id,))
+    def count_submissions(self, case_ids: Sequence[str]) -> None:
+        """Note that the cases were (re)submitted to the scheduler."""
+        with self._lock:
+            self._db.execute("BEGIN")
+            self._db.executemany("UPDATE cases SET submissions = submissions + 1 WHERE id = ?",
+                                 [(c,) for c in case_ids])
+            self._db.execute("COMMIT")
 
     def mark_running(self, case_ids: Iterable[str]) -> int:
         """Move queued cases to running (others untouched); return how many moved."""
