@@ -31,7 +31,7 @@ test: $(STAMP)
 	MPLBACKEND=Agg $(BIN)/python -m pytest -q
 
 demo: $(STAMP)
-	MPLBACKEND=Agg $(BIN)/python -m workflows.demo
+	MPLBACKEND=Agg $(BIN)/python -m service.demo
 
 bench: $(STAMP)
 	$(BIN)/python -m bench.solver
