@@ -48,7 +48,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--host", default="127.0.0.1")
     p.add_argument("--port", type=int, default=8000)
     scheduler(p)
-    results(p)
+    p.add_argument("--results", default=None, metavar="DIR",
+                   help="result store folder (default: $TUNNEL_CONTACT_RESULTS or ./results)")
     return parser
 
 

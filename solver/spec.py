@@ -10,7 +10,8 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-from typing import Literal, Union
+from functools import lru_cache
+from typing import Literal, NamedTuple, Union
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
@@ -160,6 +161,13 @@ class CaseSpec(_Frozen):
         return hashlib.sha256(self.canonical_json().encode()).hexdigest()[:16]
 
 
+class _SizeOnly(NamedTuple):
+    """The parts of a case that fix the mesh size (duck-types CaseSpec for the helpers below)."""
+
+    geometry: Geometry
+    mesh: MeshSettings
+
+
 def lining_layers(spec: CaseSpec) -> int:
     """Element layers through the lining thickness (at least four)."""
     return max(4, math.ceil(spec.geometry.thickness / spec.mesh.interface_size - 1e-9))
@@ -181,11 +189,17 @@ def estimated_elements(spec: CaseSpec) -> int:
     """Triangles the mesh of ``spec`` will have, estimated without meshing (within ~30 %).
 
     The ground count integrates 4/(sqrt(3) h^2) over the domain with the same size
-    field gmsh uses; the lining is structured.
+    field gmsh uses; the lining is structured. Cached per (geometry, mesh): the
+    service validates every submission with it.
     """
+    return _estimated_elements(spec.geometry, spec.mesh)
+
+
+@lru_cache(maxsize=4096)
+def _estimated_elements(g: Geometry, m: MeshSettings) -> int:
     import numpy as np
 
-    g, m = spec.geometry, spec.mesh
+    spec = _SizeOnly(geometry=g, mesh=m)
     lining = 2 * (2 * interface_segments(spec)) * lining_layers(spec)
     d_min, d_max = size_field_distances(spec)
     nx, ny = 200, 250
