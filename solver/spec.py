@@ -104,7 +104,7 @@ class Boundaries(_Frozen):
 
 
 class MeshSettings(_Frozen):
-    interface_size: float = Field(0.1, gt=0, description="element size along the interface (m)")
+    interface_size: float = Field(0.05, gt=0, description="element size along the interface (m)")
     far_size: float = Field(4.0, gt=0, description="element size far from the tunnel (m)")
 
 
@@ -169,8 +169,10 @@ class _SizeOnly(NamedTuple):
 
 
 def lining_layers(spec: CaseSpec) -> int:
-    """Element layers through the lining thickness (at least four)."""
-    return max(4, math.ceil(spec.geometry.thickness / spec.mesh.interface_size - 1e-9))
+    """Element layers through the lining thickness: at least four, and at most half an
+    interface element thick (P1 triangles are too stiff in bending when coarse across
+    the thickness; the lining is a small part of the DOFs)."""
+    return max(4, math.ceil(2.0 * spec.geometry.thickness / spec.mesh.interface_size - 1e-9))
 
 
 def interface_segments(spec: CaseSpec) -> int:
