@@ -54,10 +54,10 @@ def test_anisotropic_far_field_matches_thin_ring_cos2theta_terms(kkt):
     """K = 0.5: cos 2θ parts of pressure and moment against the thin-ring solution.
 
     Tolerance. The thin-ring theory replaces the lining by its centreline, an
-    error of order t/2R (here 0.3/5.3 = 5.7 %). The P1 lining (8 layers here)
-    is slightly too stiff in bending; the measured moment error falls from 8.7 %
-    (h = t/6) to 7.2 % (t/8) to 6.1 % (t/12), i.e. towards the thin-ring error.
-    So: p2 within t/2R and M2 within 1.5 t/2R, at h = t/8.
+    error of order t/2R (here 0.3/5.3 = 5.7 %). The measured moment error falls
+    from 7.2 % (h = t/6) to 6.3 % (t/8) to 5.7 % (t/12), i.e. onto the thin-ring
+    error; p2 from 1.5 % to 0.6 % to 0.06 %. So, at h = t/8: p2 within t/2R and
+    M2 within 1.25 t/2R (the theory's error plus a quarter of it for the mesh).
     """
     t, R = 0.3, 2.5 + 0.15
     ds = run_case(ring_case(radii=40, K=0.5, h=t / 8))
@@ -70,7 +70,7 @@ def test_anisotropic_far_field_matches_thin_ring_cos2theta_terms(kkt):
     M2, p2 = thin_ring_cos2(P, 0.5, E, NU, 3e10, 0.2, R, t)
     tol = t / (2 * R)
     assert cos2(ds.contact_pressure.values) == pytest.approx(p2, rel=tol)
-    assert cos2(ds.moment.values) == pytest.approx(M2, rel=1.5 * tol)
+    assert cos2(ds.moment.values) == pytest.approx(M2, rel=1.25 * tol)
     # springline: inner fibre in compression; crown: in tension
     assert ds.moment.sel(interface=np.argmin(np.abs(ds.theta.values - 90))) > 0
     assert ds.moment[0] < 0 and ds.moment[-1] < 0
