@@ -27,13 +27,11 @@ class BodySystem:
     K : (n, n) CSR stiffness on the free DOFs (N/m per m of tunnel).
     f : (n,) consistent nodal loads on the free DOFs (N/m).
     free_of : (2, N) free-DOF index of component c at node j, -1 where constrained.
-    n_total : number of DOFs before condensation (2 N).
     """
 
     K: sp.csr_matrix
     f: np.ndarray
     free_of: np.ndarray
-    n_total: int
 
     @property
     def n(self) -> int:
@@ -93,7 +91,7 @@ def _condense(basis: Basis, K, f, fixed: list[np.ndarray]) -> BodySystem:
     index = -np.ones(n_total, np.int64)
     index[free] = np.arange(free.size)
     K = K.tocsr()[free][:, free].tocsr()
-    return BodySystem(K=K, f=np.asarray(f)[free], free_of=index[basis.nodal_dofs], n_total=n_total)
+    return BodySystem(K=K, f=np.asarray(f)[free], free_of=index[basis.nodal_dofs])
 
 
 def _stiffness(basis: Basis, mat: Material):

@@ -143,26 +143,25 @@ def natural_residual(lam, gap, scale_gap, bolt) -> float:
     return float(r.max(initial=0.0))
 
 
-def _curvature(dual: DualProblem, bolt: int) -> tuple[float, tuple]:
+def _curvature(dual: DualProblem, bolt: int) -> float:
     """Largest eigenvalue L (m/Pa) of W_F^-1/2 H W_F^-1/2 by Lanczos (ARPACK).
 
     This is the Lipschitz constant of the reduced dual gradient in the W_F metric,
     so the Uzawa step ρ < 2/L converges (paper (3.15): ρ in (0, 2 C1/C2)).
     """
-    reduced = dual.reduced(bolt)
-    free, _, _, H, _ = reduced
+    free, _, _, H, _ = dual.reduced(bolt)
     s = 1.0 / np.sqrt(dual.w[free])
     M = (s[:, None] * H) * s[None, :]
     if M.shape[0] <= 64:
         L = float(la.eigvalsh(M)[-1])
     else:
         L = float(eigsh(M, k=1, which="LA", tol=1e-10, return_eigenvectors=False)[0])
-    return L, reduced
+    return L
 
 
 def uzawa(dual: DualProblem, bolt: int, lam_init: np.ndarray, *, tol: float, max_iter: int) -> InnerResult:
     """The paper's p,A-algorithm (3.10)-(3.12) with ρ = 1.9 / L (see :func:`_curvature`)."""
-    L, _ = _curvature(dual, bolt)
+    L = _curvature(dual, bolt)
     rho = 1.9 / L
     lam = np.maximum(lam_init, 0.0)
     lam[bolt] = dual.bolt_pressure(lam, bolt)
