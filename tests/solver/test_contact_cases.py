@@ -120,3 +120,25 @@ def test_fixed_bolt_in_the_contact_zone_gives_the_solution(kkt):
     assert abs(float(fixed.bolt_theta) - 170.0) < 2.0
     p = auto.contact_pressure.values
     np.testing.assert_allclose(fixed.contact_pressure.values, p, rtol=0, atol=1e-7 * p.max())
+
+
+def test_search_that_finds_no_admissible_bolt_raises_after_trying_every_candidate(monkeypatch):
+    """Theorem 3.3 guarantees an admissible bolt; if the inner solver ever contradicts it
+    (here: forced), the search tries each candidate once and raises, never returning."""
+    import solver.contact as contact
+    from solver import NoAdmissibleBoltError
+
+    dual, theta = _dual(unloaded())
+    calls = []
+
+    def always_pulling(dual, bolt, lam_init, *, tol, max_iter):
+        calls.append(bolt)
+        lam = np.ones(dual.m)
+        lam[bolt] = -1.0
+        return contact.InnerResult(lam, 1, True)
+
+    monkeypatch.setitem(contact.INNER, "active-set", always_pulling)
+    with pytest.raises(NoAdmissibleBoltError, match="no admissible bolt"):
+        solve_contact(dual, theta, inner="active-set", tol=1e-8, max_iterations=10)
+    candidates = np.flatnonzero(np.abs(dual.nu2) > 1e-12)
+    assert sorted(calls) == sorted(candidates.tolist())
