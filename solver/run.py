@@ -70,7 +70,7 @@ def run_case(spec: CaseSpec) -> xr.Dataset:
         "bolt_theta": float(iface.theta[sol.bolt]),
         "bolt_trials": np.int32(len(sol.trials)),
         "iterations": np.int32(sol.iterations),
-        "converged": np.int8(sol.converged and sol.admissible),
+        "converged": np.int8(sol.admissible),
         "kkt_residual": kkt,
         "solve_seconds": 0.0,
     }

@@ -142,3 +142,19 @@ def test_search_that_finds_no_admissible_bolt_raises_after_trying_every_candidat
         solve_contact(dual, theta, inner="active-set", tol=1e-8, max_iterations=10)
     candidates = np.flatnonzero(np.abs(dual.nu2) > 1e-12)
     assert sorted(calls) == sorted(candidates.tolist())
+
+
+@pytest.mark.parametrize("gap", [0.0, 0.005])
+def test_nnls_fallback_solves_the_same_bolted_problem(gap):
+    """The active-set method's cycle guard (Lawson-Hanson on the reduced dual) gives
+    the same pressures as the active-set iteration, balance included."""
+    import solver.contact as contact
+
+    dual, theta = _dual(unloaded(gap=gap))
+    bolt = int(np.argmax(theta))
+    exact = contact.active_set(dual, bolt, np.zeros(dual.m), tol=1e-10, max_iter=100)
+    fallback = contact._nnls(dual, bolt, 0)
+    p = exact.lam
+    np.testing.assert_allclose(fallback.lam, p, rtol=0, atol=1e-8 * p.max())
+    assert abs(dual.F2 + np.sum(dual.nu2 * dual.w * fallback.lam)) < 1e-10 * abs(dual.F2)
+    assert fallback.lam[np.arange(dual.m) != bolt].min() >= 0
