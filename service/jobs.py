@@ -32,7 +32,6 @@ handled by the scheduler (the task is rescheduled, the record stays ``running``)
 from __future__ import annotations
 
 import asyncio
-import json
 import logging
 from pathlib import Path
 from typing import Awaitable, Callable, Optional
@@ -40,6 +39,7 @@ from typing import Awaitable, Callable, Optional
 from distributed import Client, Future, fire_and_forget
 from distributed.client import FutureCancelledError
 
+from solver.spec import CaseSpec
 from workflows.store import is_stored
 from workflows.summary import read_summary
 from workflows.tasks import solve_and_store
@@ -219,8 +219,7 @@ class Dispatcher:
             record = self.store.get_case(case_id)
             if record is not None and record.status in ("queued", "running"):
                 self.store.mark_queued(case_id)
-                spec_json = json.dumps(record.spec, sort_keys=True, separators=(",", ":"))
-                if self.submit(case_id, spec_json):
+                if self.submit(case_id, CaseSpec.model_validate(record.spec).canonical_json()):
                     logger.info("case %s resubmitted", case_id)
 
     async def _reconnect(self) -> None:

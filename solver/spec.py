@@ -19,6 +19,16 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 MAX_ELEMENTS = 600_000
 
 
+def canonical_json(model: BaseModel) -> str:
+    """Defaults filled, keys sorted, no whitespace: the text a model's id hashes."""
+    return json.dumps(model.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+
+
+def content_id(text: str) -> str:
+    """Stable 16-hex-digit id of a canonical text (first digits of its sha256)."""
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
 class _Frozen(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
@@ -153,12 +163,12 @@ class CaseSpec(_Frozen):
 
     def canonical_json(self) -> str:
         """Defaults filled, keys sorted, no whitespace: the text the case id hashes."""
-        return json.dumps(self.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+        return canonical_json(self)
 
     @property
     def case_id(self) -> str:
         """Stable 16-hex-digit id of the physical case (sha256 of the canonical JSON)."""
-        return hashlib.sha256(self.canonical_json().encode()).hexdigest()[:16]
+        return content_id(self.canonical_json())
 
 
 class _SizeOnly(NamedTuple):

@@ -11,9 +11,7 @@ lengths). :func:`expand_sweep` checks everything at once and raises one
 """
 from __future__ import annotations
 
-import hashlib
 import itertools
-import json
 import logging
 import math
 import os
@@ -23,7 +21,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from solver.spec import CaseSpec
+from solver.spec import CaseSpec, canonical_json, content_id
 
 from .parameters import PATH_ALIASES, canonical_path, parameter_paths
 
@@ -48,12 +46,12 @@ class Sweep(BaseModel):
 
     def canonical_json(self) -> str:
         """Defaults filled, keys sorted, no whitespace."""
-        return json.dumps(self.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+        return canonical_json(self)
 
     @property
     def sweep_id(self) -> str:
         """Stable 16-hex-digit id of the sweep (sha256 of its canonical JSON)."""
-        return hashlib.sha256(self.canonical_json().encode()).hexdigest()[:16]
+        return content_id(self.canonical_json())
 
 
 class SweepError(ValueError):
