@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import asyncio
 from enum import Enum
+from pathlib import Path
 from typing import Optional
 
 from fastapi import APIRouter, Depends, Query, Request, Response
@@ -12,7 +13,7 @@ from solver.spec import CaseSpec
 from workflows.plots import PLOTS
 from workflows.store import case_path
 
-from .artifacts import render_plot
+from workflows.artifacts import render_plot
 from .errors import responses
 from .guards import require_token
 from .params import NETCDF, CaseId, jobs_of, not_found, not_ready
@@ -56,13 +57,17 @@ async def get_case(case_id: CaseId, request: Request) -> Case:
     return Case.of(record)
 
 
-def _done_case(request: Request, case_id: str):
+def _result_of_done_case(request: Request, case_id: str) -> Path:
+    """The result file of a case that is done: 404 unknown, 409 not done yet."""
     record = jobs_of(request).store.get_case(case_id)
     if record is None:
         raise not_found("case", case_id)
     if record.status != "done":
         raise not_ready(f"case {case_id}", record.status)
-    return record
+    path = case_path(jobs_of(request).root, case_id)
+    if not path.is_file():
+        raise not_found("result file of case", case_id)
+    return path
 
 
 @router.get("/{case_id}/result.nc", response_class=FileResponse, responses={
@@ -70,10 +75,7 @@ def _done_case(request: Request, case_id: str):
     **responses(404, 409)})
 async def get_case_result(case_id: CaseId, request: Request) -> FileResponse:
     """The result file of a finished case (409 until it is done)."""
-    _done_case(request, case_id)
-    path = case_path(jobs_of(request).root, case_id)
-    if not path.is_file():
-        raise not_found("result file of case", case_id)
+    path = _result_of_done_case(request, case_id)
     return FileResponse(path, media_type=NETCDF, filename=f"{case_id}.nc")
 
 
@@ -82,9 +84,6 @@ async def get_case_result(case_id: CaseId, request: Request) -> FileResponse:
     **responses(404, 409)})
 async def get_case_plot(case_id: CaseId, name: PlotName, request: Request) -> FileResponse:
     """A figure of a finished case: ``contact_pressure``, ``lining_forces`` or ``deformed_mesh``."""
-    _done_case(request, case_id)
-    root = jobs_of(request).root
-    if not case_path(root, case_id).is_file():
-        raise not_found("result file of case", case_id)
-    path = await asyncio.to_thread(render_plot, root, case_id, name.value)
+    _result_of_done_case(request, case_id)
+    path = await asyncio.to_thread(render_plot, jobs_of(request).root, case_id, name.value)
     return FileResponse(path, media_type="image/png")

@@ -18,7 +18,6 @@ from typing import Iterable, Optional, Sequence
 
 #: Case states. ``queued`` and ``running`` are open; ``done`` and ``failed`` are final.
 STATUSES = ("queued", "running", "done", "failed")
-OPEN_STATUSES = ("queued", "running")
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS cases (
@@ -118,25 +117,6 @@ class JobStore:
             "INSERT OR IGNORE INTO cases (id, spec, status, submitted_at) VALUES (?, ?, 'queued', ?)",
             (case_id, spec_json, time.time())) == 1
         return self.get_case(case_id), created
-
-    def add_cases(self, cases: Iterable[tuple[str, str]]) -> list[str]:
-        """Record many ``(case_id, spec_json)`` as queued in one transaction; return the new ids."""
-        now = time.time()
-        new = []
-        with self._lock:
-            self._db.execute("BEGIN IMMEDIATE")
-            try:
-                for case_id, spec_json in cases:
-                    cursor = self._db.execute(
-                        "INSERT OR IGNORE INTO cases (id, spec, status, submitted_at) "
-                        "VALUES (?, ?, 'queued', ?)", (case_id, spec_json, now))
-                    if cursor.rowcount == 1:
-                        new.append(case_id)
-                self._db.execute("COMMIT")
-            except BaseException:
-                self._db.execute("ROLLBACK")
-                raise
-        return new
 
     def get_case(self, case_id: str) -> Optional[CaseRecord]:
         rows = self._read("SELECT * FROM cases WHERE id = ?", (case_id,))

@@ -10,7 +10,7 @@ from workflows import Sweep, SweepError, expand_sweep
 from workflows.store import is_stored
 from workflows.sweep import sweep_size
 
-from .artifacts import write_combined
+from workflows.artifacts import write_combined
 from .errors import invalid, responses
 from .guards import require_token
 from .params import NETCDF, SweepId, jobs_of, not_found, not_ready, settings_of

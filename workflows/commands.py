@@ -131,6 +131,7 @@ def sweep_command(sweep_file: str, results: str, *, scheduler: str | None = None
 
 def show_command(case_id: str, results: str, *, out: TextIO = sys.stdout) -> int:
     """Print a stored case's summary and write its plots to ``<results>/plots/<case_id>/``."""
+    from .artifacts import render_plot
     from .plots import PLOTS
 
     try:
@@ -148,12 +149,8 @@ def show_command(case_id: str, results: str, *, out: TextIO = sys.stdout) -> int
     print(f"case {case_id}", file=out)
     print("\n".join(f"  {k} = {v}" for k, v in params.items()), file=out)
     print(format_summary(summarize(ds)), file=out)
-    folder = Path(results) / "plots" / case_id
-    folder.mkdir(parents=True, exist_ok=True)
-    for name, plot in PLOTS.items():
-        path = folder / f"{name}.png"
-        plot(ds).savefig(path, dpi=120)
-        print(f"wrote {path}", file=out)
+    for name in PLOTS:
+        print(f"wrote {render_plot(Path(results), case_id, name, ds)}", file=out)
     return 0
 
 

@@ -16,6 +16,7 @@ import json
 import logging
 import os
 import re
+import shutil
 import tempfile
 import time
 from collections.abc import Callable
@@ -61,6 +62,11 @@ def case_path(root: str | os.PathLike, case_id: str) -> Path:
 def error_path(root: str | os.PathLike, case_id: str) -> Path:
     """Path of the error record of ``case_id`` (it may not exist)."""
     return cases_dir(root) / f"{check_case_id(case_id)}.error.json"
+
+
+def plot_dir(root: str | os.PathLike, case_id: str) -> Path:
+    """Folder of the cached figures of ``case_id`` (see :mod:`workflows.artifacts`)."""
+    return Path(root) / "plots" / check_case_id(case_id)
 
 
 def is_stored(root: str | os.PathLike, case_id: str) -> bool:
@@ -117,6 +123,7 @@ def write_case(root: str | os.PathLike, ds: xr.Dataset) -> Path:
 
     write_atomically(target, write)
     error_path(root, case_id).unlink(missing_ok=True)
+    shutil.rmtree(plot_dir(root, case_id), ignore_errors=True)  # figures of an older result
     logger.info("stored case %s in %s", case_id, target)
     return target
 
@@ -214,9 +221,6 @@ def write_atomically(target: Path, write: Callable[[Path], object]) -> None:
         tmp.unlink(missing_ok=True)
         raise
     _fsync_dir(target.parent)
-
-
-_write_atomically = write_atomically  # the name service/artifacts.py imports
 
 
 def _fsync_dir(folder: Path) -> None:

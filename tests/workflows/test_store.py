@@ -153,3 +153,16 @@ def test_stale_temporaries_are_removed_only_when_old(tmp_path):
     os.utime(old, (0, 0))
     assert remove_stale_temporaries(tmp_path) == 1
     assert not old.exists() and fresh.exists()
+
+
+def test_rewriting_a_case_drops_its_cached_plots(tmp_path, solved):
+    from workflows.artifacts import plot_path, render_plot
+
+    case_id = solved.attrs["case_id"]
+    write_case(tmp_path, solved)
+    png = render_plot(tmp_path, case_id, "contact_pressure")
+    assert png == plot_path(tmp_path, case_id, "contact_pressure") and png.stat().st_size > 1000
+    assert render_plot(tmp_path, case_id, "contact_pressure") == png  # cached, not redrawn
+    write_case(tmp_path, solved)  # a new result (e.g. forced recompute): old figures must go
+    assert not png.exists()
+    assert render_plot(tmp_path, case_id, "contact_pressure").is_file()

@@ -10,6 +10,8 @@ Layout::
 Both are written atomically (temporary file, then rename), so a concurrent request
 either finds the complete file or builds its own copy. netCDF/HDF5 and matplotlib are
 not safe to drive from several threads at once, so building is serialised by a lock.
+A case's cached plots are removed whenever its result is written again
+(:func:`workflows.store.write_case`). Used by the CLI's ``show`` and by the service.
 """
 from __future__ import annotations
 
@@ -20,9 +22,9 @@ import time
 from pathlib import Path
 from typing import Sequence
 
-from workflows import open_case, open_results
-from workflows.plots import PLOTS
-from workflows.store import write_atomically
+from .combine import open_results
+from .plots import PLOTS
+from .store import open_case, plot_dir, write_atomically
 
 logger = logging.getLogger(__name__)
 
@@ -32,12 +34,14 @@ _STALE_AFTER = 300.0
 
 
 def plot_path(root: Path, case_id: str, name: str) -> Path:
-    """Where the PNG ``name`` of ``case_id`` is cached (``case_id`` already validated)."""
-    return Path(root) / "plots" / case_id / f"{name}.png"
+    """Where the PNG ``name`` of ``case_id`` is cached."""
+    return plot_dir(root, case_id) / f"{name}.png"
 
 
-def render_plot(root: Path, case_id: str, name: str) -> Path:
+def render_plot(root: Path, case_id: str, name: str, ds=None) -> Path:
     """The cached PNG of plot ``name`` of a stored case, rendered first if missing.
+
+    ``ds`` is the case's result if the caller has it open already.
 
     Raises
     ------
@@ -52,7 +56,7 @@ def render_plot(root: Path, case_id: str, name: str) -> Path:
         return target
     with _BUILD_LOCK:
         if not target.is_file():
-            figure = plot(open_case(root, case_id))
+            figure = plot(open_case(root, case_id) if ds is None else ds)
             write_atomically(target, lambda tmp: figure.savefig(tmp, format="png", dpi=110))
             logger.info("rendered %s of case %s", name, case_id)
     return target
