@@ -17,7 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .spec import CaseSpec, interface_segments, lining_layers, size_field_distances
+from .sizing import interface_segments, lining_layers, size_field_distances
+from .spec import CaseSpec
 
 # gmsh keeps global state: one meshing at a time per process.
 _GMSH_LOCK = threading.Lock()

@@ -9,14 +9,21 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
-from functools import lru_cache
-from typing import Literal, NamedTuple, Union
+from typing import Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-#: Largest mesh (triangles, both bodies) a case may ask for; ~1.2 M DOF.
-MAX_ELEMENTS = 600_000
+from .sizing import MAX_ELEMENTS, estimated_elements
+
+__all__ = ["CaseSpec", "MAX_ELEMENTS", "canonical_json", "content_id"]
+
+#: Physical bounds, wide but real: soft soil to steel, and a Poisson ratio far enough
+#: below 1/2 that plane-strain elasticity stays well conditioned (volumetric locking).
+MIN_YOUNG, MAX_YOUNG = 1.0e5, 1.0e12
+MAX_POISSON = 0.49
+MAX_DENSITY = 2.0e4
+#: Largest lining / ground stiffness ratio the factorization and contact solve handle.
+MAX_STIFFNESS_RATIO = 1.0e6
 
 
 def canonical_json(model: BaseModel) -> str:
@@ -30,17 +37,19 @@ def content_id(text: str) -> str:
 
 
 class _Frozen(BaseModel):
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    # allow_inf_nan=False: NaN, Infinity and overflowing literals such as 1e400 are
+    # refused with the field's name instead of failing later in the solver.
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
 
 class Geometry(_Frozen):
     """Tunnel geometry in metres (half model, axis at ``(0, -depth)``)."""
 
-    inner_radius: float = Field(2.5, gt=0, description="lining inner radius a (m)")
+    inner_radius: float = Field(2.5, ge=0.1, le=50.0, description="lining inner radius a (m)")
     thickness: float = Field(0.3, gt=0, description="lining thickness t (m)")
-    depth: float = Field(15.0, gt=0, description="depth of the tunnel axis below the surface (m)")
-    width: float = Field(40.0, gt=0, description="ground model width from the symmetry axis (m)")
-    height: float = Field(50.0, gt=0, description="ground model height (m)")
+    depth: float = Field(15.0, gt=0, le=5000.0, description="depth of the tunnel axis below the surface (m)")
+    width: float = Field(40.0, gt=0, le=10000.0, description="ground model width from the symmetry axis (m)")
+    height: float = Field(50.0, gt=0, le=10000.0, description="ground model height (m)")
     gap: float = Field(0.0, ge=0, description="initial radial clearance g0 between lining and ground (m)")
 
     @property
@@ -56,6 +65,14 @@ class Geometry(_Frozen):
     @model_validator(mode="after")
     def _fits(self) -> "Geometry":
         r = self.hole_radius
+        if self.thickness > 0.5 * self.inner_radius:
+            raise ValueError(
+                f"thickness: {self.thickness} m exceeds half the inner radius ({0.5 * self.inner_radius:.4g} m); "
+                "the lining forces assume a ring, not a thick cylinder")
+        if self.thickness < 0.005 * self.inner_radius:
+            raise ValueError(
+                f"thickness: {self.thickness} m is under 0.5 % of the inner radius; such a membrane "
+                "is outside the plane-strain ring model")
         if self.gap > 0.1 * self.inner_radius:
             raise ValueError(
                 f"gap: {self.gap} m exceeds 10 % of inner_radius; the small-displacement "
@@ -81,41 +98,79 @@ class Geometry(_Frozen):
 class Material(_Frozen):
     """Isotropic linear elastic material (plane strain)."""
 
-    young: float = Field(gt=0, description="Young's modulus E (Pa)")
-    poisson: float = Field(ge=0, lt=0.5, description="Poisson ratio, in [0, 0.5)")
-    density: float = Field(ge=0, description="mass density (kg/m^3)")
+    young: float = Field(ge=MIN_YOUNG, le=MAX_YOUNG, description="Young's modulus E (Pa)")
+    poisson: float = Field(ge=0, le=MAX_POISSON, description="Poisson ratio")
+    density: float = Field(ge=0, le=MAX_DENSITY, description="mass density (kg/m^3)")
 
 
 class Ground(Material):
-    young: float = Field(5.0e7, gt=0, description="ground Young's modulus (Pa)")
-    poisson: float = Field(0.3, ge=0, lt=0.5, description="ground Poisson ratio")
-    density: float = Field(2000.0, ge=0, description="ground density (kg/m^3)")
+    young: float = Field(5.0e7, ge=MIN_YOUNG, le=MAX_YOUNG, description="ground Young's modulus (Pa)")
+    poisson: float = Field(0.3, ge=0, le=MAX_POISSON, description="ground Poisson ratio")
+    density: float = Field(2000.0, ge=0, le=MAX_DENSITY, description="ground density (kg/m^3)")
 
 
 class Lining(Material):
-    young: float = Field(3.0e10, gt=0, description="lining Young's modulus (Pa)")
-    poisson: float = Field(0.2, ge=0, lt=0.5, description="lining Poisson ratio")
+    young: float = Field(3.0e10, ge=MIN_YOUNG, le=MAX_YOUNG, description="lining Young's modulus (Pa)")
+    poisson: float = Field(0.2, ge=0, le=MAX_POISSON, description="lining Poisson ratio")
     density: float = Field(
-        2500.0, gt=0,
+        2500.0, gt=0, le=MAX_DENSITY,
         description="lining density (kg/m^3); must be > 0: the floating lining needs weight")
 
 
 class Loads(_Frozen):
-    surface_load: float = Field(1.0e5, ge=0, description="uniform downward pressure on y = 0 (Pa)")
+    surface_load: float = Field(1.0e5, ge=0, le=1.0e9, description="uniform downward pressure on y = 0 (Pa)")
     gravity: float = Field(
-        9.81, gt=0, description="gravitational acceleration, downward (m/s^2); > 0 so the lining has weight")
+        9.81, gt=0, le=100.0,
+        description="gravitational acceleration, downward (m/s^2); > 0 so the lining has weight")
     lateral_ratio: float = Field(
-        0.5, ge=0, description="K0: horizontal / vertical geostatic stress on a 'pressure' side")
+        0.5, ge=0, le=10.0,
+        description="K0: horizontal / vertical geostatic stress (the in-situ state, and a 'pressure' side)")
+
+
+class Excavation(_Frozen):
+    """How the tunnel is built (SPEC §1.1)."""
+
+    method: Literal["deconfinement", "wished-in-place"] = Field(
+        "deconfinement",
+        description="'deconfinement': in-situ stress, excavation, lining placed after a release "
+                    "of lambda_d; 'wished-in-place': the paper's model, both bodies stress-free")
+    deconfinement: float = Field(
+        0.3, ge=0, le=1,
+        description="lambda_d: fraction of the excavation load released before the lining is placed")
+
+
+class Interface(_Frozen):
+    """Contact model on the ground-lining interface (SPEC §1.2)."""
+
+    model: Literal["frictionless", "coulomb", "bonded"] = "frictionless"
+    friction: float = Field(0.0, ge=0, le=10.0, description="Coulomb coefficient mu (required > 0 for 'coulomb')")
+
+    @model_validator(mode="after")
+    def _friction_needed(self) -> "Interface":
+        if self.model == "coulomb" and self.friction <= 0:
+            raise ValueError("friction: interface.model 'coulomb' needs interface.friction > 0")
+        return self
+
+
+class Design(_Frozen):
+    """EN 1992-1-1 section check of the lining (SPEC §1.3), per metre of tunnel."""
+
+    concrete_strength: float = Field(3.0e7, ge=1.2e7, le=9.0e7, description="fck (Pa), C12 to C90")
+    steel_strength: float = Field(5.0e8, ge=2.0e8, le=7.0e8, description="fyk (Pa)")
+    reinforcement_area: float = Field(
+        0.0, ge=0, le=0.05, description="As per face (m^2/m), symmetric; 0 means plain concrete")
+    axis_distance: float = Field(0.05, gt=0, le=0.5, description="reinforcement axis distance from each face (m)")
+    load_factor: float = Field(1.35, gt=0, le=10.0, description="gamma_F: design actions are gamma_F times N and M")
 
 
 class Boundaries(_Frozen):
-    side: Literal["fixed", "roller", "pressure"] = "fixed"
+    side: Literal["fixed", "roller", "pressure"] = "roller"
     bottom: Literal["fixed", "roller"] = "fixed"
 
 
 class MeshSettings(_Frozen):
-    interface_size: float = Field(0.05, gt=0, description="element size along the interface (m)")
-    far_size: float = Field(4.0, gt=0, description="element size far from the tunnel (m)")
+    interface_size: float = Field(0.05, ge=1e-3, description="element size along the interface (m)")
+    far_size: float = Field(4.0, gt=0, le=1000.0, description="element size far from the tunnel (m)")
 
 
 class SolverSettings(_Frozen):
@@ -140,11 +195,31 @@ class CaseSpec(_Frozen):
     ground: Ground = Ground()
     lining: Lining = Lining()
     loads: Loads = Loads()
+    excavation: Excavation = Excavation()
+    interface: Interface = Interface()
     boundaries: Boundaries = Boundaries()
     mesh: MeshSettings = MeshSettings()
     solver: SolverSettings = SolverSettings()
+    design: Design = Design()
 
     @model_validator(mode="after")
+    def _consistent(self) -> "CaseSpec":
+        ratio = self.lining.young / self.ground.young
+        if not 1.0 / MAX_STIFFNESS_RATIO <= ratio <= MAX_STIFFNESS_RATIO:
+            raise ValueError(
+                f"lining.young: lining / ground stiffness ratio {ratio:.3g} is outside "
+                f"[{1 / MAX_STIFFNESS_RATIO:g}, {MAX_STIFFNESS_RATIO:g}]")
+        d, t = self.design, self.geometry.thickness
+        if d.axis_distance >= 0.5 * t:
+            raise ValueError(
+                f"design.axis_distance: {d.axis_distance} m puts the reinforcement outside the "
+                f"section's half depth ({0.5 * t:.4g} m)")
+        if 2 * d.reinforcement_area > 0.04 * t:
+            raise ValueError(
+                f"design.reinforcement_area: 2 x {d.reinforcement_area} m^2/m exceeds As,max = 0.04 Ac "
+                f"= {0.04 * t:.4g} m^2/m (EN 1992-1-1 9.2.1.1(3))")
+        return self._mesh_fits()
+
     def _mesh_fits(self) -> "CaseSpec":
         g, m = self.geometry, self.mesh
         if m.far_size < m.interface_size:
@@ -171,58 +246,3 @@ class CaseSpec(_Frozen):
         return content_id(self.canonical_json())
 
 
-class _SizeOnly(NamedTuple):
-    """The parts of a case that fix the mesh size (duck-types CaseSpec for the helpers below)."""
-
-    geometry: Geometry
-    mesh: MeshSettings
-
-
-def lining_layers(spec: CaseSpec) -> int:
-    """Element layers through the lining thickness: at least four, and at most half an
-    interface element thick (P1 triangles are too stiff in bending when coarse across
-    the thickness; the lining is a small part of the DOFs)."""
-    return max(4, math.ceil(2.0 * spec.geometry.thickness / spec.mesh.interface_size - 1e-9))
-
-
-def interface_segments(spec: CaseSpec) -> int:
-    """Segments of the interface per quarter circle (crown-springline, springline-invert)."""
-    g = spec.geometry
-    return max(4, math.ceil(0.5 * math.pi * g.hole_radius / spec.mesh.interface_size - 1e-9))
-
-
-def size_field_distances(spec: CaseSpec) -> tuple[float, float]:
-    """Distances from the interface over which the size grows from interface to far size (m)."""
-    r = spec.geometry.hole_radius
-    return 0.25 * r, 0.25 * r + 12.0 * (spec.mesh.far_size - spec.mesh.interface_size) + r
-
-
-def estimated_elements(spec: CaseSpec) -> int:
-    """Triangles the mesh of ``spec`` will have, estimated without meshing (within ~30 %).
-
-    The ground count integrates 4/(sqrt(3) h^2) over the domain with the same size
-    field gmsh uses; the lining is structured. Cached per (geometry, mesh): the
-    service validates every submission with it.
-    """
-    return _estimated_elements(spec.geometry, spec.mesh)
-
-
-@lru_cache(maxsize=4096)
-def _estimated_elements(g: Geometry, m: MeshSettings) -> int:
-    import numpy as np
-
-    spec = _SizeOnly(geometry=g, mesh=m)
-    lining = 2 * (2 * interface_segments(spec)) * lining_layers(spec)
-    d_min, d_max = size_field_distances(spec)
-    nx, ny = 200, 250
-    xs = (np.arange(nx) + 0.5) * g.width / nx
-    ys = -(np.arange(ny) + 0.5) * g.height / ny
-    x, y = np.meshgrid(xs, ys)
-    dist = np.hypot(x, y + g.depth) - g.hole_radius
-    inside = dist < 0
-    frac = np.clip((dist - d_min) / (d_max - d_min), 0.0, 1.0)
-    h = m.interface_size + frac * (m.far_size - m.interface_size)
-    density = 4.0 / (math.sqrt(3.0) * h**2)
-    cell = (g.width / nx) * (g.height / ny)
-    ground = float(np.sum(np.where(inside, 0.0, density)) * cell)
-    return int(lining + ground)

@@ -10,7 +10,7 @@ from pydantic import ValidationError
 
 from solver import CaseSpec
 from solver.mesh import build_mesh
-from solver.spec import MAX_ELEMENTS, estimated_elements
+from solver.sizing import MAX_ELEMENTS, estimated_elements
 
 
 def test_default_case_and_stable_id():
