@@ -8,7 +8,7 @@ from pydantic import BaseModel, Field
 
 from .store import CaseRecord, SweepRecord
 
-Status = Literal["queued", "running", "done", "failed"]
+Status = Literal["queued", "running", "done", "failed", "cancelled"]
 CASE_ID_PATTERN = r"^[0-9a-f]{16}$"
 
 
@@ -60,6 +60,7 @@ class StatusCounts(BaseModel):
     running: int = 0
     done: int = 0
     failed: int = 0
+    cancelled: int = 0
 
 
 class SweepStatus(BaseModel):
@@ -82,6 +83,22 @@ class SweepStatus(BaseModel):
             finished=counts["queued"] + counts["running"] == 0,
             submitted_at=_time(record.submitted_at),
             result=f"/sweeps/{record.id}/result.nc" if counts["done"] else None)
+
+
+class SweepPage(BaseModel):
+    """A page of ``GET /sweeps``, newest first."""
+
+    items: list[SweepStatus]
+    total: int = Field(description="sweeps recorded, over all pages")
+    limit: int
+    offset: int
+
+
+class SweepCancelled(SweepStatus):
+    """Answer to ``POST /sweeps/{id}/cancel``."""
+
+    cancelled_now: list[str] = Field(description="cases this request cancelled (they were queued); "
+                                                 "running cases finish")
 
 
 class SweepAccepted(SweepStatus):

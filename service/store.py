@@ -16,14 +16,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Optional, Sequence
 
-#: Case states. ``queued`` and ``running`` are open; ``done`` and ``failed`` are final.
-STATUSES = ("queued", "running", "done", "failed")
+#: Case states. ``queued`` and ``running`` are open; ``done`` and ``failed`` are final;
+#: ``cancelled`` (a queued case whose sweep was cancelled) is final until submitted again.
+STATUSES = ("queued", "running", "done", "failed", "cancelled")
 
-_SCHEMA = """
-CREATE TABLE IF NOT EXISTS cases (
+_CASES_TABLE = """
+CREATE TABLE IF NOT EXISTS {name} (
     id           TEXT PRIMARY KEY,
     spec         TEXT NOT NULL,
-    status       TEXT NOT NULL CHECK (status IN ('queued', 'running', 'done', 'failed')),
+    status       TEXT NOT NULL CHECK (status IN ('queued', 'running', 'done', 'failed', 'cancelled')),
     summary      TEXT,
     error        TEXT,
     submitted_at REAL NOT NULL,
@@ -31,6 +32,9 @@ CREATE TABLE IF NOT EXISTS cases (
     finished_at  REAL,
     submissions  INTEGER NOT NULL DEFAULT 0
 );
+"""
+
+_SCHEMA = _CASES_TABLE.format(name="cases") + """
 CREATE INDEX IF NOT EXISTS cases_by_status ON cases (status, submitted_at);
 CREATE TABLE IF NOT EXISTS sweeps (
     id           TEXT PRIMARY KEY,
@@ -94,8 +98,31 @@ class JobStore:
             self._db.execute("PRAGMA journal_mode=WAL")
             # NORMAL in WAL mode: a commit survives the process being killed (not power loss).
             self._db.execute("PRAGMA synchronous=NORMAL")
+            self._migrate_status_check()
             self._db.execute("PRAGMA foreign_keys=ON")
             self._db.executescript(_SCHEMA)
+
+    def _migrate_status_check(self) -> None:
+        """Let a database written before ``cancelled`` existed take that status.
+
+        SQLite cannot alter a CHECK constraint: the table is rebuilt (the documented
+        procedure: foreign keys off, copy, drop, rename) in one transaction.
+        """
+        row = self._db.execute("SELECT sql FROM sqlite_master WHERE type = 'table' AND name = 'cases'").fetchone()
+        if row is None or "'cancelled'" in row[0]:
+            return
+        self._db.execute("PRAGMA foreign_keys=OFF")
+        self._db.execute("BEGIN IMMEDIATE")
+        try:
+            self._db.execute(_CASES_TABLE.format(name="cases_new"))
+            self._db.execute("INSERT INTO cases_new SELECT id, spec, status, summary, error, submitted_at, "
+                             "started_at, finished_at, submissions FROM cases")
+            self._db.execute("DROP TABLE cases")
+            self._db.execute("ALTER TABLE cases_new RENAME TO cases")
+            self._db.execute("COMMIT")
+        except BaseException:
+            self._db.execute("ROLLBACK")
+            raise
 
     def close(self) -> None:
         with self._lock:
@@ -123,13 +150,14 @@ class JobStore:
         return _case(rows[0]) if rows else None
 
     def list_cases(self, *, status: str | None = None, limit: int = 100,
-                   offset: int = 0) -> tuple[list[CaseRecord], int]:
-        """A page of cases, oldest submission first, and the total matching ``status``."""
+                   offset: int = 0, newest_first: bool = False) -> tuple[list[CaseRecord], int]:
+        """A page of cases, oldest (or newest) submission first, and the total matching ``status``."""
         where, params = ("WHERE status = ?", [status]) if status else ("", [])
+        order = "submitted_at DESC, id DESC" if newest_first else "submitted_at, id"
         with self._lock:
             total = self._db.execute(f"SELECT count(*) FROM cases {where}", params).fetchone()[0]
             rows = self._db.execute(
-                f"SELECT * FROM cases {where} ORDER BY submitted_at, id LIMIT ? OFFSET ?",
+                f"SELECT * FROM cases {where} ORDER BY {order} LIMIT ? OFFSET ?",
                 [*params, limit, offset]).fetchall()
         return [_case(r) for r in rows], total
 
@@ -187,6 +215,44 @@ class JobStore:
         counts.update({r["status"]: r["n"] for r in rows})
         return counts
 
+    def get_cases(self, case_ids: Sequence[str]) -> dict[str, CaseRecord]:
+        """Records of ``case_ids`` (those that exist), by id, in one query."""
+        rows = self._read("SELECT * FROM cases WHERE id IN (SELECT value FROM json_each(?))",
+                          (json.dumps(list(case_ids)),))
+        return {r["id"]: _case(r) for r in rows}
+
+    def cancel_queued(self, case_ids: Sequence[str]) -> list[str]:
+        """Mark the ``queued`` cases among ``case_ids`` ``cancelled``; return their ids."""
+        now = time.time()
+        with self._lock:
+            self._db.execute("BEGIN IMMEDIATE")
+            try:
+                cancelled = [r["id"] for r in self._db.execute(
+                    "UPDATE cases SET status = 'cancelled', finished_at = ? WHERE status = 'queued' "
+                    "AND id IN (SELECT value FROM json_each(?)) RETURNING id",
+                    (now, json.dumps(list(case_ids)))).fetchall()]
+                self._db.execute("COMMIT")
+            except BaseException:
+                self._db.execute("ROLLBACK")
+                raise
+        return cancelled
+
+    def requeue(self, case_ids: Sequence[str], *, statuses: Sequence[str] = ("cancelled",)) -> list[str]:
+        """Put the cases among ``case_ids`` that are in ``statuses`` back to ``queued``; return their ids."""
+        with self._lock:
+            self._db.execute("BEGIN IMMEDIATE")
+            try:
+                requeued = [r["id"] for r in self._db.execute(
+                    "UPDATE cases SET status = 'queued', summary = NULL, error = NULL, started_at = NULL, "
+                    "finished_at = NULL WHERE status IN (SELECT value FROM json_each(?)) "
+                    "AND id IN (SELECT value FROM json_each(?)) RETURNING id",
+                    (json.dumps(list(statuses)), json.dumps(list(case_ids)))).fetchall()]
+                self._db.execute("COMMIT")
+            except BaseException:
+                self._db.execute("ROLLBACK")
+                raise
+        return requeued
+
     def statuses(self, case_ids: Sequence[str]) -> dict[str, str]:
         """Status of each of ``case_ids`` that has a record."""
         rows = self._read("SELECT id, status FROM cases WHERE id IN (SELECT value FROM json_each(?))",
@@ -235,6 +301,15 @@ class JobStore:
                                    (sweep_id,)).fetchall()
         return SweepRecord(id=row["id"], name=row["name"], spec=json.loads(row["spec"]),
                            submitted_at=row["submitted_at"], case_ids=tuple(r["case_id"] for r in ids))
+
+    def list_sweeps(self, *, limit: int = 20, offset: int = 0) -> tuple[list[SweepRecord], int]:
+        """A page of sweeps, newest submission first, and how many there are."""
+        with self._lock:
+            total = self._db.execute("SELECT count(*) FROM sweeps").fetchone()[0]
+            ids = [r["id"] for r in self._db.execute(
+                "SELECT id FROM sweeps ORDER BY submitted_at DESC, id DESC LIMIT ? OFFSET ?",
+                (limit, offset)).fetchall()]
+        return [s for s in map(self.get_sweep, ids) if s is not None], total
 
     def writable(self) -> bool:
         """Whether the database accepts a write (checked inside a rolled-back transaction)."""
