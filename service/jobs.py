@@ -243,17 +243,46 @@ class Dispatcher:
     async def _poll_running(self) -> None:
         while True:
             await asyncio.sleep(self.poll_interval)
-            if not self._tracked or not self.connected:
-                continue
+            if self._tracked and self.connected:
+                await self._mark_executing()
+
+    async def _mark_executing(self) -> None:
+        """Move the queued records of tasks a worker is executing right now to ``running``."""
+        try:
+            executing = await self.client.call_stack()
+        except Exception as exc:
+            logger.debug("poll of executing tasks failed: %s", exc)
+            return
+        started = [key[len(KEY_PREFIX):] for keys in executing.values() for key in keys
+                   if isinstance(key, str) and key.startswith(KEY_PREFIX)]
+        if started:
+            self.store.mark_running(started)
+
+    # -- cancellation --------------------------------------------------------------------
+
+    async def cancel(self, case_ids: list[str]) -> list[str]:
+        """Cancel the cases among ``case_ids`` that no worker has started; return their ids.
+
+        Their records become ``cancelled`` and their tasks are taken off the scheduler
+        (``force``: the fire-and-forget hold goes too). Running cases finish: a worker
+        thread cannot be interrupted, and its result is worth keeping. Their watchers
+        see the cancellation and leave the ``cancelled`` record as it is.
+        """
+        if self.connected:
+            await self._mark_executing()  # a task started since the last poll is running
+        cancelled = self.store.cancel_queued(case_ids)
+        futures = []
+        for case_id in cancelled:
+            self._pending.pop(case_id, None)
+            if case_id in self._tracked:
+                futures.append(self._tracked[case_id])
+        if futures and self.connected:
             try:
-                executing = await self.client.call_stack()
-            except Exception as exc:
-                logger.debug("poll of executing tasks failed: %s", exc)
-                continue
-            started = [key[len(KEY_PREFIX):] for keys in executing.values() for key in keys
-                       if isinstance(key, str) and key.startswith(KEY_PREFIX)]
-            if started:
-                self.store.mark_running(started)
+                await self.client.cancel(futures, force=True)
+            except Exception:
+                logger.exception("could not cancel %d tasks on the scheduler", len(futures))
+        logger.info("cancelled %d cases", len(cancelled))
+        return cancelled
 
     # -- queries -------------------------------------------------------------------------
 
