@@ -32,6 +32,8 @@ async def submit_case(spec: CaseSpec, request: Request, response: Response) -> C
     jobs = jobs_of(request)
     spec_json = spec.canonical_json()
     record, created = jobs.store.add_case(spec.case_id, spec_json)
+    if not created and jobs.store.requeue([record.id]):  # a cancelled case is submitted again
+        record, created = jobs.store.get_case(record.id), True
     if created:
         jobs.submit(record.id, spec_json)
     response.headers["Location"] = f"/cases/{record.id}"
@@ -42,9 +44,11 @@ async def submit_case(spec: CaseSpec, request: Request, response: Response) -> C
 async def list_cases(request: Request,
                      status: Optional[Status] = Query(None, description="only cases in this status"),
                      limit: int = Query(100, ge=1, le=1000),
-                     offset: int = Query(0, ge=0)) -> CasePage:
-    """Cases, oldest submission first, a page at a time."""
-    records, total = jobs_of(request).store.list_cases(status=status, limit=limit, offset=offset)
+                     offset: int = Query(0, ge=0),
+                     newest_first: bool = Query(False, description="newest submission first")) -> CasePage:
+    """Cases, oldest submission first (or newest), a page at a time."""
+    records, total = jobs_of(request).store.list_cases(status=status, limit=limit, offset=offset,
+                                                       newest_first=newest_first)
     return CasePage(items=[Case.of(r) for r in records], total=total, limit=limit, offset=offset)
 
 

@@ -6,6 +6,7 @@ import asyncio
 from fastapi import APIRouter, Depends, Request, Response
 from fastapi.responses import FileResponse, JSONResponse
 
+from solver.spec import CaseSpec
 from workflows import Sweep, SweepError, expand_sweep
 from workflows.store import is_stored
 from workflows.sweep import sweep_size
@@ -43,6 +44,10 @@ async def submit_sweep(sweep: Sweep, request: Request, response: Response) -> Sw
         specs_by_id = dict(cases)
         for case_id in new:
             jobs.submit(case_id, specs_by_id[case_id])
+    # cases cancelled earlier (in this sweep or another) are submitted again
+    for case_id in jobs.store.requeue(record.case_ids):
+        new.append(case_id)
+        jobs.submit(case_id, CaseSpec.model_validate(jobs.store.get_case(case_id).spec).canonical_json())
     response.headers["Location"] = f"/sweeps/{record.id}"
     counts = jobs.store.status_counts(record.case_ids)
     return SweepAccepted(**SweepStatus.of(record, counts).model_dump(), created=created, new_cases=len(new))
