@@ -18,6 +18,7 @@ import xarray as xr
 from pydantic import ValidationError
 
 from solver import CaseSpec, SolverError
+from solver.errors import field_errors, format_errors
 
 from .parameters import flat_parameters, varying_parameters
 from .store import OPEN_OPTIONS, case_path, check_case_id, is_stored, open_case, read_error, run_and_store
@@ -85,8 +86,7 @@ def _read_json(path: str | os.PathLike) -> Any:
 
 
 def _one_line(exc: ValidationError) -> str:
-    return "; ".join(f"{'.'.join(str(x) for x in e['loc']) or 'value'}: "
-                     f"{e['msg'].removeprefix('Value error, ')}" for e in exc.errors())
+    return format_errors(field_errors(exc))
 
 
 def run_command(case_file: str | None, results: str, *, force: bool = False,

@@ -21,6 +21,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from solver.errors import field_errors
 from solver.spec import CaseSpec, canonical_json, content_id
 
 from .parameters import PATH_ALIASES, canonical_path, parameter_paths
@@ -155,8 +156,7 @@ def _with_values(base: dict[str, Any], values: dict[str, Any]) -> dict[str, Any]
 
 def _messages(exc: ValidationError) -> list[tuple[str, str]]:
     """``(dotted location, message)`` of each error of a case validation."""
-    return [(".".join(str(x) for x in err["loc"]) or "case",
-             err["msg"].removeprefix("Value error, ")) for err in exc.errors()]
+    return [(path or "case", reason) for path, reason in field_errors(exc)]
 
 
 def run_sweep(sweep: Sweep | dict[str, Any], root: str | os.PathLike, client=None, *, progress: bool = False,

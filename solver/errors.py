@@ -1,0 +1,71 @@
+"""One text for one mistake: pydantic validation errors as ``(dotted field, reason)``.
+
+The API (422 bodies), the command line and sweep expansion all report invalid input
+through :func:`field_errors`, so the same mistake reads the same everywhere, e.g.
+``geometry.depth: cover above the tunnel is 0.2 m; ...``.
+
+The case model's own checks (model validators) raise ``ValueError`` messages that start
+with the path of the field they concern, relative to the model that raised them
+(``"depth: cover ..."`` from ``geometry``, ``"lining.young: ..."`` from the case);
+that path is joined to the location pydantic reports.
+"""
+from __future__ import annotations
+
+import re
+from typing import Any, Iterable, Sequence
+
+__all__ = ["field_errors", "field_path", "format_errors"]
+
+_NAMED = re.compile(r"^([A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*): (.*)$", re.DOTALL)
+#: Location prefixes FastAPI adds to pydantic's (where in the request the value was).
+_REQUEST_PARTS = frozenset({"body", "query", "path", "header", "cookie"})
+
+
+def field_path(loc: Sequence[Any], message: str, *, kind: str = "value_error") -> tuple[str, str]:
+    """Dotted field path and reason of one pydantic error.
+
+    >>> field_path(("geometry",), "Value error, depth: cover is 0.2 m")
+    ('geometry.depth', 'cover is 0.2 m')
+    >>> field_path(("solver", "bolt"), "Value error, bolt: theta 200 deg is outside [0, 180]")
+    ('solver.bolt', 'theta 200 deg is outside [0, 180]')
+    >>> field_path(("vary", "ground.young", 1), "Input should be a valid number", kind="float_type")
+    ('vary.ground.young[1]', 'Input should be a valid number')
+    """
+    parts = list(loc)
+    if parts and parts[0] in _REQUEST_PARTS:
+        parts = parts[1:]
+    reason = message.removeprefix("Value error, ")
+    named = _NAMED.match(reason) if kind == "value_error" else None
+    if named:  # our own validators name the field at the start of the message
+        extra = named.group(1).split(".")
+        if parts and parts[-1] == extra[0]:
+            parts = parts[:-1]
+        parts = [*parts, *extra]
+        reason = named.group(2)
+    path = ""
+    for p in parts:
+        path += f"[{p}]" if isinstance(p, int) else (f".{p}" if path else str(p))
+    return path, reason
+
+
+def field_errors(errors: Iterable[dict] | Any) -> list[tuple[str, str]]:
+    """``[(dotted field, reason)]`` of a ``pydantic.ValidationError`` (or its ``errors()`` list).
+
+    A field path is empty when the error concerns the whole document.
+    """
+    if hasattr(errors, "errors"):
+        errors = errors.errors()
+    out = []
+    for err in errors:
+        if err.get("type") == "json_invalid":
+            detail = str(err.get("ctx", {}).get("error", ""))
+            out.append(("", f"invalid JSON: {detail}".rstrip(": ")))
+            continue
+        out.append(field_path(err.get("loc", ()), str(err.get("msg", "")),
+                              kind=str(err.get("type", "value_error"))))
+    return out
+
+
+def format_errors(errors: Iterable[tuple[str, str]], *, whole: str = "value") -> str:
+    """One line: ``field: reason; field: reason`` (``whole`` names an empty path)."""
+    return "; ".join(f"{field or whole}: {reason}" for field, reason in errors)
