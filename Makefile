@@ -6,6 +6,8 @@ STAMP := $(VENV)/.installed
 # gmsh's wheel links against these X/GL libraries even when used headless.
 DEB_LIBS := libglu1-mesa libgl1 libxrender1 libxcursor1 libxfixes3 libxext6 libxft2 \
             libfontconfig1 libxinerama1 libx11-6 libgomp1
+# the dashboard's browser tests drive Debian's headless Chromium through its driver.
+DEB_LIBS += chromium chromium-driver
 
 .PHONY: test demo bench sysdeps venv clean
 

@@ -13,7 +13,7 @@ from typing import Optional
 from fastapi import FastAPI
 from fastapi.exceptions import RequestValidationError
 
-from . import cases, health, sweeps
+from . import cases, health, pages, studies, sweeps
 from .cluster import cluster_connection
 from .errors import request_validation_handler
 from .guards import BodyLimitMiddleware
@@ -70,6 +70,7 @@ def create_app(settings: Optional[Settings] = None) -> FastAPI:
     app.state.settings = settings or get_settings()
     app.add_middleware(BodyLimitMiddleware, max_bytes=app.state.settings.max_body_bytes)
     app.add_exception_handler(RequestValidationError, request_validation_handler)
-    for module in (cases, sweeps, health):
+    for module in (cases, sweeps, studies, health, pages):
         app.include_router(module.router)
+    pages.mount_static(app)
     return app

@@ -6,25 +6,30 @@ Layout::
     <root>/sweeps/<sweep_id>-<digest>.nc         the combined result of a sweep's finished
                                                  cases; ``digest`` hashes which cases, so a
                                                  file never goes stale as more cases finish
+    <root>/sweeps/plots/<sweep_id>-<digest>-<name>.png
+                                                 a figure of those cases (workflows.plots)
 
 Both are written atomically (temporary file, then rename), so a concurrent request
 either finds the complete file or builds its own copy. netCDF/HDF5 and matplotlib are
 not safe to drive from several threads at once, so building is serialised by a lock.
 A case's cached plots are removed whenever its result is written again
-(:func:`workflows.store.write_case`). Used by the CLI's ``show`` and by the service.
+(:meth:`workflows.store.ResultStore.write_case`). Used by the CLI's ``show`` and by the
+service. The paths come from :class:`workflows.store.ResultStore`; ``root`` is a store or
+its folder.
 """
 from __future__ import annotations
 
-import hashlib
 import logging
 import threading
 import time
 from pathlib import Path
 from typing import Sequence
 
+import xarray as xr
+
 from .combine import open_results
-from .plots import PLOTS
-from .store import open_case, plot_dir, write_atomically
+from .plots import PLOTS, SWEEP_PLOT_NAMES, SWEEP_PLOTS, case_labels, plot_interaction
+from .store import OPEN_OPTIONS, StoreLike, as_store, case_path, open_case, write_atomically
 
 logger = logging.getLogger(__name__)
 
@@ -33,12 +38,12 @@ _BUILD_LOCK = threading.Lock()
 _STALE_AFTER = 300.0
 
 
-def plot_path(root: Path, case_id: str, name: str) -> Path:
+def plot_path(root: StoreLike, case_id: str, name: str) -> Path:
     """Where the PNG ``name`` of ``case_id`` is cached."""
-    return plot_dir(root, case_id) / f"{name}.png"
+    return as_store(root).plot_path(case_id, name)
 
 
-def render_plot(root: Path, case_id: str, name: str, ds=None) -> Path:
+def render_plot(root: StoreLike, case_id: str, name: str, ds=None) -> Path:
     """The cached PNG of plot ``name`` of a stored case, rendered first if missing.
 
     ``ds`` is the case's result if the caller has it open already.
@@ -51,38 +56,84 @@ def render_plot(root: Path, case_id: str, name: str, ds=None) -> Path:
         If the case is not stored.
     """
     plot = PLOTS[name]
-    target = plot_path(root, case_id, name)
+    store = as_store(root)
+    target = store.plot_path(case_id, name)
     if target.is_file():
         return target
     with _BUILD_LOCK:
         if not target.is_file():
-            figure = plot(open_case(root, case_id) if ds is None else ds)
+            figure = plot(store.open_case(case_id) if ds is None else ds)
             write_atomically(target, lambda tmp: figure.savefig(tmp, format="png", dpi=110))
             logger.info("rendered %s of case %s", name, case_id)
     return target
 
 
-def combined_path(root: Path, sweep_id: str, case_ids: Sequence[str]) -> Path:
+def combined_path(root: StoreLike, sweep_id: str, case_ids: Sequence[str]) -> Path:
     """Where the combined file of ``sweep_id`` over exactly ``case_ids`` is kept."""
-    digest = hashlib.sha256(",".join(case_ids).encode()).hexdigest()[:12]
-    return Path(root) / "sweeps" / f"{sweep_id}-{digest}.nc"
+    return as_store(root).combined_path(sweep_id, case_ids)
 
 
-def write_combined(root: Path, sweep_id: str, case_ids: Sequence[str]) -> Path:
+def write_combined(root: StoreLike, sweep_id: str, case_ids: Sequence[str]) -> Path:
     """The combined netCDF of ``case_ids`` (stored cases, in sweep order), written if missing.
 
     Older combined files of the same sweep (fewer finished cases) are removed once
     they are a few minutes old, so no response still streaming one loses it.
     """
-    target = combined_path(root, sweep_id, case_ids)
+    store = as_store(root)
+    target = store.combined_path(sweep_id, case_ids)
     if target.is_file():
         return target
     with _BUILD_LOCK:
         if not target.is_file():
-            combined = open_results(root, case_ids=list(case_ids))
+            combined = store.open_results(list(case_ids))
             write_atomically(target, lambda tmp: combined.to_netcdf(tmp, engine="netcdf4"))
             logger.info("combined %d cases of sweep %s into %s", len(case_ids), sweep_id, target.name)
             for old in target.parent.glob(f"{sweep_id}-*.nc"):
                 if old != target and time.time() - old.stat().st_mtime > _STALE_AFTER:
                     old.unlink(missing_ok=True)
     return target
+
+
+def sweep_plot_path(root: Path, sweep_id: str, case_ids: Sequence[str], name: str) -> Path:
+    """Where the PNG ``name`` of ``sweep_id`` over exactly ``case_ids`` is cached."""
+    digest = combined_path(root, sweep_id, case_ids).stem.rsplit("-", 1)[1]
+    return Path(root) / "sweeps" / "plots" / f"{sweep_id}-{digest}-{name}.png"
+
+
+def render_sweep_plot(root: Path, sweep_id: str, case_ids: Sequence[str], name: str) -> Path:
+    """The cached PNG of sweep plot ``name`` over ``case_ids`` (stored cases), rendered if missing.
+
+    ``name`` is one of :data:`workflows.plots.SWEEP_PLOT_NAMES`; ``interaction`` reads
+    every case's file (their design envelopes are not part of the combined results).
+    Figures over fewer cases of the same sweep are removed once a few minutes old.
+
+    Raises
+    ------
+    KeyError
+        If ``name`` is not a sweep plot.
+    """
+    if name not in SWEEP_PLOT_NAMES:
+        raise KeyError(name)
+    target = sweep_plot_path(root, sweep_id, case_ids, name)
+    if target.is_file():
+        return target
+    with _BUILD_LOCK:
+        if not target.is_file():
+            combined = open_results(root, case_ids=list(case_ids))
+            if name == "interaction":
+                figure = plot_interaction([_section_forces(root, c) for c in case_ids], case_labels(combined))
+            else:
+                figure = SWEEP_PLOTS[name](combined)
+            write_atomically(target, lambda tmp: figure.savefig(tmp, format="png", dpi=90))
+            logger.info("rendered %s of sweep %s (%d cases)", name, sweep_id, len(case_ids))
+            for old in target.parent.glob(f"{sweep_id}-*-{name}.png"):
+                if old != target and time.time() - old.stat().st_mtime > _STALE_AFTER:
+                    old.unlink(missing_ok=True)
+    return target
+
+
+def _section_forces(root: Path, case_id: str):
+    """The lining forces and design envelope of a stored case, without its mesh and fields."""
+    with xr.open_dataset(case_path(root, case_id), **OPEN_OPTIONS) as ds:
+        names = [v for v in ("thrust", "moment", "utilization", "capacity_thrust", "capacity_moment") if v in ds]
+        return ds[names].load()

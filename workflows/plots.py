@@ -5,6 +5,7 @@ nothing is kept in a global figure registry; save it with ``fig.savefig(path)``.
 """
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Callable
 
 import numpy as np
@@ -145,3 +146,196 @@ PLOTS: dict[str, Callable[[xr.Dataset], Figure]] = {
     "lining_forces": plot_lining_forces,
     "deformed_mesh": plot_deformed_mesh,
 }
+
+
+# -- figures of a sweep (many cases) ------------------------------------------------------
+
+#: CF units of the results -> (unit shown to people, factor from SI).
+DISPLAY_UNITS: dict[str, tuple[str, float]] = {
+    "Pa": ("kPa", 1e-3), "N m-1": ("kN/m", 1e-3), "N m m-1": ("kN·m/m", 1e-3),
+    "m": ("mm", 1e3), "degree": ("°", 1.0), "s": ("s", 1.0), "1": ("", 1.0),
+}
+#: Most cases for which a figure still gets a legend (more: colour only).
+_LEGEND_CASES = 10
+
+
+def display_unit(units: str) -> tuple[str, float]:
+    """``(unit label, factor)`` to show a quantity stored in CF ``units`` (e.g. Pa -> kPa, 1e-3)."""
+    return DISPLAY_UNITS.get(units, (units, 1.0))
+
+
+def case_parameters(combined: xr.Dataset) -> list[str]:
+    """Names of the varied parameters of combined results (coordinates along ``case``)."""
+    return [str(n) for n in combined.coords if combined[n].dims == ("case",) and n != "case_id"]
+
+
+def case_labels(combined: xr.Dataset) -> list[str]:
+    """One label per case: its varied parameters (``ground_young=5e+07, ...``), else its id."""
+    params = case_parameters(combined)
+    labels = []
+    for i in range(combined.sizes["case"]):
+        parts = [f"{p}={combined[p].values[i]:.4g}" if np.issubdtype(combined[p].dtype, np.number)
+                 else f"{p}={combined[p].values[i]}" for p in params]
+        labels.append(", ".join(parts) or str(combined["case_id"].values[i]))
+    return labels
+
+
+def _case_colors(n: int) -> list:
+    from matplotlib import colormaps
+
+    if n <= 10:
+        return [colormaps["tab10"](i) for i in range(n)]
+    return [colormaps["viridis"](i / (n - 1)) for i in range(n)]
+
+
+def plot_lining_forces_comparison(combined: xr.Dataset) -> Figure:
+    """Thrust and moment against theta for every case of a combined result."""
+    fig = Figure(figsize=(7, 6), layout="constrained")
+    ax_n, ax_m = fig.subplots(2, 1, sharex=True)
+    labels, colors = case_labels(combined), _case_colors(combined.sizes["case"])
+    for ax, name, label in ((ax_n, "thrust", "thrust N (kN/m)"),
+                            (ax_m, "moment", "moment M (kN·m/m),\n+ = inner fibre compressed")):
+        for i in range(combined.sizes["case"]):
+            ax.plot(combined["theta"], combined[name].isel(case=i) / 1e3, lw=1.2, color=colors[i], label=labels[i])
+        ax.axhline(0.0, color="0.5", lw=0.8)
+        ax.set_ylabel(label)
+        _theta_axis(ax)
+    ax_n.set_xlabel("")
+    if combined.sizes["case"] <= _LEGEND_CASES:
+        ax_n.legend(fontsize="x-small")
+    ax_n.set_title(f"Lining forces: {combined.sizes['case']} cases", fontsize="medium")
+    return fig
+
+
+def plot_interaction(cases: list[xr.Dataset], labels: list[str] | None = None) -> Figure:
+    """N–M diagram of a set of cases: each case's thrust and moment at every station.
+
+    Where a case carries its design envelope (``capacity_thrust``, ``capacity_moment``
+    on ``envelope``, SPEC §1.3), the envelope is drawn and the stations are the design
+    actions (γF·N, γF·M, with γF = ``design.load_factor`` of the case); otherwise the
+    stations are the computed (N, M).
+    """
+    import json
+
+    fig = Figure(figsize=(7, 6), layout="constrained")
+    ax = fig.add_subplot()
+    labels = labels or [str(ds.attrs.get("case_id", i)) for i, ds in enumerate(cases)]
+    colors = _case_colors(len(cases))
+    with_envelope = [all(v in ds for v in ("capacity_thrust", "capacity_moment")) for ds in cases]
+    worst = None
+    for ds, label, color, design in zip(cases, labels, colors, with_envelope):
+        factor = 1.0
+        if design:
+            factor = float(json.loads(ds.attrs.get("case_spec", "{}")).get("design", {}).get("load_factor", 1.0))
+            n_env, m_env = ds["capacity_thrust"].values / 1e3, ds["capacity_moment"].values / 1e3
+            ax.plot(np.append(m_env, m_env[:1]), np.append(n_env, n_env[:1]), color=color, lw=1.0)
+        ax.plot(factor * ds["moment"].values / 1e3, factor * ds["thrust"].values / 1e3, "o", ms=2.5,
+                color=color, label=label)
+        if "utilization" in ds:
+            eta = float(np.nanmax(ds["utilization"].values))
+            worst = eta if worst is None else max(worst, eta)
+    ax.axhline(0.0, color="0.5", lw=0.8)
+    ax.axvline(0.0, color="0.5", lw=0.8)
+    ax.grid(True, alpha=0.3)
+    if any(with_envelope):
+        ax.set_xlabel("design moment M_Ed (kN·m/m)")
+        ax.set_ylabel("design thrust N_Ed (kN/m, compression +)")
+        title = "N–M interaction: design envelopes (lines) and actions at every station (dots)"
+        if worst is not None:
+            title += f"\nlargest utilization η = {worst:.3g}" + (" (fails)" if worst > 1 else "")
+    else:
+        ax.set_xlabel("moment M (kN·m/m)")
+        ax.set_ylabel("thrust N (kN/m, compression +)")
+        title = "Thrust and moment at every station (no design envelope in these results)"
+    if len(cases) <= _LEGEND_CASES:
+        ax.legend(fontsize="x-small", markerscale=2)
+    ax.set_title(title, fontsize="medium")
+    return fig
+
+
+def _format_value(value) -> str:
+    return f"{value:.4g}" if isinstance(value, (int, float, np.number)) else str(value)
+
+
+def _parameter_axis(values: np.ndarray) -> tuple[np.ndarray, list[str] | None]:
+    """Positions for parameter ``values``: themselves if numeric, else category indices and labels."""
+    if np.issubdtype(values.dtype, np.number):
+        return values.astype(float), None
+    categories = list(dict.fromkeys(values.tolist()))
+    return np.array([categories.index(v) for v in values.tolist()], dtype=float), categories
+
+
+def plot_scalars(combined: xr.Dataset, scalars: list[str] | None = None) -> Figure:
+    """Each summary scalar against each varied parameter (one panel per pair).
+
+    Cases that share the values of the other varied parameters are joined by a line
+    (one colour per combination of those values, legend in the first row), so in a
+    grid sweep each line shows the effect of one parameter alone. Scalars with the
+    same value in every case are listed in the title instead of plotted.
+
+    Parameters
+    ----------
+    combined : combined results (:func:`workflows.open_results`).
+    scalars : names of the scalars to show; default every numeric scalar along ``case``.
+    """
+    params = case_parameters(combined)
+    if scalars is None:
+        scalars = [str(n) for n, v in combined.data_vars.items()
+                   if v.dims == ("case",) and v.dtype.kind in "biuf"]
+    constant = [s for s in scalars if np.allclose(combined[s].values.astype(float),
+                                                  float(combined[s].values[0]), rtol=1e-9, atol=0)]
+    panels = [(s, p) for s in scalars if s not in constant for p in params]
+    if not panels:
+        fig = Figure(figsize=(6, 2), layout="constrained")
+        fig.text(0.5, 0.5, "no varied parameter, or no scalar that changes: nothing to plot",
+                 ha="center", va="center")
+        return fig
+    # one row per scalar when few parameters vary; a single parameter wraps over 4 columns
+    ncols = 4 if len(params) == 1 else min(len(params), 4)
+    nrows = -(-len(panels) // ncols)
+    fig = Figure(figsize=(3.4 * ncols, 2.4 * nrows + 0.4), layout="constrained")
+    axes = fig.subplots(nrows, ncols, squeeze=False).ravel()
+    for ax in axes[len(panels):]:
+        ax.set_visible(False)
+    for k, (ax, (scalar, param)) in enumerate(zip(axes, panels)):
+        unit, factor = display_unit(combined[scalar].attrs.get("units", ""))
+        y = combined[scalar].values.astype(float) * factor
+        x, categories = _parameter_axis(combined[param].values)
+        others = [p for p in params if p != param]
+        groups: dict[tuple, list[int]] = {}
+        for i in range(combined.sizes["case"]):
+            groups.setdefault(tuple(_format_value(combined[o].values[i]) for o in others), []).append(i)
+        colors = _case_colors(len(groups))
+        for color, (key, members) in zip(colors, groups.items()):
+            members = sorted(members, key=lambda i: x[i])
+            ax.plot(x[members], y[members], "o-", ms=3, lw=1, color=color,
+                    label=", ".join(f"{o}={v}" for o, v in zip(others, key)))
+        if k < ncols and others and len(groups) <= 6:
+            ax.legend(fontsize="xx-small")
+        if categories is not None:
+            ax.set_xticks(range(len(categories)), categories, fontsize="x-small")
+        ax.set_xlabel(param, fontsize="small")
+        ax.set_ylabel(f"{scalar}" + (f" ({unit})" if unit else ""), fontsize="small")
+        ax.tick_params(labelsize="x-small")
+        ax.grid(True, alpha=0.3)
+    title = f"Summary scalars against the varied parameters: {combined.sizes['case']} cases"
+    if constant:
+        shown = ", ".join(f"{s} = {float(combined[s].values[0]):.4g}" for s in constant)
+        title += "\nthe same in every case: " + "\n".join(textwrap.wrap(shown, 30 * ncols))
+    fig.suptitle(title, fontsize="small")
+    return fig
+
+
+def _comparison_of(variable: str) -> Callable[[xr.Dataset], Figure]:
+    return lambda combined: plot_comparison(combined, variable)
+
+
+#: Plots of a sweep (combined results of its finished cases), by name. ``interaction``
+#: needs the cases themselves (their envelopes are not combined): see
+#: :func:`workflows.artifacts.render_sweep_plot`.
+SWEEP_PLOTS: dict[str, Callable[[xr.Dataset], Figure]] = {
+    "contact_pressure": _comparison_of("contact_pressure"),
+    "lining_forces": plot_lining_forces_comparison,
+    "scalars": plot_scalars,
+}
+SWEEP_PLOT_NAMES = ("contact_pressure", "lining_forces", "interaction", "scalars")

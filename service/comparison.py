@@ -1,0 +1,133 @@
+"""The comparison table of a sweep: one row per case, what varies first, then the results.
+
+The same table feeds ``GET /sweeps/{id}/table`` (JSON), ``GET /sweeps/{id}/summary.csv``
+and the sweep page of the dashboard. It is built from the job records alone (the
+summary scalars recorded when each case finished), so it costs no file reads.
+
+Columns, in order
+-----------------
+``case_id``
+    The case id (16 hex digits).
+``status``
+    ``queued``, ``running``, ``done``, ``failed`` or ``cancelled``.
+the varied parameters
+    Every case parameter whose value differs between the sweep's cases, by its flat
+    name (``lining_thickness``, ``ground_young``: :mod:`workflows.parameters`), in
+    case-model order, SI units as in the case JSON (SPEC §2).
+the scalars
+    The result scalars of SPEC §3 (``max_contact_pressure``, ``contact_extent``, ...)
+    in the contract's order, then any other recorded scalar by name; SI units as
+    stored (Pa, N/m, N·m/m, m, degrees). Empty until the case is done; a non-finite
+    value is written ``inf``, ``-inf`` or ``nan`` (what ``float()`` reads back).
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+from typing import Literal, Optional, Union
+
+from pydantic import BaseModel, Field
+
+from solver.dataset import SCALARS
+from workflows.parameters import flat_parameters, varying_parameters
+from workflows.plots import display_unit
+
+from .store import JobStore, SweepRecord
+
+#: Scalars of SPEC §3 in the contract's order (those the solver does not write yet included),
+#: with their CF units; the solver's own table fills in long names.
+SCALAR_ORDER: dict[str, str] = {
+    "max_contact_pressure": "Pa", "contact_extent": "degree", "crown_settlement": "m",
+    "max_thrust": "N m-1", "max_abs_moment": "N m m-1", "max_utilization": "1",
+    "max_surface_settlement": "m", "volume_loss": "1", "ground_crown_settlement": "m",
+    "lining_weight": "N m-1", "bolt_theta": "degree", "bolt_trials": "1", "iterations": "1",
+    "converged": "1", "kkt_residual": "1", "solve_seconds": "s",
+}
+
+
+class Column(BaseModel):
+    """One column of the comparison table."""
+
+    name: str
+    kind: Literal["id", "status", "parameter", "scalar"]
+    units: str = Field("", description="CF units of the values (SI)")
+    long_name: str = ""
+    display_unit: str = Field("", description="unit the dashboard shows")
+    display_factor: float = Field(1.0, description="shown value = value × display_factor")
+
+
+Value = Union[float, str, None]
+
+
+class ComparisonTable(BaseModel):
+    """``GET /sweeps/{id}/table``: the sweep's cases, one row each (values keyed by column name)."""
+
+    sweep_id: str
+    columns: list[Column]
+    rows: list[dict[str, Value]]
+
+
+def scalar_column(name: str) -> Column:
+    """The column of result scalar ``name`` (units from the contract, names from the solver)."""
+    units, long_name = SCALARS.get(name, (SCALAR_ORDER.get(name, ""), name.replace("_", " ")))
+    shown, factor = display_unit(units)
+    return Column(name=name, kind="scalar", units=units, long_name=long_name, display_unit=shown,
+                  display_factor=factor)
+
+
+def ordered_scalars(names) -> list[str]:
+    """``names`` in the contract's order, unknown ones last by name."""
+    names = set(names)
+    return [n for n in SCALAR_ORDER if n in names] + sorted(names - set(SCALAR_ORDER))
+
+
+def comparison_table(store: JobStore, record: SweepRecord) -> ComparisonTable:
+    """The comparison table of the sweep ``record`` from the job records."""
+    cases = store.get_cases(record.case_ids)
+    ordered = [cases[c] for c in record.case_ids if c in cases]
+    flat = [flat_parameters(c.spec) for c in ordered]
+    varied = varying_parameters(flat)
+    # the solver's scalars always (columns do not come and go as cases finish), others once recorded
+    scalars = ordered_scalars({*SCALARS, *(name for c in ordered for name in (c.summary or {}))})
+    columns = [Column(name="case_id", kind="id", long_name="case id"),
+               Column(name="status", kind="status", long_name="status")]
+    columns += [Column(name=p, kind="parameter", long_name=f"case parameter {p}") for p in varied]
+    columns += [scalar_column(s) for s in scalars]
+    rows = []
+    for case, params in zip(ordered, flat):
+        summary = case.summary or {}
+        row: dict[str, Value] = {"case_id": case.id, "status": case.status}
+        row.update({p: params.get(p) for p in varied})
+        row.update({s: _json_safe(summary.get(s)) for s in scalars})
+        rows.append(row)
+    return ComparisonTable(sweep_id=record.id, columns=columns, rows=rows)
+
+
+def _json_safe(value: Value) -> Value:
+    """Non-finite numbers as the text Python's ``float()`` reads back (JSON has no inf)."""
+    return repr(value) if isinstance(value, float) and not math.isfinite(value) else value
+
+
+def table_csv(table: ComparisonTable) -> str:
+    """The table as CSV text: a header of column names, then one line per case (empty = no value)."""
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    names = [c.name for c in table.columns]
+    writer.writerow(names)
+    for row in table.rows:
+        writer.writerow(["" if row.get(n) is None else _csv_value(row[n]) for n in names])
+    return out.getvalue()
+
+
+def _csv_value(value: Value) -> str:
+    return repr(value) if isinstance(value, float) else str(value)
+
+
+def shown(value: Optional[Value], column: Column) -> str:
+    """A value as the dashboard shows it (4 significant digits, display units)."""
+    if value is None:
+        return ""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return f"{value * column.display_factor:.4g}"
+    return str(value)

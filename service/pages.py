@@ -1,0 +1,96 @@
+"""The dashboard: server-rendered pages over the same functions as the JSON routes.
+
+``/`` lists sweeps and recent cases; ``/ui/sweeps/{id}`` is a sweep (progress, the
+comparison table, plots, downloads); ``/ui/cases/{id}`` a case (summary, plots,
+downloads, its JSON); ``/ui/submit`` a form for a case or a sweep. Templates and the
+small script that keeps the status live (it polls the JSON routes) ship in the
+package: no build step, nothing fetched from outside.
+"""
+from __future__ import annotations
+
+import json
+import logging
+from pathlib import Path
+from typing import Optional
+
+from fastapi import APIRouter, FastAPI, Request
+from fastapi.responses import HTMLResponse
+from fastapi.staticfiles import StaticFiles
+from fastapi.templating import Jinja2Templates
+
+from workflows.plots import PLOTS, SWEEP_PLOT_NAMES
+
+from . import cases, studies, sweeps
+from .comparison import ordered_scalars, scalar_column, shown
+from .params import CaseId, SweepId, jobs_of
+
+logger = logging.getLogger(__name__)
+
+HERE = Path(__file__).parent
+templates = Jinja2Templates(directory=HERE / "templates")
+templates.env.filters["shown"] = shown
+templates.env.filters["pretty_json"] = lambda value: json.dumps(value, indent=2, sort_keys=True)
+
+router = APIRouter(include_in_schema=False)
+
+#: A small sweep for the submit form: coarse mesh, small ground block, four cases.
+EXAMPLE_SWEEP = {
+    "name": "thickness-and-stiffness",
+    "base": {"geometry": {"depth": 10.0, "width": 20.0, "height": 25.0},
+             "mesh": {"interface_size": 0.15, "far_size": 8.0}},
+    "vary": {"lining.thickness": [0.2, 0.3], "ground.young": [2.0e7, 5.0e7]},
+    "mode": "grid",
+}
+EXAMPLE_CASE = {"geometry": {"thickness": 0.3, "gap": 0.01}, "mesh": {"interface_size": 0.1, "far_size": 6.0}}
+
+
+def mount_static(app: FastAPI) -> None:
+    """Serve the dashboard's script and style sheet under ``/static``."""
+    app.mount("/static", StaticFiles(directory=HERE / "static"), name="static")
+
+
+def dask_dashboard(request: Request) -> Optional[str]:
+    """Link to the dask scheduler's dashboard, when the scheduler serves one."""
+    jobs = jobs_of(request)
+    if not jobs.connected:
+        return None
+    try:
+        if "dashboard" not in jobs.client.scheduler_info().get("services", {}):
+            return None
+        return jobs.client.dashboard_link
+    except Exception as exc:  # an older or unusual scheduler: no link rather than no page
+        logger.debug("no dask dashboard link: %s", exc)
+        return None
+
+
+def _render(request: Request, name: str, **context) -> HTMLResponse:
+    return templates.TemplateResponse(request, name, {"dask_dashboard": dask_dashboard(request), **context})
+
+
+@router.get("/", response_class=HTMLResponse)
+async def index(request: Request) -> HTMLResponse:
+    sweep_page = await studies.list_sweeps(request, limit=20, offset=0)
+    case_page = await cases.list_cases(request, status=None, limit=20, offset=0, newest_first=True)
+    workers = (await jobs_of(request).cluster_state())[1]
+    return _render(request, "index.html", sweeps=sweep_page, cases=case_page, workers=workers)
+
+
+@router.get("/ui/sweeps/{sweep_id}", response_class=HTMLResponse)
+async def sweep_page(sweep_id: SweepId, request: Request) -> HTMLResponse:
+    status = await sweeps.get_sweep(sweep_id, request)
+    table = await studies.get_sweep_table(sweep_id, request)
+    spec = jobs_of(request).store.get_sweep(sweep_id).spec
+    return _render(request, "sweep.html", sweep=status, table=table, spec=spec, plots=SWEEP_PLOT_NAMES)
+
+
+@router.get("/ui/cases/{case_id}", response_class=HTMLResponse)
+async def case_page(case_id: CaseId, request: Request) -> HTMLResponse:
+    case = await cases.get_case(case_id, request)
+    columns = [scalar_column(n) for n in ordered_scalars(case.summary or {})]
+    return _render(request, "case.html", case=case, columns=columns, plots=list(PLOTS))
+
+
+@router.get("/ui/submit", response_class=HTMLResponse)
+async def submit_page(request: Request) -> HTMLResponse:
+    return _render(request, "submit.html", example_sweep=json.dumps(EXAMPLE_SWEEP, indent=2),
+                   example_case=json.dumps(EXAMPLE_CASE, indent=2))

@@ -1,0 +1,97 @@
+"""``/sweeps`` as studies: the list, the comparison table (JSON, CSV), sweep plots, cancel.
+
+The dashboard's pages (:mod:`service.pages`) call these same functions.
+"""
+from __future__ import annotations
+
+import asyncio
+from enum import Enum
+
+from fastapi import APIRouter, Depends, Query, Request
+from fastapi.responses import FileResponse, Response
+
+from workflows.artifacts import render_sweep_plot
+from workflows.plots import SWEEP_PLOT_NAMES
+from workflows.store import is_stored
+
+from .comparison import ComparisonTable, comparison_table, table_csv
+from .errors import responses
+from .guards import require_token
+from .params import SweepId, jobs_of, not_found, not_ready
+from .schemas import SweepCancelled, SweepPage, SweepStatus
+from .store import SweepRecord
+
+router = APIRouter(prefix="/sweeps", tags=["sweeps"])
+
+#: Plot names accepted in ``/sweeps/{id}/plots/{name}.png``.
+SweepPlotName = Enum("SweepPlotName", {name: name for name in SWEEP_PLOT_NAMES}, type=str)
+
+
+def _sweep(request: Request, sweep_id: str) -> SweepRecord:
+    record = jobs_of(request).store.get_sweep(sweep_id)
+    if record is None:
+        raise not_found("sweep", sweep_id)
+    return record
+
+
+@router.get("", response_model=SweepPage, responses=responses(422))
+async def list_sweeps(request: Request, limit: int = Query(20, ge=1, le=200),
+                      offset: int = Query(0, ge=0)) -> SweepPage:
+    """Sweeps, newest submission first, a page at a time, each with its counts by status."""
+    store = jobs_of(request).store
+    records, total = store.list_sweeps(limit=limit, offset=offset)
+    return SweepPage(items=[SweepStatus.of(r, store.status_counts(r.case_ids)) for r in records],
+                     total=total, limit=limit, offset=offset)
+
+
+@router.get("/{sweep_id}/table", response_model=ComparisonTable, responses=responses(404))
+async def get_sweep_table(sweep_id: SweepId, request: Request) -> ComparisonTable:
+    """The comparison table: one row per case; columns ``case_id``, ``status``, the parameters
+    that vary across the sweep, then the result scalars (SI units; see ``columns``)."""
+    return comparison_table(jobs_of(request).store, _sweep(request, sweep_id))
+
+
+@router.get("/{sweep_id}/summary.csv", response_class=Response, responses={
+    200: {"content": {"text/csv": {}},
+          "description": "header row, then one row per case in sweep order: case_id, status, the "
+                         "varied parameters (flat names, e.g. lining_thickness), then the result "
+                         "scalars of SPEC §3 in SI units (empty until the case is done)"},
+    **responses(404)})
+async def get_sweep_csv(sweep_id: SweepId, request: Request) -> Response:
+    """The comparison table as CSV (the same columns as ``/sweeps/{id}/table``)."""
+    table = await get_sweep_table(sweep_id, request)
+    return Response(table_csv(table), media_type="text/csv; charset=utf-8",
+                    headers={"Content-Disposition": f'attachment; filename="sweep-{sweep_id}.csv"'})
+
+
+@router.get("/{sweep_id}/plots/{name}.png", response_class=FileResponse, responses={
+    200: {"content": {"image/png": {}},
+          "description": "the figure over the sweep's finished cases (header X-Cases-Included)"},
+    **responses(404, 409)})
+async def get_sweep_plot(sweep_id: SweepId, name: SweepPlotName, request: Request) -> FileResponse:
+    """A figure of the sweep's finished cases: ``contact_pressure``, ``lining_forces``,
+    ``interaction`` (N–M stations of every case, with design envelopes when the results
+    have them) or ``scalars`` (each summary scalar against each varied parameter)."""
+    jobs = jobs_of(request)
+    record = _sweep(request, sweep_id)
+    statuses = jobs.store.statuses(record.case_ids)
+    done = [c for c in record.case_ids if statuses.get(c) == "done" and is_stored(jobs.root, c)]
+    if not done:
+        raise not_ready(f"sweep {sweep_id}", "no case is done yet")
+    path = await asyncio.to_thread(render_sweep_plot, jobs.root, sweep_id, done, name.value)
+    return FileResponse(path, media_type="image/png",
+                        headers={"X-Cases-Included": f"{len(done)}/{len(record.case_ids)}"})
+
+
+@router.post("/{sweep_id}/cancel", response_model=SweepCancelled,
+             dependencies=[Depends(require_token)], responses=responses(401, 404))
+async def cancel_sweep(sweep_id: SweepId, request: Request) -> SweepCancelled:
+    """Cancel the sweep's queued cases (they become ``cancelled``); running cases finish.
+
+    Posting the sweep (or one of its cases) again submits the cancelled cases again.
+    """
+    jobs = jobs_of(request)
+    record = _sweep(request, sweep_id)
+    cancelled = await jobs.cancel(list(record.case_ids))
+    status = SweepStatus.of(record, jobs.store.status_counts(record.case_ids))
+    return SweepCancelled(**status.model_dump(), cancelled_now=cancelled)
