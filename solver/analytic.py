@@ -51,10 +51,14 @@ def thin_ring_cos2(P: float, K: float, E: float, nu: float, E_l: float, nu_l: fl
 
 
 def ring_in_medium_case(*, radii: float, K: float, P: float = 1.0e5, young_l: float = 3e10,
-                        thickness: float = 0.3, h: float = 0.1, inner: str = "active-set"):
+                        thickness: float = 0.3, h: float = 0.1, inner: str = "active-set",
+                        loading: str = "external", interface: str = "frictionless",
+                        deconfinement: float = 0.0, lining_density: float = 1.0, friction: float = 0.0):
     """The FE case that approximates these solutions: a weightless ground (E = 5e7,
     nu = 0.3) loaded by ``surface_load = P`` and side pressure ``K P`` (roller bottom),
     lining a = 2.5 m, nu_l = 0.2, with the domain ``radii`` outer radii each way.
+    ``loading="external"`` is ``wished-in-place``; ``"excavation"`` is ``deconfinement``
+    with the uniform in-situ stress (-K P, -P) and λd = ``deconfinement``.
     The lining keeps a token density (1 kg/m^3): the floating lining needs weight."""
     from .spec import CaseSpec
 
@@ -63,11 +67,14 @@ def ring_in_medium_case(*, radii: float, K: float, P: float = 1.0e5, young_l: fl
         geometry=dict(inner_radius=2.5, thickness=thickness, width=radii * b + 1,
                       depth=radii * b + 1, height=2 * radii * b + 2),
         ground=dict(young=5.0e7, poisson=0.3, density=0.0),
-        lining=dict(young=young_l, poisson=0.2, density=1.0),
+        lining=dict(young=young_l, poisson=0.2, density=lining_density),
         loads=dict(surface_load=P, lateral_ratio=K),
         boundaries=dict(side="pressure", bottom="roller"),
         mesh=dict(interface_size=h, far_size=16.0),
         solver=dict(inner=inner),
+        excavation=dict(method="wished-in-place" if loading == "external" else "deconfinement",
+                        deconfinement=deconfinement),
+        interface=dict(model=interface, friction=friction),
     )
 
 

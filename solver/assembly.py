@@ -1,9 +1,14 @@
-"""Plane-strain linear elasticity of both bodies with scikit-fem (P1 triangles).
+"""Plane-strain linear elasticity of each body with scikit-fem (isoparametric P2 triangles).
 
-Each body is assembled on its own mesh; the two meet only through the contact
-operator ``B`` (built in :mod:`solver.contact`). Essential conditions are
-removed from the unknowns ("free" DOFs), so every matrix here is already
-condensed.
+Each body is assembled on its own mesh; the two meet only through the interface
+operators built in :mod:`solver.flexibility`. A :class:`Body` holds what its mesh,
+material and essential conditions fix (basis, stiffness on the free DOFs); loads are
+assembled separately (:func:`gravity_load`, :func:`surface_load`, ...) because they
+change from stage to stage and case to case.
+
+Quadrature: degree 4 on every element, which integrates the P2 stiffness on curved
+(quadratic) triangles with a geostatic stress that is linear in y exactly, so the
+discrete in-situ state is in exact equilibrium (:func:`initial_stress_forces`).
 """
 from __future__ import annotations
 
@@ -11,31 +16,49 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from skfem import Basis, ElementTriP1, ElementVector, FacetBasis, LinearForm, MeshTri, asm
+from skfem import Basis, ElementTriP2, ElementVector, FacetBasis, LinearForm, asm
 from skfem.models.elasticity import lame_parameters, linear_elasticity
 
-from .mesh import BodyMesh, TunnelMesh
-from .spec import CaseSpec, Material
+from .mesh import BodyMesh
+
+#: Quadrature degree (exact for the geostatic equilibrium on quadratic geometry, see above).
+INTORDER = 4
+
+#: Reference coordinates of the centroids of the four corner sub-triangles of a P2
+#: triangle (corners 0-01-02, 01-1-12, 02-12-2, 01-12-02): where face stresses are reported.
+SUBTRIANGLE_CENTROIDS = np.array([[1 / 6, 2 / 3, 1 / 6, 1 / 3], [1 / 6, 1 / 6, 2 / 3, 1 / 3]])
+#: The sub-triangles as local node indices of the 6-node triangle (counter-clockwise).
+SUBTRIANGLES = np.array([[0, 3, 5], [3, 1, 4], [5, 4, 2], [3, 4, 5]])
 
 
 @dataclass(frozen=True)
-class BodySystem:
-    """The condensed elastic system of one body.
+class Body:
+    """One elastic body: its P2 basis and stiffness, condensed on the essential conditions.
 
     Attributes
     ----------
-    K : (n, n) CSR stiffness on the free DOFs (N/m per m of tunnel).
-    f : (n,) consistent nodal loads on the free DOFs (N/m).
+    mesh : the body's quadratic triangles.
+    basis : scikit-fem vector P2 basis (degree-4 quadrature).
+    dof_of_node : (2, N) full DOF of component c at node j.
+    free : (n,) the full DOFs that are unknowns.
     free_of : (2, N) free-DOF index of component c at node j, -1 where constrained.
+    K : (n, n) CSR stiffness on the free DOFs (N/m per m of tunnel).
     """
 
-    K: sp.csr_matrix
-    f: np.ndarray
+    mesh: BodyMesh
+    basis: Basis
+    dof_of_node: np.ndarray
+    free: np.ndarray
     free_of: np.ndarray
+    K: sp.csr_matrix
 
     @property
     def n(self) -> int:
-        return self.f.size
+        return self.free.size
+
+    def restrict(self, f_full: np.ndarray) -> np.ndarray:
+        """Free-DOF part of a full load vector."""
+        return np.asarray(f_full)[self.free]
 
     def expand(self, u_free: np.ndarray) -> np.ndarray:
         """Nodal displacements (2, N) from free-DOF values (constrained DOFs are 0)."""
@@ -43,6 +66,12 @@ class BodySystem:
         mask = self.free_of >= 0
         u[mask] = u_free[self.free_of[mask]]
         return u
+
+    def full(self, u_nodes: np.ndarray) -> np.ndarray:
+        """Full DOF vector of nodal displacements (2, N)."""
+        x = np.zeros(self.basis.N)
+        x[self.dof_of_node] = u_nodes
+        return x
 
     def node_of_dof(self) -> np.ndarray:
         """(n,) mesh node of each free DOF."""
@@ -60,119 +89,153 @@ class BodySystem:
         return r
 
 
-@dataclass(frozen=True)
-class System:
-    ground: BodySystem
-    lining: BodySystem
+def vector_basis(mesh: BodyMesh) -> Basis:
+    """Vector P2 basis on the isoparametric mesh."""
+    return Basis(mesh.skfem_mesh(), ElementVector(ElementTriP2()), intorder=INTORDER)
 
 
-def _basis(mesh: BodyMesh) -> Basis:
-    return Basis(MeshTri(np.ascontiguousarray(mesh.p), np.ascontiguousarray(mesh.t)), ElementVector(ElementTriP1()))
+def _dof_of_node(basis: Basis) -> np.ndarray:
+    return np.hstack([basis.nodal_dofs, basis.facet_dofs])
 
 
 def _near(values: np.ndarray, target: float, scale: float) -> np.ndarray:
     return np.abs(values - target) <= 1e-9 * scale
 
 
-def _gravity(density: float, g: float) -> LinearForm:
+def assemble_body(mesh: BodyMesh, young: float, poisson: float, fixed: list[np.ndarray],
+                  basis: Basis | None = None) -> Body:
+    """Stiffness of one body with the full DOFs in ``fixed`` removed."""
+    basis = vector_basis(mesh) if basis is None else basis
+    K = asm(linear_elasticity(*lame_parameters(young, poisson)), basis)
+    dof_of_node = _dof_of_node(basis)
+    is_fixed = np.zeros(basis.N, bool)
+    for dofs in fixed:
+        is_fixed[dofs] = True
+    free = np.flatnonzero(~is_fixed)
+    index = -np.ones(basis.N, np.int64)
+    index[free] = np.arange(free.size)
+    K = K.tocsr()[free][:, free].tocsr()
+    return Body(mesh=mesh, basis=basis, dof_of_node=dof_of_node, free=free,
+                free_of=index[dof_of_node], K=K)
+
+
+def ground_constraints(basis: Basis, *, width: float, height: float, side: str, bottom: str) -> list[np.ndarray]:
+    """Full DOFs held by the symmetry line, the bottom and the side (SPEC §1)."""
+    x, y = basis.doflocs[:, _dof_of_node(basis)[0]]
+    dofs = _dof_of_node(basis)
+    scale = max(width, height)
+    fixed = [dofs[0, _near(x, 0.0, scale)]]
+    low = _near(y, -height, scale)
+    fixed.append(dofs[:, low].ravel() if bottom == "fixed" else dofs[1, low])
+    right = _near(x, width, scale)
+    if side == "fixed":
+        fixed.append(dofs[:, right].ravel())
+    elif side == "roller":
+        fixed.append(dofs[0, right])
+    return fixed
+
+
+def lining_constraints(basis: Basis, *, scale: float) -> list[np.ndarray]:
+    """The lining's symmetry line; its vertical translation stays free (it floats)."""
+    dofs = _dof_of_node(basis)
+    x = basis.doflocs[0, dofs[0]]
+    return [dofs[0, _near(x, 0.0, scale)]]
+
+
+def gravity_load(basis: Basis, density: float, g: float) -> np.ndarray:
+    """Consistent nodal body force of density × g downward (full DOFs, N/m)."""
+
     @LinearForm
     def load(v, w):
         return -density * g * v[1]
 
-    return load
+    return asm(load, basis)
 
 
-def _condense(basis: Basis, K, f, fixed: list[np.ndarray]) -> BodySystem:
-    n_total = basis.N
-    is_fixed = np.zeros(n_total, bool)
-    for dofs in fixed:
-        is_fixed[dofs] = True
-    free = np.flatnonzero(~is_fixed)
-    index = -np.ones(n_total, np.int64)
-    index[free] = np.arange(free.size)
-    K = K.tocsr()[free][:, free].tocsr()
-    return BodySystem(K=K, f=np.asarray(f)[free], free_of=index[basis.nodal_dofs])
-
-
-def _stiffness(basis: Basis, mat: Material):
-    return asm(linear_elasticity(*lame_parameters(mat.young, mat.poisson)), basis)
-
-
-def assemble_system(spec: CaseSpec, mesh: TunnelMesh) -> System:
-    """Stiffness and loads of ground and lining, condensed on the essential conditions."""
-    return System(ground=_assemble_ground(spec, mesh.ground), lining=_assemble_lining(spec, mesh.lining))
-
-
-def _assemble_ground(spec: CaseSpec, body: BodyMesh) -> BodySystem:
-    geo, loads, bc = spec.geometry, spec.loads, spec.boundaries
-    basis = _basis(body)
+def _facets(basis: Basis, where) -> FacetBasis:
     mesh = basis.mesh
-    scale = max(geo.width, geo.height)
-    K = _stiffness(basis, spec.ground)
-    f = asm(_gravity(spec.ground.density, loads.gravity), basis)
+    return FacetBasis(mesh, basis.elem, facets=mesh.facets_satisfying(where), intorder=INTORDER)
 
-    q = loads.surface_load
-    top = FacetBasis(mesh, basis.elem, facets=mesh.facets_satisfying(lambda x: _near(x[1], 0.0, scale)))
+
+def surface_load(basis: Basis, q: float, *, scale: float) -> np.ndarray:
+    """Uniform downward pressure ``q`` (Pa) on the ground surface y = 0 (full DOFs)."""
 
     @LinearForm
-    def surface(v, w):
+    def load(v, w):
         return -q * v[1]
 
-    f = f + asm(surface, top)
-
-    x, y = mesh.p
-    dofs = basis.nodal_dofs
-    fixed = [dofs[0, _near(x, 0.0, scale)]]
-    bottom = _near(y, -geo.height, scale)
-    fixed.append(dofs[:, bottom].ravel() if bc.bottom == "fixed" else dofs[1, bottom])
-    side = _near(x, geo.width, scale)
-    if bc.side == "fixed":
-        fixed.append(dofs[:, side].ravel())
-    elif bc.side == "roller":
-        fixed.append(dofs[0, side])
-    else:
-        right = FacetBasis(mesh, basis.elem,
-                           facets=mesh.facets_satisfying(lambda x: _near(x[0], geo.width, scale)))
-        k0, rho_g = loads.lateral_ratio, spec.ground.density * loads.gravity
-
-        @LinearForm
-        def side_pressure(v, w):
-            return -k0 * (q - rho_g * w.x[1]) * v[0]
-
-        f = f + asm(side_pressure, right)
-    return _condense(basis, K, f, fixed)
+    return asm(load, _facets(basis, lambda x: _near(x[1], 0.0, scale)))
 
 
-def _assemble_lining(spec: CaseSpec, body: BodyMesh) -> BodySystem:
-    basis = _basis(body)
-    K = _stiffness(basis, spec.lining)
-    f = asm(_gravity(spec.lining.density, spec.loads.gravity), basis)
-    on_axis = _near(basis.mesh.p[0], 0.0, spec.geometry.outer_radius)
-    return _condense(basis, K, f, [basis.nodal_dofs[0, on_axis]])
+def side_pressure_load(basis: Basis, *, q: float, rho_g: float, k0: float, width: float,
+                       scale: float) -> np.ndarray:
+    """Horizontal pressure K0 × geostatic vertical stress on the side x = width (full DOFs)."""
+
+    @LinearForm
+    def load(v, w):
+        return -k0 * (q - rho_g * w.x[1]) * v[0]
+
+    return asm(load, _facets(basis, lambda x: _near(x[0], width, scale)))
 
 
-def element_stress(mesh: BodyMesh, mat: Material, u: np.ndarray) -> np.ndarray:
-    """Constant P1 stresses per triangle, (4, E): xx, yy, xy, zz in Pa (tension positive).
+def geostatic_stress(y: np.ndarray, *, q: float, rho_g: float, k0: float) -> tuple[np.ndarray, np.ndarray]:
+    """σ0_xx (= σ0_zz) and σ0_yy (Pa, tension positive) at depth -y (SPEC §1.1); σ0_xy = 0."""
+    syy = -(q - rho_g * y)
+    return k0 * syy, syy
 
-    ``u`` is the nodal displacement (2, N); plane strain gives
-    sigma_zz = lambda (eps_xx + eps_yy).
+
+def initial_stress_forces(basis: Basis, *, q: float, rho_g: float, k0: float) -> np.ndarray:
+    """Internal nodal forces of the geostatic stress, ∫ Bᵀ σ0 dΩ (full DOFs, N/m)."""
+
+    @LinearForm
+    def internal(v, w):
+        sxx, syy = geostatic_stress(w.x[1], q=q, rho_g=rho_g, k0=k0)
+        return sxx * v.grad[0][0] + syy * v.grad[1][1]
+
+    return asm(internal, basis)
+
+
+def _strain_basis(body: Body, points: np.ndarray) -> Basis:
+    W = np.full(points.shape[1], 0.5 / points.shape[1])  # unused: only point values are read
+    return Basis(body.basis.mesh, body.basis.elem, quadrature=(points, W))
+
+
+def stress_at(body: Body, young: float, poisson: float, u_nodes: np.ndarray,
+              points: np.ndarray = SUBTRIANGLE_CENTROIDS) -> np.ndarray:
+    """Stress (4, E, P) in Pa (xx, yy, xy, zz; tension positive) at reference ``points`` (2, P).
+
+    ``u_nodes`` is the nodal displacement (2, N); plane strain gives
+    σ_zz = λ (ε_xx + ε_yy).
     """
-    p, t = mesh.p, mesh.t
-    grads, _ = p1_gradients(mesh)
-    ue = u[:, t]  # (2, 3, E)
-    eps_xx = np.einsum("ke,ke->e", grads[0], ue[0])
-    eps_yy = np.einsum("ke,ke->e", grads[1], ue[1])
-    eps_xy = 0.5 * (np.einsum("ke,ke->e", grads[1], ue[0]) + np.einsum("ke,ke->e", grads[0], ue[1]))
-    lam, mu = lame_parameters(mat.young, mat.poisson)
-    tr = eps_xx + eps_yy
-    return np.stack([lam * tr + 2 * mu * eps_xx, lam * tr + 2 * mu * eps_yy, 2 * mu * eps_xy, lam * tr])
+    basis = _strain_basis(body, points)
+    grad = basis.interpolate(body.full(u_nodes)).grad  # (2, 2, E, P): du_i/dx_j
+    return _hooke(grad, young, poisson)
 
 
-def p1_gradients(mesh: BodyMesh) -> tuple[np.ndarray, np.ndarray]:
-    """Gradients of the three P1 shape functions, (2, 3, E) in 1/m, and areas (E,) in m^2."""
-    p, t = mesh.p, mesh.t
-    x, y = p[0, t], p[1, t]  # (3, E)
-    det = (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0])
-    gx = np.stack([y[1] - y[2], y[2] - y[0], y[0] - y[1]]) / det
-    gy = np.stack([x[2] - x[1], x[0] - x[2], x[1] - x[0]]) / det
-    return np.stack([gx, gy]), 0.5 * det
+def _hooke(grad: np.ndarray, young: float, poisson: float) -> np.ndarray:
+    lam, mu = lame_parameters(young, poisson)
+    exx, eyy = grad[0, 0], grad[1, 1]
+    exy = 0.5 * (grad[0, 1] + grad[1, 0])
+    tr = exx + eyy
+    return np.stack([lam * tr + 2 * mu * exx, lam * tr + 2 * mu * eyy, 2 * mu * exy, lam * tr])
+
+
+def element_nodal_forces(body: Body, young: float, poisson: float, u_nodes: np.ndarray,
+                         density: float, g: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per element and local DOF: internal force ∫ σ:∇φ minus the body-force share ∫ ρ g φ_y.
+
+    Returns ``(force, dof)``, both (12, E): force in N/m and the full DOF of each local DOF.
+    The sum over elements of ``force`` at a free DOF is the external (non body-force)
+    load there: what the section-equilibrium lining forces are built from.
+    """
+    basis = body.basis
+    grad = basis.interpolate(body.full(u_nodes)).grad
+    s = _hooke(grad, young, poisson)
+    dx = basis.dx  # (E, Q) quadrature weight × Jacobian
+    out = np.empty((basis.Nbfun, basis.nelems))
+    for i in range(basis.Nbfun):
+        phi = basis.basis[i][0]
+        gi = phi.grad
+        work = s[0] * gi[0, 0] + s[1] * gi[1, 1] + s[2] * (gi[0, 1] + gi[1, 0])
+        out[i] = np.sum((work + density * g * phi.value[1]) * dx, axis=1)
+    return out, basis.element_dofs

@@ -1,15 +1,30 @@
-"""A solved case as an xarray Dataset (SPEC §3): UGRID-1.0 mesh, fields, interface, scalars."""
+"""A solved case as an xarray Dataset (SPEC §3): UGRID-1.0 mesh, fields, interface, scalars.
+
+:func:`to_dataset` is the one function that turns a :class:`~solver.model.Solution` into
+the result. The quadratic triangles are written as their corner triangulation: each
+6-node triangle becomes four 3-node faces over the same nodes (vertices and edge
+nodes), so every node carries its exact displacement and each face its stress at the
+sub-triangle's centroid.
+"""
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+import logging
+import time
 from datetime import datetime, timezone
 
 import numpy as np
 import xarray as xr
 
-from .mesh import TunnelMesh
-from .spec import CaseSpec
+from .assembly import SUBTRIANGLES, geostatic_stress, stress_at
+from .design import design_utilization
+from .model import CONTACT_GAP_TOL, Solution, TunnelModel
+from .post import contact_extent, lining_forces, surface_trough
+
+log = logging.getLogger(__name__)
+
+#: Largest displacement, as a fraction of the excavation radius, inside the small-displacement model.
+SMALL_DISPLACEMENT_LIMIT = 0.02
 
 SCALARS = {
     "max_contact_pressure": ("Pa", "maximum contact pressure"),
@@ -24,92 +39,179 @@ SCALARS = {
     "converged": ("1", "1 if the contact solve converged to an admissible solution"),
     "kkt_residual": ("1", "relative residual of the discrete KKT conditions"),
     "solve_seconds": ("s", "wall-clock seconds from case to dataset"),
+    "max_utilization": ("1", "largest EN 1992 utilization of the lining section (<= 1 passes)"),
+    "max_surface_settlement": ("m", "largest settlement of the ground surface since excavation"),
+    "volume_loss": ("1", "settlement trough area over excavated area"),
+    "ground_crown_settlement": ("m", "settlement of the ground at the tunnel crown since excavation"),
 }
-
-
-@dataclass(frozen=True)
-class CaseResult:
-    """Everything ``to_dataset`` needs, in SI units, per body or per interface node."""
-
-    spec: CaseSpec
-    mesh: TunnelMesh
-    u_ground: np.ndarray   # (2, Ng) m
-    u_lining: np.ndarray   # (2, Nl) m
-    stress_ground: np.ndarray  # (4, Eg) Pa: xx, yy, xy, zz
-    stress_lining: np.ndarray  # (4, El) Pa
-    lam: np.ndarray        # (m,) Pa
-    normal_jump: np.ndarray  # (m,) m
-    gap: np.ndarray        # (m,) m
-    in_contact: np.ndarray  # (m,) bool
-    thrust: np.ndarray
-    moment: np.ndarray
-    shear: np.ndarray
-    scalars: dict
-    attrs: dict
 
 
 def _var(dims, data, units, long_name, **attrs):
     return xr.Variable(dims, data, {"units": units, "long_name": long_name, **attrs})
 
 
-def to_dataset(res: CaseResult, *, software_version: str) -> xr.Dataset:
-    """Build the SPEC §3 dataset; interface nodes appear once per body in ``node``."""
-    mg, ml, iface = res.mesh.ground, res.mesh.lining, res.mesh.interface
+def _faces(t: np.ndarray) -> np.ndarray:
+    """(4E, 3) corner sub-triangles of (6, E) quadratic triangles, element-major."""
+    return np.transpose(t[SUBTRIANGLES], (2, 0, 1)).reshape(-1, 3)
+
+
+def _face_stress(model: TunnelModel, body: str, spec, u_nodes: np.ndarray) -> np.ndarray:
+    """(4, 4E) stress at the sub-triangle centroids; total stress (σ0 + increment) in the ground."""
+    fb = getattr(model, body).body
+    mat = getattr(spec, body)
+    s = stress_at(fb, mat.young, mat.poisson, u_nodes)  # (4, E, 4)
+    if body == "ground" and spec.excavation.method == "deconfinement":
+        from skfem import Basis
+
+        from .assembly import SUBTRIANGLE_CENTROIDS
+
+        y = Basis(fb.basis.mesh, fb.basis.elem, quadrature=(SUBTRIANGLE_CENTROIDS, np.ones(4))) \
+            .global_coordinates().value[1]
+        L = spec.loads
+        sxx, syy = geostatic_stress(y, q=L.surface_load, rho_g=spec.ground.density * L.gravity, k0=L.lateral_ratio)
+        s = s + np.stack([sxx, syy, np.zeros_like(y), sxx])
+    return s.reshape(4, -1)
+
+
+def _convergence(u: np.ndarray, iface, nodes: np.ndarray, theta: float) -> float:
+    """Inward radial displacement (m) of the ground wall at the station nearest ``theta`` deg."""
+    i = int(np.argmin(np.abs(iface.theta - theta)))
+    return float(np.sum(u[:, nodes[i]] * iface.normal[:, i]))
+
+
+def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, started: float | None = None) -> xr.Dataset:
+    """Build the SPEC §3 dataset of a solved case; interface nodes appear once per body in ``node``."""
+    spec = sol.spec
+    mesh, iface = model.mesh, model.mesh.interface
+    mg, ml = mesh.ground, mesh.lining
     ng = mg.p.shape[1]
+    g = spec.geometry
     node_xy = np.concatenate([mg.p, ml.p], axis=1)
-    faces = np.concatenate([mg.t, ml.t + ng], axis=1).T.astype(np.int32)
-    body = np.r_[np.zeros(mg.t.shape[1], np.int8), np.ones(ml.t.shape[1], np.int8)]
-    u = np.concatenate([res.u_ground, res.u_lining], axis=1)
-    stress = np.concatenate([res.stress_ground, res.stress_lining], axis=1)
+    faces = np.concatenate([_faces(mg.t), _faces(ml.t) + ng]).astype(np.int32)
+    n_fg = 4 * mg.t.shape[1]
+    body = np.r_[np.zeros(n_fg, np.int8), np.ones(faces.shape[0] - n_fg, np.int8)]
+    u = np.concatenate([sol.u_ground, sol.u_lining], axis=1)
+    u1 = np.concatenate([sol.u_stage1, np.zeros_like(sol.u_lining)], axis=1)
+    stress = np.concatenate([_face_stress(model, "ground", spec, sol.u_ground),
+                             _face_stress(model, "lining", spec, sol.u_lining)], axis=1)
+    forces = lining_forces(spec, model.lining.body, iface, mesh.center, sol.u_lining, sol.lam, sol.shear)
+    eta, env_n, env_m = design_utilization(forces.thrust, forces.moment, g.thickness, spec.design)
+    surf_x, settlement = surface_trough(mg.p, sol.u_ground, scale=max(g.width, g.height))
+    gap = sol.gap
+    u_ref = max(float(np.max(np.abs(u))), g.gap, 1e-300)
+    in_contact = gap <= CONTACT_GAP_TOL * u_ref
+    if spec.interface.model == "bonded":
+        in_contact = np.ones_like(in_contact)
+    crown = iface.lining_node[0]
+    max_eta = float(np.max(eta))
+    scalars = {
+        "max_contact_pressure": float(sol.lam.max()),
+        "contact_extent": contact_extent(iface.theta, in_contact),
+        "crown_settlement": float(-sol.u_lining[1, crown]),
+        "max_thrust": float(forces.thrust.max()),
+        "max_abs_moment": float(np.abs(forces.moment).max()),
+        "lining_weight": float(-sol.F2),
+        "bolt_theta": float(iface.theta[sol.bolt]) if sol.bolt is not None else np.nan,
+        "bolt_trials": np.int32(len(sol.trials)),
+        "iterations": np.int32(sol.iterations),
+        "converged": np.int8(sol.admissible),
+        "kkt_residual": sol.kkt_residual,
+        "solve_seconds": 0.0,
+        "max_utilization": max_eta,
+        "max_surface_settlement": float(settlement.max()),
+        "volume_loss": float(np.trapezoid(settlement, surf_x) / (0.5 * np.pi * g.hole_radius**2)),
+        "ground_crown_settlement": float(-sol.u_ground[1, iface.ground_node[0]]),
+    }
+    warnings = []
+    largest = float(np.max(np.hypot(u[0], u[1])))
+    if largest > SMALL_DISPLACEMENT_LIMIT * g.hole_radius:
+        warnings.append(
+            f"largest displacement {largest:.4g} m exceeds {SMALL_DISPLACEMENT_LIMIT:.0%} of the excavation "
+            f"radius ({g.hole_radius:.4g} m): outside the small-displacement model")
+    if not sol.admissible:
+        warnings.append(f"bolt at theta={iface.theta[sol.bolt]:.2f} deg has a negative reaction: not a contact solution")
+    for w in warnings:
+        log.warning("case %s: %s", spec.case_id, w)
+    attrs = {
+        "bolt_search": [vars(t) for t in sol.trials],
+        "timings_seconds": {**model.timings, **sol.timings},
+        "lining_translation_m": float(sol.a),
+        "interface_model": spec.interface.model,
+        "excavation_method": spec.excavation.method,
+        "warnings": warnings,
+    }
+    if spec.excavation.method == "deconfinement":
+        gn = iface.ground_node
+        attrs["deconfinement"] = spec.excavation.deconfinement
+        attrs["stage1_convergence_m"] = {
+            "crown": _convergence(sol.u_stage1, iface, gn, 0.0),
+            "springline": _convergence(sol.u_stage1, iface, gn, 90.0),
+            "invert": _convergence(sol.u_stage1, iface, gn, 180.0)}
+        attrs["final_convergence_m"] = {
+            "crown": _convergence(sol.u_ground, iface, gn, 0.0),
+            "springline": _convergence(sol.u_ground, iface, gn, 90.0),
+            "invert": _convergence(sol.u_ground, iface, gn, 180.0)}
     on_node = {"mesh": "mesh", "location": "node"}
     on_face = {"mesh": "mesh", "location": "face"}
-
+    since = ("since excavation" if spec.excavation.method == "deconfinement" else "since the stress-free start")
     coords = {
         "node_x": _var("node", node_xy[0], "m", "x of mesh node", standard_name="projection_x_coordinate"),
         "node_y": _var("node", node_xy[1], "m", "y of mesh node", standard_name="projection_y_coordinate"),
         "theta": _var("interface", iface.theta, "degree", "interface position at the tunnel axis from the crown"),
         "interface_x": _var("interface", node_xy[0, iface.ground_node], "m", "x of interface node"),
         "interface_y": _var("interface", node_xy[1, iface.ground_node], "m", "y of interface node"),
+        "surface_x": _var("surface", surf_x, "m", "x of ground surface node"),
     }
     data = {
-        "mesh": _var((), np.int32(0), "1", "mesh topology", cf_role="mesh_topology", topology_dimension=np.int32(2),
-                     node_coordinates="node_x node_y", face_node_connectivity="face_nodes",
-                     face_dimension="face"),
+        "mesh": xr.Variable((), np.int32(0), {
+            "cf_role": "mesh_topology", "long_name": "mesh topology", "topology_dimension": np.int32(2),
+            "node_coordinates": "node_x node_y", "face_node_connectivity": "face_nodes", "face_dimension": "face"}),
         "face_nodes": _var(("face", "max_face_nodes"), faces, "1", "vertex nodes of each triangle",
                            cf_role="face_node_connectivity", start_index=np.int32(0)),
         "body": _var("face", body, "1", "body of the face (0 ground, 1 lining)", **on_face,
                      flag_values=np.array([0, 1], np.int8), flag_meanings="ground lining"),
-        "displacement_x": _var("node", u[0], "m", "horizontal displacement", **on_node),
-        "displacement_y": _var("node", u[1], "m", "vertical displacement", **on_node),
+        "displacement_x": _var("node", u[0], "m", f"horizontal displacement (ground {since}, lining since placement)", **on_node),
+        "displacement_y": _var("node", u[1], "m", f"vertical displacement (ground {since}, lining since placement)", **on_node),
+        "stage1_displacement_x": _var("node", u1[0], "m", "horizontal ground displacement of stage 1 (excavation, before the lining)", **on_node),
+        "stage1_displacement_y": _var("node", u1[1], "m", "vertical ground displacement of stage 1 (excavation, before the lining)", **on_node),
         "stress_xx": _var("face", stress[0], "Pa", "normal stress xx (tension positive)", **on_face),
         "stress_yy": _var("face", stress[1], "Pa", "normal stress yy (tension positive)", **on_face),
         "stress_xy": _var("face", stress[2], "Pa", "shear stress xy", **on_face),
         "stress_zz": _var("face", stress[3], "Pa", "out-of-plane normal stress zz (plane strain)", **on_face),
         "normal_x": _var("interface", iface.normal[0], "1", "x of the ground's outward normal"),
         "normal_y": _var("interface", iface.normal[1], "1", "y of the ground's outward normal"),
-        "weight": _var("interface", iface.weight, "m", "trapezoid quadrature weight of the interface node"),
+        "weight": _var("interface", iface.weight, "m", "quadrature weight of the interface node (Simpson's rule per quadratic edge)"),
         "ground_node": _var("interface", iface.ground_node.astype(np.int32), "1", "ground copy of the interface node (index into node)"),
         "lining_node": _var("interface", (iface.lining_node + ng).astype(np.int32), "1", "lining copy of the interface node (index into node)"),
-        "contact_pressure": _var("interface", res.lam, "Pa", "contact pressure"),
-        "normal_jump": _var("interface", res.normal_jump, "m", "normal displacement jump [u]nu"),
-        "gap": _var("interface", res.gap, "m", "remaining gap g0 - [u]nu"),
-        "in_contact": _var("interface", res.in_contact.astype(np.int8), "1", "1 where the interface is closed"),
-        "thrust": _var("interface", res.thrust, "N m-1", "lining thrust (compression positive)"),
-        "moment": _var("interface", res.moment, "N m m-1", "lining bending moment (positive: inner fibre in compression)"),
-        "shear": _var("interface", res.shear, "N m-1", "lining shear force (outward force of the invert side on the crown side)"),
+        "contact_pressure": _var("interface", sol.lam, "Pa", "contact pressure"),
+        "normal_jump": _var("interface", sol.normal_jump, "m", "normal displacement jump [u]nu"),
+        "gap": _var("interface", gap, "m", "remaining gap g0 - [u]nu"),
+        "in_contact": _var("interface", in_contact.astype(np.int8), "1", "1 where the interface is closed"),
+        "shear_traction": _var("interface", sol.shear, "Pa", "interface shear traction on the lining (positive towards increasing theta)"),
+        "tangential_jump": _var("interface", sol.tangential_jump, "m", "tangential displacement jump [u]tau"),
+        "slipping": _var("interface", sol.slipping.astype(np.int8), "1", "1 where the interface slips"),
+        "thrust": _var("interface", forces.thrust, "N m-1", "lining thrust (compression positive)"),
+        "moment": _var("interface", forces.moment, "N m m-1", "lining bending moment (positive: inner fibre in compression)"),
+        "shear": _var("interface", forces.shear, "N m-1", "lining shear force (outward force of the invert side on the crown side)"),
+        "utilization": _var("interface", eta, "1", "EN 1992-1-1 utilization of the lining section (<= 1 passes)"),
+        "capacity_thrust": _var("envelope", env_n, "N m-1", "design N-M resistance envelope: thrust (compression positive)"),
+        "capacity_moment": _var("envelope", env_m, "N m m-1", "design N-M resistance envelope: moment"),
+        "surface_settlement": _var("surface", settlement, "m", f"ground surface settlement (downward positive, {since})"),
     }
     for name, (units, long_name) in SCALARS.items():
-        data[name] = _var((), res.scalars[name], units, long_name)
+        data[name] = _var((), scalars[name], units, long_name)
     ds = xr.Dataset(data, coords=coords)
     now = datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
     ds.attrs = {
         "Conventions": "CF-1.10 UGRID-1.0",
         "title": "tunnel-contact result",
-        "case_id": res.spec.case_id,
-        "case_spec": res.spec.canonical_json(),
+        "case_id": spec.case_id,
+        "case_spec": spec.canonical_json(),
         "software_version": software_version,
-        "history": f"{now}: solved by tunnel-contact {software_version} (bolt-point method, "
-                   f"inner solver {res.spec.solver.inner})",
-        **{k: (json.dumps(v) if isinstance(v, (list, dict)) else v) for k, v in res.attrs.items()},
+        "history": f"{now}: solved by tunnel-contact {software_version} (P2 elements, "
+                   f"{spec.excavation.method}, {spec.interface.model} interface, inner solver {spec.solver.inner})",
+        **{k: (json.dumps(v) if isinstance(v, (list, dict)) else v) for k, v in attrs.items()},
     }
+    if started is not None:
+        ds["solve_seconds"].values = np.float64(time.perf_counter() - started)
     return ds

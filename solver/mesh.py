@@ -1,6 +1,7 @@
-"""Meshing of a case with gmsh's Python API (no files).
+"""Meshing of a case with gmsh's Python API (no files): quadratic (P2) triangles.
 
-Both bodies live in one gmsh model. The lining is a structured (transfinite) half
+Both bodies live in one gmsh model, meshed with 6-node triangles whose edge nodes
+on the circular arcs sit on the circle (isoparametric, curved interface). The lining is a structured (transfinite) half
 annulus with ``lining_layers`` element layers and alternating diagonals, so every
 interface node has a radial line of lining nodes below it (the sections where the
 lining forces are evaluated). The ground is unstructured, graded by a distance
@@ -9,6 +10,10 @@ threshold field from ``interface_size`` at the tunnel to ``far_size``. With
 (radius b and b + g0) with the same number of uniformly spaced nodes, so the
 nodes match at equal theta. Interface nodes are duplicated: each body gets its
 own copy.
+
+Node numbering of a body follows scikit-fem's P2 DOF order (vertices first, then one
+node per edge in the order of ``MeshTri2``'s facets), so node ``j`` of a body is
+scalar DOF ``j`` of its P2 basis.
 """
 from __future__ import annotations
 
@@ -17,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .sizing import interface_segments, lining_layers, size_field_distances
+from .sizing import check_mesh_size, interface_segments, lining_layers, size_field_distances
 from .spec import CaseSpec
 
 # gmsh keeps global state: one meshing at a time per process.
@@ -26,10 +31,25 @@ _GMSH_LOCK = threading.Lock()
 
 @dataclass(frozen=True)
 class BodyMesh:
-    """Nodes ``p`` (2, N) in m and triangles ``t`` (3, E), 0-based, counter-clockwise."""
+    """A body's quadratic triangles.
+
+    ``p`` (2, N) node coordinates in m, vertices first then edge nodes; ``t`` (6, E)
+    0-based node indices per triangle: vertices counter-clockwise, then the edge nodes
+    of edges (0, 1), (1, 2), (0, 2) (scikit-fem's order).
+    """
 
     p: np.ndarray
     t: np.ndarray
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.t[:3].max()) + 1
+
+    def skfem_mesh(self):
+        """The isoparametric scikit-fem mesh (``MeshTri2``) of this body."""
+        from skfem import MeshTri2
+
+        return MeshTri2(self.p, self.t[:3].copy(), validate=False)
 
 
 @dataclass(frozen=True)
@@ -41,7 +61,10 @@ class Interface:
     theta : (m,) deg, at the tunnel axis, 0 at the crown.
     ground_node, lining_node : (m,) node indices into the ground / lining mesh.
     normal : (2, m) unit outward normal of the ground (points to the tunnel axis).
-    weight : (m,) m, trapezoid weights of the paper's quadrature I.
+    weight : (m,) m, the nodal quadrature I of the quadratic edges (Simpson's rule:
+        L/6 at each vertex, 2L/3 at the edge node, L the arc length of the edge).
+    vertex : (m,) bool, True at element vertices (every other node, crown and invert
+        included); the lining's radial lines of nodes lie below these stations.
     """
 
     theta: np.ndarray
@@ -49,6 +72,12 @@ class Interface:
     lining_node: np.ndarray
     normal: np.ndarray
     weight: np.ndarray
+    vertex: np.ndarray
+
+    @property
+    def tangent(self) -> np.ndarray:
+        """(2, m) unit tangent τ: ν turned 90° so that it points towards increasing θ."""
+        return np.stack([-self.normal[1], self.normal[0]])
 
     @property
     def size(self) -> int:
@@ -76,6 +105,7 @@ def build_mesh(spec: CaseSpec) -> TunnelMesh:
             gmsh.model.add("tunnel")
             ground_surf, lining_surfs, hole_arcs, outer_arcs = _geometry(spec)
             gmsh.model.mesh.generate(2)
+            gmsh.model.mesh.setOrder(2)
             ground = _body_mesh([ground_surf])
             lining = _body_mesh(lining_surfs)
             ground_ring = _arc_nodes(hole_arcs, ground)
@@ -83,6 +113,7 @@ def build_mesh(spec: CaseSpec) -> TunnelMesh:
         finally:
             gmsh.finalize()
     center = (0.0, -spec.geometry.depth)
+    check_mesh_size(ground.mesh.t.shape[1] + lining.mesh.t.shape[1])
     return TunnelMesh(ground.mesh, lining.mesh,
                       _interface(ground.mesh, lining.mesh, ground_ring, lining_ring, center),
                       center, lining_layers(spec))
@@ -163,25 +194,36 @@ class _Body:
 
 def _body_mesh(surfaces) -> _Body:
     import gmsh
+    from skfem import MeshTri2
 
     tris = []
     for s in surfaces:
         types, _, nodes = gmsh.model.mesh.getElements(2, s)
         for etype, conn in zip(types, nodes):
-            if etype != 2:
-                raise RuntimeError(f"unexpected gmsh element type {etype} (expected 3-node triangles)")
-            tris.append(np.asarray(conn, dtype=np.int64).reshape(-1, 3))
+            if etype != 9:
+                raise RuntimeError(f"unexpected gmsh element type {etype} (expected 6-node triangles)")
+            tris.append(np.asarray(conn, dtype=np.int64).reshape(-1, 6))
     tri_tags = np.concatenate(tris)
     tags = np.unique(tri_tags)
     all_tags, coords, _ = gmsh.model.mesh.getNodes()
-    xyz = dict(zip(all_tags.tolist(), np.asarray(coords).reshape(-1, 3)[:, :2]))
-    p = np.array([xyz[int(k)] for k in tags]).T
-    t = np.searchsorted(tags, tri_tags).T
-    # counter-clockwise orientation
+    order = np.argsort(all_tags)
+    xy = np.asarray(coords).reshape(-1, 3)[order, :2]
+    p = xy[np.searchsorted(all_tags[order], tags)].T
+    t = np.searchsorted(tags, tri_tags).T  # (6, E), gmsh order: vertices, edges 01, 12, 20
+    # counter-clockwise orientation: swapping vertices 1, 2 swaps edge nodes 01 and 20
     e1, e2 = p[:, t[1]] - p[:, t[0]], p[:, t[2]] - p[:, t[0]]
     cw = e1[0] * e2[1] - e1[1] * e2[0] < 0
     t[1, cw], t[2, cw] = t[2, cw].copy(), t[1, cw].copy()
-    return _Body(BodyMesh(p=p, t=np.ascontiguousarray(t)), {int(k): i for i, k in enumerate(tags)})
+    t[3, cw], t[5, cw] = t[5, cw].copy(), t[3, cw].copy()
+    # scikit-fem renumbers: vertices first, edge nodes in its facet order
+    sk = MeshTri2(p, t)
+    new_t = np.vstack([sk.t, sk.t.max() + 1 + sk.t2f])
+    old_to_new = np.empty(tags.size, np.int64)
+    old_to_new[t.ravel()] = new_t.ravel()
+    if not np.allclose(sk.doflocs[:, old_to_new], p, rtol=0, atol=1e-9 * max(1.0, np.abs(p).max())):
+        raise RuntimeError("P2 node renumbering does not match scikit-fem's DOF order")
+    mesh = BodyMesh(p=np.ascontiguousarray(sk.doflocs), t=np.ascontiguousarray(new_t))
+    return _Body(mesh, {int(k): int(old_to_new[i]) for i, k in enumerate(tags)})
 
 
 def _arc_nodes(arcs, body: _Body) -> np.ndarray:
@@ -202,16 +244,24 @@ def _theta(p: np.ndarray, center) -> np.ndarray:
 def _interface(ground: BodyMesh, lining: BodyMesh, g_nodes, l_nodes, center) -> Interface:
     g_nodes = g_nodes[np.argsort(_theta(ground.p[:, g_nodes], center))]
     l_nodes = l_nodes[np.argsort(_theta(lining.p[:, l_nodes], center))]
-    if g_nodes.size != l_nodes.size:
+    if g_nodes.size != l_nodes.size or g_nodes.size % 2 == 0:
         raise RuntimeError(f"interface nodes do not match: {g_nodes.size} ground vs {l_nodes.size} lining")
     pg = ground.p[:, g_nodes]
     theta = _theta(pg, center)
     if np.max(np.abs(theta - _theta(lining.p[:, l_nodes], center))) > 1e-5:
         raise RuntimeError("interface nodes of ground and lining are not at the same angles")
+    vertex = np.arange(g_nodes.size) % 2 == 0
+    if not np.all(g_nodes[vertex] < ground.n_vertices) or np.any(g_nodes[~vertex] < ground.n_vertices):
+        raise RuntimeError("interface nodes do not alternate vertex / edge node")
     rel = pg - np.array(center)[:, None]
     normal = -rel / np.linalg.norm(rel, axis=0)
-    seg = np.linalg.norm(np.diff(pg, axis=1), axis=0)
-    weight = 0.5 * (np.r_[0.0, seg] + np.r_[seg, 0.0])
     theta[0], theta[-1] = 0.0, 180.0
+    # Simpson's rule per quadratic edge, on the arc length of the edge
+    radius = np.linalg.norm(rel, axis=0).mean()
+    length = radius * np.radians(np.diff(theta[vertex]))
+    weight = np.zeros(theta.size)
+    weight[0:-1:2] += length / 6.0
+    weight[2::2] += length / 6.0
+    weight[1::2] += 2.0 * length / 3.0
     return Interface(theta=theta, ground_node=g_nodes, lining_node=l_nodes,
-                     normal=normal, weight=weight)
+                     normal=normal, weight=weight, vertex=vertex)

@@ -1,13 +1,15 @@
-"""Post-processing: stresses, lining section forces, KKT check and scalars.
+"""Post-processing: lining section forces, the KKT check, the surface trough.
 
-Lining forces use the section-equilibrium (nodal force) method: at the radial
-line of lining nodes below interface node i (the structured lining has one per
-station), the force that the invert-side part exerts on the crown-side part is
-the sum over crown-side elements of their internal nodal forces at the cut
-nodes, minus the crown side's share of the body and contact loads there. It
-satisfies the discrete equilibrium exactly, so no stress smoothing error enters.
-At the crown and invert the cut is the symmetry line and the force is the
-symmetry reaction.
+Lining forces use the section-equilibrium (nodal force) method: at the radial line of
+lining nodes below a vertex station i (the structured lining has one per element
+vertex along the interface), the force that the invert-side part exerts on the
+crown-side part is the sum over crown-side elements of their internal nodal forces
+at the cut nodes, minus the crown side's share of the body and interface loads there
+(the interface load at the cut node is split as Simpson's rule splits it: the
+crown-side edge's L/6). It satisfies the discrete equilibrium exactly, so no stress
+smoothing error enters. At the crown and invert the cut is the symmetry line and the
+force is the symmetry reaction. At the edge-node stations between two vertices no
+radial line of nodes exists; N, M and V there are interpolated linearly in θ.
 """
 from __future__ import annotations
 
@@ -15,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .assembly import element_stress, p1_gradients
-from .mesh import BodyMesh, TunnelMesh
+from .assembly import Body, element_nodal_forces
+from .mesh import Interface
 from .spec import CaseSpec
 
 
@@ -35,63 +37,71 @@ def _angles(p: np.ndarray, center) -> np.ndarray:
     return np.arctan2(p[0] - center[0], p[1] - center[1])  # rad, 0 at crown
 
 
-def lining_forces(spec: CaseSpec, mesh: TunnelMesh, u_lining: np.ndarray, lam: np.ndarray) -> LiningForces:
+def lining_forces(spec: CaseSpec, lining: Body, iface: Interface, center, u_lining: np.ndarray,
+                  lam: np.ndarray, shear_traction: np.ndarray) -> LiningForces:
     """Section forces at every interface station from the lining's nodal forces.
 
-    ``u_lining`` is (2, N) nodal displacement of the lining (m), ``lam`` (m,) Pa.
+    ``u_lining`` (2, N) m is the lining's nodal displacement, ``lam`` and
+    ``shear_traction`` (m,) Pa the interface tractions on the lining.
     """
-    body: BodyMesh = mesh.lining
-    iface = mesh.interface
-    center = np.array(mesh.center)
-    theta = np.radians(iface.theta)
-    m = theta.size
-    p, t = body.p, body.t
+    center = np.asarray(center, float)
+    p = lining.mesh.p
+    vtx = np.flatnonzero(iface.vertex)
+    theta = np.radians(iface.theta[vtx])
+    ms = theta.size
 
     node_ang = _angles(p, center)
-    station = np.clip(np.searchsorted(theta, node_ang), 0, m - 1)
-    lower = np.clip(station - 1, 0, m - 1)
+    station = np.clip(np.searchsorted(theta, node_ang), 0, ms - 1)
+    lower = np.clip(station - 1, 0, ms - 1)
     closer = np.abs(theta[lower] - node_ang) < np.abs(theta[station] - node_ang)
     station = np.where(closer, lower, station)
-    if np.max(np.abs(theta[station] - node_ang)) > 1e-7:
+    on_line = np.abs(theta[station] - node_ang) <= 1e-7
+    if np.bincount(station[on_line], minlength=ms).min() < 2:
         raise RuntimeError("lining mesh is not structured along the interface stations")
 
-    sigma = element_stress(body, spec.lining, u_lining)
-    grads, area = p1_gradients(body)
-    # internal nodal force of element e at its local node k, minus its body-load share
-    fx = area * (sigma[0] * grads[0] + sigma[2] * grads[1])
-    fy = area * (sigma[2] * grads[0] + sigma[1] * grads[1])
-    fy = fy + spec.lining.density * spec.loads.gravity * area / 3.0
-    cen = p[:, t].mean(axis=1)
-    elem_ang = _angles(cen, center)
+    force, dofs = element_nodal_forces(lining, spec.lining.young, spec.lining.poisson, u_lining,
+                                       spec.lining.density, spec.loads.gravity)
+    node_of = np.empty(lining.basis.N, np.int64)
+    comp_of = np.empty(lining.basis.N, np.int64)
+    node_of[lining.dof_of_node] = np.broadcast_to(np.arange(p.shape[1]), lining.dof_of_node.shape)
+    comp_of[lining.dof_of_node] = np.arange(2)[:, None]
+    t = lining.mesh.t
+    elem_ang = _angles(p[:, t[:3]].mean(axis=1), center)
 
-    node = t.ravel()
+    node, comp = node_of[dofs], comp_of[dofs]  # (12, E)
+    keep = on_line[node]
     s = station[node]
-    crown_side = np.broadcast_to(elem_ang, t.shape).ravel() < theta[s]
-    take = crown_side | (s == 0) | (s == m - 1)
-    s, node = s[take], node[take]
-    Fx, Fy = fx.ravel()[take], fy.ravel()[take]
+    crown_side = np.broadcast_to(elem_ang, node.shape) < theta[s]
+    take = keep & (crown_side | (s == 0) | (s == ms - 1))
+    s, node, comp, F = s[take], node[take], comp[take], force[take]
+    cx = np.bincount(s[comp == 0], F[comp == 0], ms)
+    cy = np.bincount(s[comp == 1], F[comp == 1], ms)
 
-    # contact: force on the lining at node i is w λ ν; the crown side holds half a segment
-    seg = np.linalg.norm(np.diff(p[:, iface.lining_node], axis=1), axis=0)
-    share = np.r_[iface.weight[0], 0.5 * seg[:-1], iface.weight[-1]]
-    cx = np.bincount(s, Fx, m)
-    cy = np.bincount(s, Fy, m)
-    cx -= share * lam * iface.normal[0]
-    cy -= share * lam * iface.normal[1]
+    # interface load at the cut node: the crown side's Simpson share (L/6 of its edge)
+    length = np.diff(np.radians(iface.theta[vtx])) * np.linalg.norm(
+        p[:, iface.lining_node[0]] - center)
+    share = np.r_[iface.weight[0], length[:-1] / 6.0, iface.weight[-1]]
+    nu, tau = iface.normal[:, vtx], iface.tangent[:, vtx]
+    load = share * (lam[vtx] * nu + shear_traction[vtx] * tau)  # (2, ms) on the lining
+    cx -= load[0]
+    cy -= load[1]
 
     tangent = np.stack([np.cos(theta), -np.sin(theta)])
     radial = np.stack([np.sin(theta), np.cos(theta)])
     n_out = tangent.copy()
     n_out[:, 0] *= -1.0  # at the crown the free body is the whole half lining
-    r_mid = spec.geometry.inner_radius + 0.5 * spec.geometry.thickness
+    g = spec.geometry
+    r_mid = g.inner_radius + 0.5 * g.thickness
     r_node = np.hypot(*(p[:, node] - center[:, None]))
-    along = Fx * n_out[0, s] + Fy * n_out[1, s]
+    dirn = np.where(comp == 0, n_out[0, s], n_out[1, s])
+    moment = np.bincount(s, (r_node - r_mid) * F * dirn, ms)
+    moment -= (g.outer_radius - r_mid) * (load[0] * n_out[0] + load[1] * n_out[1])
     thrust = -(cx * n_out[0] + cy * n_out[1])
-    moment = np.bincount(s, (r_node - r_mid) * along, m)
-    # the contact share acts at the outer node; it is radial, so adds nothing to N or M
     shear = cx * radial[0] + cy * radial[1]
     shear[0] *= -1.0
-    return LiningForces(thrust=thrust, moment=moment, shear=shear)
+
+    th_all = np.radians(iface.theta)
+    return LiningForces(*(np.interp(th_all, theta, f) for f in (thrust, moment, shear)))
 
 
 def contact_extent(theta_deg: np.ndarray, in_contact: np.ndarray) -> float:
@@ -101,17 +111,43 @@ def contact_extent(theta_deg: np.ndarray, in_contact: np.ndarray) -> float:
     return float(np.sum(own * in_contact))
 
 
+def surface_trough(ground_p: np.ndarray, u_ground: np.ndarray, *, scale: float) -> tuple[np.ndarray, np.ndarray]:
+    """x (ascending, m) and settlement (m, downward positive) of the ground surface y = 0."""
+    top = np.flatnonzero(np.abs(ground_p[1]) <= 1e-9 * scale)
+    order = top[np.argsort(ground_p[0, top])]
+    return ground_p[0, order], -u_ground[1, order]
+
+
 def kkt_residual(*, K_u_minus_f: list[tuple[np.ndarray, np.ndarray]], balance: float, F2: float,
-                 lam: np.ndarray, gap: np.ndarray, p_ref: float, u_ref: float) -> float:
+                 lam: np.ndarray, gap: np.ndarray, p_ref: float, u_ref: float, model: str = "frictionless",
+                 shear: np.ndarray | None = None, tangential_jump: np.ndarray | None = None,
+                 mu: float = 0.0, g0: float = 0.0) -> float:
     """Largest relative violation of the discrete KKT conditions (dimensionless).
 
-    ``K_u_minus_f`` holds per body the residual ``K u + B^T W λ - f`` and the size
-    of the forces it balances (``|f| + |B^T W λ|``); ``balance`` is ``F2 + I(λ ν2)`` (N/m). Pressures are
-    scaled by ``p_ref`` (Pa), gaps by ``u_ref`` (m).
+    ``K_u_minus_f`` holds per body the residual ``K u + Bᵀ W t - f`` and the size of the
+    forces it balances; ``balance`` is ``F2 + I(λ ν2 + s τ2)`` (N/m). Pressures are
+    scaled by ``p_ref`` (Pa), jumps and gaps by ``u_ref`` (m). By model:
+
+    - frictionless / coulomb: λ ≥ 0, gap ≥ 0, λ·gap = 0;
+    - coulomb adds the friction law through its natural map,
+      ``|s - proj_[-μλ, μλ](s + c [u]τ)| / p_ref`` with ``c = p_ref / u_ref``: zero iff
+      |s| ≤ μλ, [u]τ = 0 where |s| < μλ, and [u]τ parallel to s where |s| = μλ
+      (the lining slips against s relative to the ground);
+    - bonded: the jumps [u]ν and [u]τ themselves, which the tie makes zero (the clearance
+      g0, if any, is kept as it was when the lining was placed).
     """
     parts = [np.max(np.abs(r)) / max(np.max(np.abs(f)), 1e-300) for r, f in K_u_minus_f]
     parts.append(abs(balance) / abs(F2))
+    if model == "bonded":
+        parts.append(float(np.max(np.abs(g0 - gap))) / u_ref)
+        parts.append(float(np.max(np.abs(tangential_jump))) / u_ref)
+        return float(max(parts))
     parts.append(max(0.0, -float(lam.min())) / p_ref)
     parts.append(max(0.0, -float(gap.min())) / u_ref)
     parts.append(float(np.max(np.abs(lam * gap))) / (p_ref * u_ref))
+    if model == "coulomb":
+        c = p_ref / u_ref
+        bound = mu * np.maximum(lam, 0.0)
+        nat = shear - np.clip(shear + c * tangential_jump, -bound, bound)
+        parts.append(float(np.max(np.abs(nat))) / p_ref)
     return float(max(parts))

@@ -169,7 +169,7 @@ class Boundaries(_Frozen):
 
 
 class MeshSettings(_Frozen):
-    interface_size: float = Field(0.05, ge=1e-3, description="element size along the interface (m)")
+    interface_size: float = Field(0.1, ge=1e-3, description="element size along the interface (m)")
     far_size: float = Field(4.0, gt=0, le=1000.0, description="element size far from the tunnel (m)")
 
 
@@ -210,7 +210,7 @@ class CaseSpec(_Frozen):
                 f"lining.young: lining / ground stiffness ratio {ratio:.3g} is outside "
                 f"[{1 / MAX_STIFFNESS_RATIO:g}, {MAX_STIFFNESS_RATIO:g}]")
         d, t = self.design, self.geometry.thickness
-        if d.axis_distance >= 0.5 * t:
+        if d.reinforcement_area > 0 and d.axis_distance >= 0.5 * t:
             raise ValueError(
                 f"design.axis_distance: {d.axis_distance} m puts the reinforcement outside the "
                 f"section's half depth ({0.5 * t:.4g} m)")

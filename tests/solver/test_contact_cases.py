@@ -5,10 +5,8 @@ import numpy as np
 import pytest
 
 from solver import CaseSpec, NotConvergedError, run_case
-from solver.assembly import assemble_system
 from solver.contact import solve_contact
-from solver.flexibility import condense_interface
-from solver.mesh import build_mesh
+from solver.model import TunnelModel
 
 COARSE = dict(interface_size=0.2, far_size=6.0)
 
@@ -50,7 +48,8 @@ def test_partial_gap_closure_touches_only_around_the_invert(kkt):
 
 def test_low_lateral_ratio_opens_the_springline_of_a_stiff_lining(kkt):
     """K0 = 0: the hole widens sideways; a stiff lining cannot follow, a flexible one can."""
-    base = dict(loads=dict(lateral_ratio=0.0), boundaries=dict(side="pressure", bottom="roller"), mesh=COARSE)
+    base = dict(loads=dict(lateral_ratio=0.0), boundaries=dict(side="pressure", bottom="roller"), mesh=COARSE,
+                excavation=dict(method="wished-in-place"))
     stiff = run_case(CaseSpec(lining=dict(young=3e10), **base))
     kkt(stiff)
     th, closed = stiff.theta.values, stiff.in_contact.values.astype(bool)
@@ -64,7 +63,8 @@ def test_low_lateral_ratio_opens_the_springline_of_a_stiff_lining(kkt):
 
 @pytest.mark.parametrize("spec", [
     CaseSpec(mesh=COARSE),
-    CaseSpec(loads=dict(lateral_ratio=0.0), boundaries=dict(side="pressure", bottom="roller"), mesh=COARSE),
+    CaseSpec(loads=dict(lateral_ratio=0.0), boundaries=dict(side="pressure", bottom="roller"), mesh=COARSE,
+             excavation=dict(method="wished-in-place")),
     CaseSpec(geometry=dict(gap=0.005), ground=dict(density=0.0), loads=dict(surface_load=0.0), mesh=COARSE),
 ], ids=["default", "springline-open", "gap"])
 def test_uzawa_and_active_set_agree(spec, kkt):
@@ -86,9 +86,8 @@ def test_uzawa_that_cannot_converge_raises():
 
 
 def _dual(spec):
-    mesh = build_mesh(spec)
-    dual, _, _ = condense_interface(assemble_system(spec, mesh), mesh.interface, spec.geometry.gap)
-    return dual, mesh.interface.theta
+    model = TunnelModel(spec)
+    return model.dual_problem(spec), model.mesh.interface.theta
 
 
 @pytest.mark.parametrize("inner", ["active-set", "uzawa"])

@@ -1,0 +1,282 @@
+"""Build once, solve many: what a geometry, its mesh settings and materials fix.
+
+A :class:`TunnelModel` holds the mesh, both bodies' stiffness and factorizations and
+the dense interface flexibility. Its :meth:`~TunnelModel.solve` takes any case that
+shares those (:func:`model_key`) and varies only loads, construction stages, the
+interface model, solver options or design inputs (SPEC §1.1-§1.3)::
+
+    model = TunnelModel(spec)            # mesh, assembly, factorization: once
+    for case in cases:                   # same model_key(case)
+        solution = model.solve(case)     # a few triangular solves + the contact solve
+
+Stages (``excavation.method = "deconfinement"``, SPEC §1.1): the geostatic state σ0
+needs no solve (zero displacement); the excavation load is the discrete one, the
+nodal forces ``r = f_ext - ∫Bᵀσ0`` that σ0 leaves unbalanced on the ground with its
+hole (zero at every free node off the excavation boundary: the unexcavated discrete
+ground is in exact equilibrium). Stage 1 releases ``λd r`` on the ground alone (one
+more triangular solve with the ground factor); stage 2 releases ``(1 - λd) r`` with
+the lining in place and its weight, with contact on the increment.
+"""
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as la
+
+from . import friction
+from .assembly import (assemble_body, gravity_load, ground_constraints, initial_stress_forces,
+                       lining_constraints, side_pressure_load, surface_load, vector_basis)
+from .contact import BoltTrial, DualProblem, SolverError, solve_contact
+from .flexibility import FactoredBody, factor_body, interface_operator, interface_rows, lining_pin
+from .mesh import TunnelMesh, build_mesh
+from .spec import CaseSpec
+
+#: Relative gap (to the largest displacement) below which a node counts as closed.
+CONTACT_GAP_TOL = 1e-6
+
+
+def model_key(spec: CaseSpec) -> str:
+    """The canonical JSON of what a :class:`TunnelModel` fixes (cases with equal keys share one)."""
+    shared = {
+        "geometry": spec.geometry.model_dump(mode="json"),
+        "mesh": spec.mesh.model_dump(mode="json"),
+        "boundaries": spec.boundaries.model_dump(mode="json"),
+        "ground": {"young": spec.ground.young, "poisson": spec.ground.poisson},
+        "lining": {"young": spec.lining.young, "poisson": spec.lining.poisson},
+    }
+    return json.dumps(shared, sort_keys=True, separators=(",", ":"))
+
+
+@dataclass(frozen=True)
+class StageLoads:
+    """Free-DOF loads (N/m) of one case: stage-1 ground load (None if no stage 1), the
+    contact stage's ground and lining loads, and the full excavation load ``release``."""
+
+    stage1: np.ndarray | None
+    ground: np.ndarray
+    lining: np.ndarray
+    release: np.ndarray | None
+
+
+@dataclass
+class Solution:
+    """The solved contact stage of one case, in SI units.
+
+    u_ground : (2, Ng) m, ground displacement since excavation (stages 1 + 2), or since the
+        stress-free start for ``wished-in-place``; u_stage1 : (2, Ng) m, stage 1 alone.
+    u_lining : (2, Nl) m, lining displacement since placement.
+    lam, shear : (m,) Pa, contact pressure and shear traction on the lining.
+    normal_jump, tangential_jump : (m,) m, [u]ν and [u]τ of the contact stage.
+    """
+
+    spec: CaseSpec
+    u_ground: np.ndarray
+    u_stage1: np.ndarray
+    u_lining: np.ndarray
+    lam: np.ndarray
+    shear: np.ndarray
+    normal_jump: np.ndarray
+    tangential_jump: np.ndarray
+    slipping: np.ndarray
+    a: float
+    bolt: int | None
+    trials: list[BoltTrial]
+    iterations: int
+    admissible: bool
+    F2: float
+    kkt_residual: float
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def gap(self) -> np.ndarray:
+        return self.spec.geometry.gap - self.normal_jump
+
+
+class TunnelModel:
+    """Mesh, stiffness, factorizations and interface flexibility of one geometry and material pair.
+
+    Attributes
+    ----------
+    mesh : TunnelMesh
+    ground, lining : FactoredBody (``B`` has the interface rows of :func:`interface_rows`).
+    S : (R, R) m/N per m of interface, the dense interface flexibility ``B K⁺ Bᵀ`` of both bodies.
+    r : (R,) jumps of a unit rigid upward lining translation, ``[ν2; τ2]``.
+    timings : seconds spent meshing, assembling and factorizing.
+    """
+
+    def __init__(self, spec: CaseSpec):
+        self.key = model_key(spec)
+        t0 = time.perf_counter()
+        self.mesh: TunnelMesh = build_mesh(spec)
+        t1 = time.perf_counter()
+        g = spec.geometry
+        gb = vector_basis(self.mesh.ground)
+        ground = assemble_body(self.mesh.ground, spec.ground.young, spec.ground.poisson,
+                               ground_constraints(gb, width=g.width, height=g.height,
+                                                  side=spec.boundaries.side, bottom=spec.boundaries.bottom), gb)
+        lb = vector_basis(self.mesh.lining)
+        lining = assemble_body(self.mesh.lining, spec.lining.young, spec.lining.poisson,
+                               lining_constraints(lb, scale=g.outer_radius), lb)
+        t2 = time.perf_counter()
+        iface = self.mesh.interface
+        nodes, directions, self.tangential = interface_rows(iface)
+        Bg = interface_operator(ground, iface.ground_node[nodes], directions, +1.0)
+        Bl = interface_operator(lining, iface.lining_node[nodes], directions, -1.0)
+        self.ground: FactoredBody = factor_body(ground, Bg)
+        self.lining: FactoredBody = factor_body(lining, Bl, lining_pin(lining, iface.lining_node))
+        S = self.ground.flexibility() + self.lining.flexibility()
+        self.S = 0.5 * (S + S.T)
+        self.r = np.r_[iface.normal[1], iface.tangent[1, self.tangential]]
+        self.w = np.r_[iface.weight, iface.weight[self.tangential]]
+        self.rigid = lining.rigid_vertical()
+        self.timings = {"mesh": t1 - t0, "assembly": t2 - t1, "factorization": time.perf_counter() - t2}
+        self._load_cache: dict = {}
+
+    @property
+    def m(self) -> int:
+        return self.mesh.interface.size
+
+    def accepts(self, spec: CaseSpec) -> bool:
+        return model_key(spec) == self.key
+
+    # -- loads -------------------------------------------------------------------------
+    def _cached(self, key, compute):
+        if key not in self._load_cache:
+            if len(self._load_cache) > 64:
+                self._load_cache.clear()
+            self._load_cache[key] = compute()
+        return self._load_cache[key]
+
+    def ground_loads(self, spec: CaseSpec) -> np.ndarray:
+        """Full-DOF external loads on the ground: gravity, surface load, a 'pressure' side."""
+        g, L = spec.geometry, spec.loads
+        rho_g = spec.ground.density * L.gravity
+        basis = self.ground.body.basis
+        scale = max(g.width, g.height)
+
+        def compute():
+            f = gravity_load(basis, spec.ground.density, L.gravity) + surface_load(basis, L.surface_load, scale=scale)
+            if spec.boundaries.side == "pressure":
+                f = f + side_pressure_load(basis, q=L.surface_load, rho_g=rho_g, k0=L.lateral_ratio,
+                                           width=g.width, scale=scale)
+            return f
+
+        return self._cached(("ground", spec.ground.density, L.gravity, L.surface_load, L.lateral_ratio), compute)
+
+    def excavation_load(self, spec: CaseSpec) -> np.ndarray:
+        """Full-DOF excavation load ``r = f_ext - ∫Bᵀσ0`` (N/m): what σ0 leaves unbalanced."""
+        L = spec.loads
+        rho_g = spec.ground.density * L.gravity
+
+        def compute():
+            internal = initial_stress_forces(self.ground.body.basis, q=L.surface_load, rho_g=rho_g,
+                                             k0=L.lateral_ratio)
+            return self.ground_loads(spec) - internal
+
+        return self._cached(("release", spec.ground.density, L.gravity, L.surface_load, L.lateral_ratio), compute)
+
+    def stage_loads(self, spec: CaseSpec) -> StageLoads:
+        ground, lining = self.ground.body, self.lining.body
+        f_l = lining.restrict(self._cached(
+            ("lining", spec.lining.density, spec.loads.gravity),
+            lambda: gravity_load(lining.basis, spec.lining.density, spec.loads.gravity)))
+        if spec.excavation.method == "wished-in-place":
+            return StageLoads(None, ground.restrict(self.ground_loads(spec)), f_l, None)
+        release = ground.restrict(self.excavation_load(spec))
+        ld = spec.excavation.deconfinement
+        return StageLoads(ld * release, (1.0 - ld) * release, f_l, release)
+
+    # -- solve -------------------------------------------------------------------------
+    def solve(self, spec: CaseSpec) -> Solution:
+        """Solve ``spec`` (which must share this model's :func:`model_key`)."""
+        if not self.accepts(spec):
+            raise ValueError("the case does not share this model's geometry, mesh, boundaries and materials")
+        t0 = time.perf_counter()
+        loads, ug_f, ul_f, d, F2 = self._contact_stage(spec)
+        ground, lining = self.ground, self.lining
+        u1 = ground.solve(loads.stage1) if loads.stage1 is not None else np.zeros(ground.body.n)
+        iface = self.mesh.interface
+        m, g0, sv = self.m, spec.geometry.gap, spec.solver
+        model = spec.interface.model
+        trials: list[BoltTrial] = []
+        bolt, iterations, admissible = None, 0, True
+        if model == "frictionless":
+            dual = self._dual(d, F2, g0)
+            sol = solve_contact(dual, iface.theta, inner=sv.inner, tol=sv.tolerance,
+                                max_iterations=sv.max_iterations, bolt=sv.bolt)
+            t = np.r_[sol.lam, np.zeros(m - 2)]
+            a, bolt, trials, iterations, admissible = sol.a, sol.bolt, sol.trials, sol.iterations, sol.admissible
+        elif model == "bonded":
+            t, a = self._tie(d, F2)
+        else:
+            fp = friction.FrictionProblem(S=self.S, d=d, g0=g0, w=self.w, r=self.r, F2=F2, m=m,
+                                          mu=spec.interface.friction)
+            sol = friction.solve_coulomb(fp, iface.theta, tol=sv.tolerance, max_iterations=sv.max_iterations,
+                                         bolt=sv.bolt)
+            t, a, bolt, trials, iterations, admissible = sol.t, sol.a, sol.bolt, sol.trials, sol.iterations, sol.admissible
+        t_solve = time.perf_counter()
+        Wt = self.w * t
+        u_g = ug_f - ground.solve(ground.B.T @ Wt)
+        u_l = ul_f - lining.solve(lining.B.T @ Wt) + a * self.rigid
+        J = ground.B @ u_g + lining.B @ u_l
+        lam = t[:m]
+        shear = np.zeros(m)
+        shear[self.tangential] = t[m:]
+        jt = np.zeros(m)
+        jt[self.tangential] = J[m:]
+        u_ground = ground.body.expand(u_g + u1)
+        u_lining = lining.body.expand(u_l)
+        u_ref = max(float(np.max(np.abs(np.concatenate([ground.body.expand(u_g), u_lining], axis=1)))), g0, 1e-300)
+        p_ref = max(float(np.max(np.abs(t))), abs(F2) / max(np.sum(np.abs(iface.normal[1]) * iface.weight) / 2, 1e-300))
+        slip_tol = CONTACT_GAP_TOL * u_ref
+        slipping = (np.abs(jt) > slip_tol) & (lam > 0) if model == "coulomb" else np.zeros(m, bool)
+        if model == "frictionless":
+            slipping = (g0 - J[:m] <= slip_tol) & (np.abs(jt) > slip_tol)
+        residuals = [(fb.body.K @ u + fb.B.T @ Wt - f, np.abs(f) + np.abs(fb.B.T @ Wt))
+                     for fb, u, f in ((ground, u_g, loads.ground), (lining, u_l, loads.lining))]
+        balance = F2 + float(np.sum(self.r * Wt))
+        from .post import kkt_residual
+
+        kkt = kkt_residual(K_u_minus_f=residuals, balance=balance, F2=F2, lam=lam, gap=g0 - J[:m],
+                           p_ref=p_ref, u_ref=u_ref, model=model, shear=shear, tangential_jump=jt,
+                           mu=spec.interface.friction, g0=g0)
+        return Solution(spec=spec, u_ground=u_ground, u_stage1=ground.body.expand(u1), u_lining=u_lining,
+                        lam=lam, shear=shear, normal_jump=J[:m], tangential_jump=jt, slipping=slipping, a=float(a),
+                        bolt=bolt, trials=trials, iterations=int(iterations), admissible=bool(admissible), F2=F2,
+                        kkt_residual=kkt,
+                        timings={"contact": t_solve - t0, "recovery": time.perf_counter() - t_solve})
+
+    def _contact_stage(self, spec: CaseSpec):
+        """Loads, ``K⁺f`` of both bodies, ``d = B K⁺ f`` and the lining's vertical load F2."""
+        loads = self.stage_loads(spec)
+        ug_f = self.ground.solve(loads.ground)
+        ul_f = self.lining.solve(loads.lining)
+        d = self.ground.B @ ug_f + self.lining.B @ ul_f
+        return loads, ug_f, ul_f, d, float(self.rigid @ loads.lining)
+
+    def _dual(self, d: np.ndarray, F2: float, g0: float) -> DualProblem:
+        m, iface = self.m, self.mesh.interface
+        return DualProblem(S=self.S[:m, :m], d=d[:m], g0=np.full(m, g0), w=iface.weight.copy(),
+                           nu2=iface.normal[1].copy(), F2=F2)
+
+    def dual_problem(self, spec: CaseSpec) -> DualProblem:
+        """The frictionless contact stage of ``spec`` in interface form (:class:`DualProblem`)."""
+        _, _, _, d, F2 = self._contact_stage(spec)
+        return self._dual(d, F2, spec.geometry.gap)
+
+    def _tie(self, d: np.ndarray, F2: float) -> tuple[np.ndarray, float]:
+        """Bonded interface: J = 0 at every row and the lining balance; no bolt needed."""
+        w, r, S = self.w, self.r, self.S
+        R = r.size
+        A = np.zeros((R + 1, R + 1))
+        A[:R, :R] = (w[:, None] * S) * w[None, :]
+        A[:R, R] = A[R, :R] = w * r
+        rhs = np.r_[w * d, -F2]
+        x = la.solve(A, rhs, assume_a="sym")
+        if not np.all(np.isfinite(x)):
+            raise SolverError("the bonded interface system is singular")
+        return x[:R], float(x[R])
+
