@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import gc
 import logging
+import sqlite3
 from contextlib import asynccontextmanager
 from typing import Optional
 
@@ -15,8 +16,8 @@ from fastapi.exceptions import RequestValidationError
 
 from . import cases, health, pages, studies, sweeps
 from .cluster import cluster_connection
-from .errors import request_validation_handler
-from .guards import BodyLimitMiddleware
+from .errors import overflow_handler, request_validation_handler, store_error_handler
+from .guards import BodyLimitMiddleware, openapi_auth_as_configured
 from .jobs import Dispatcher
 from .settings import Settings, get_settings
 from .store import JobStore
@@ -70,6 +71,10 @@ def create_app(settings: Optional[Settings] = None) -> FastAPI:
     app.state.settings = settings or get_settings()
     app.add_middleware(BodyLimitMiddleware, max_bytes=app.state.settings.max_body_bytes)
     app.add_exception_handler(RequestValidationError, request_validation_handler)
+    for error in (sqlite3.Error, OSError):  # a full or read-only store: 503 with the reason
+        app.add_exception_handler(error, store_error_handler)
+    app.add_exception_handler(OverflowError, overflow_handler)
+    openapi_auth_as_configured(app)
     for module in (cases, sweeps, studies, health, pages):
         app.include_router(module.router)
     pages.mount_static(app)

@@ -4,7 +4,7 @@ from __future__ import annotations
 import asyncio
 from enum import Enum
 from pathlib import Path
-from typing import Optional
+from typing import Literal, Optional
 
 from fastapi import APIRouter, Depends, Query, Request, Response
 from fastapi.responses import FileResponse
@@ -15,27 +15,43 @@ from workflows.store import case_path
 
 from workflows.artifacts import render_plot
 from .errors import responses
-from .guards import require_token
+from .guards import check_capacity, require_token
 from .params import NETCDF, CaseId, jobs_of, not_found, not_ready
 from .schemas import Case, CaseAccepted, CasePage, Status
 
 router = APIRouter(prefix="/cases", tags=["cases"])
 
+#: Largest page offset (SQLite integers are 64-bit; no store holds a billion cases).
+MAX_OFFSET = 1_000_000_000
+
 #: Plot names accepted in ``/cases/{id}/plots/{name}.png``.
 PlotName = Enum("PlotName", {name: name for name in PLOTS}, type=str)
 
 
+#: ``?retry=failed``: recompute what failed (SPEC §6).
+Retry = Literal["failed"]
+RETRY_QUERY = Query(None, description="'failed': recompute the case(s) that failed, and those whose "
+                                      "stored result is missing or unreadable")
+
+
 @router.post("", status_code=202, response_model=CaseAccepted,
-             dependencies=[Depends(require_token)], responses=responses(401, 413, 422))
-async def submit_case(spec: CaseSpec, request: Request, response: Response) -> CaseAccepted:
-    """Record a case and queue it; a case seen before is returned as it is, not recomputed."""
+             dependencies=[Depends(require_token)], responses=responses(401, 413, 422, 429, 503))
+async def submit_case(spec: CaseSpec, request: Request, response: Response,
+                      retry: Optional[Retry] = RETRY_QUERY) -> CaseAccepted:
+    """Record a case and queue it; a case seen before is returned as it is, not recomputed
+    (unless ``retry=failed`` and it failed)."""
     jobs = jobs_of(request)
     spec_json = spec.canonical_json()
+    known = jobs.store.get_case(spec.case_id)
+    if known is None or known.status == "cancelled" or (retry and known.status == "failed"):
+        check_capacity(request)
     record, created = jobs.store.add_case(spec.case_id, spec_json)
     if not created and jobs.store.requeue([record.id]):  # a cancelled case is submitted again
         record, created = jobs.store.get_case(record.id), True
     if created:
         jobs.submit(record.id, spec_json)
+    elif retry and await jobs.retry([record.id]):
+        record = jobs.store.get_case(record.id)
     response.headers["Location"] = f"/cases/{record.id}"
     return CaseAccepted(**Case.of(record).model_dump(), created=created)
 
@@ -44,7 +60,7 @@ async def submit_case(spec: CaseSpec, request: Request, response: Response) -> C
 async def list_cases(request: Request,
                      status: Optional[Status] = Query(None, description="only cases in this status"),
                      limit: int = Query(100, ge=1, le=1000),
-                     offset: int = Query(0, ge=0),
+                     offset: int = Query(0, ge=0, le=MAX_OFFSET, description="cases to skip"),
                      newest_first: bool = Query(False, description="newest submission first")) -> CasePage:
     """Cases, oldest submission first (or newest), a page at a time."""
     records, total = jobs_of(request).store.list_cases(status=status, limit=limit, offset=offset,
@@ -61,17 +77,21 @@ async def get_case(case_id: CaseId, request: Request) -> Case:
     return Case.of(record)
 
 
-def _result_of_done_case(request: Request, case_id: str) -> Path:
-    """The result file of a case that is done: 404 unknown, 409 not done yet."""
-    record = jobs_of(request).store.get_case(case_id)
+async def _result_of_done_case(request: Request, case_id: str) -> Path:
+    """The readable result file of a case that is done: 404 unknown, 409 not done yet.
+
+    A done case whose file is missing or unreadable is never served: it goes back to
+    the queue and the answer is 409.
+    """
+    jobs = jobs_of(request)
+    record = jobs.store.get_case(case_id)
     if record is None:
         raise not_found("case", case_id)
     if record.status != "done":
         raise not_ready(f"case {case_id}", record.status)
-    path = case_path(jobs_of(request).root, case_id)
-    if not path.is_file():
-        raise not_found("result file of case", case_id)
-    return path
+    if await jobs.recompute_broken(case_id):
+        raise not_ready(f"case {case_id}", "its stored result was missing or unreadable; it is being recomputed")
+    return case_path(jobs.root, case_id)
 
 
 @router.get("/{case_id}/result.nc", response_class=FileResponse, responses={
@@ -79,7 +99,7 @@ def _result_of_done_case(request: Request, case_id: str) -> Path:
     **responses(404, 409)})
 async def get_case_result(case_id: CaseId, request: Request) -> FileResponse:
     """The result file of a finished case (409 until it is done)."""
-    path = _result_of_done_case(request, case_id)
+    path = await _result_of_done_case(request, case_id)
     return FileResponse(path, media_type=NETCDF, filename=f"{case_id}.nc")
 
 
@@ -88,6 +108,14 @@ async def get_case_result(case_id: CaseId, request: Request) -> FileResponse:
     **responses(404, 409)})
 async def get_case_plot(case_id: CaseId, name: PlotName, request: Request) -> FileResponse:
     """A figure of a finished case: ``contact_pressure``, ``lining_forces`` or ``deformed_mesh``."""
-    _result_of_done_case(request, case_id)
-    path = await asyncio.to_thread(render_plot, jobs_of(request).root, case_id, name.value)
+    await _result_of_done_case(request, case_id)
+    jobs = jobs_of(request)
+    try:
+        path = await asyncio.to_thread(render_plot, jobs.root, case_id, name.value)
+    except Exception:
+        # the file may have broken since it was checked: then recompute, else a real fault
+        if await jobs.recompute_broken(case_id):
+            raise not_ready(f"case {case_id}", "its stored result was missing or unreadable; "
+                                               "it is being recomputed") from None
+        raise
     return FileResponse(path, media_type="image/png")

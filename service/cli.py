@@ -45,8 +45,9 @@ def build_parser() -> argparse.ArgumentParser:
     results(p)
 
     p = sub.add_parser("serve", help="run the REST service")
-    p.add_argument("--host", default="127.0.0.1")
-    p.add_argument("--port", type=int, default=8000)
+    p.add_argument("--host", default=None,
+                   help="bind address (default: $TUNNEL_CONTACT_HOST or 127.0.0.1)")
+    p.add_argument("--port", type=int, default=None, help="bind port (default: $TUNNEL_CONTACT_PORT or 8000)")
     scheduler(p)
     p.add_argument("--results", default=None, metavar="DIR",
                    help="result store folder (default: $TUNNEL_CONTACT_RESULTS or ./results)")

@@ -7,6 +7,8 @@ of validation errors that the command line and sweeps use too.
 """
 from __future__ import annotations
 
+import errno
+import logging
 from typing import Iterable
 
 from fastapi import Request
@@ -16,6 +18,11 @@ from fastapi.responses import JSONResponse
 from solver.errors import field_errors as _field_reasons
 
 from .schemas import ErrorBody, FieldError
+
+logger = logging.getLogger(__name__)
+
+#: OS errors that mean the results directory cannot take writes right now.
+_WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EIO, errno.EACCES, errno.EPERM})
 
 
 def field_errors(errors: Iterable[dict]) -> list[FieldError]:
@@ -42,9 +49,29 @@ async def request_validation_handler(request: Request, exc: RequestValidationErr
     return invalid(field_errors(errors))
 
 
+async def store_error_handler(request: Request, exc: Exception) -> JSONResponse:
+    """503 with the reason when the job records or the results directory refuse a write
+    (full or read-only disk, I/O error); the reason names no server path."""
+    if isinstance(exc, OSError):
+        if exc.errno not in _WRITE_ERRNOS:
+            raise exc  # not the store refusing writes: a server error
+        reason = f"results store cannot take writes: {exc.strerror or type(exc).__name__}"
+    else:
+        reason = f"job records cannot take writes: {exc}"
+    logger.error("%s (%s %s)", reason, request.method, request.url.path)
+    return JSONResponse(status_code=503, content=ErrorBody(detail=reason).model_dump(),
+                        headers={"Retry-After": "60"})
+
+
+async def overflow_handler(request: Request, exc: OverflowError) -> JSONResponse:
+    """422 for a number too large for the job records (e.g. a page offset of 1e23)."""
+    return invalid([FieldError(field="query", reason=f"a number is out of range: {exc}", type="overflow")])
+
+
 #: Documented error responses, for the routes' ``responses=``.
 def responses(*codes: int) -> dict[int, dict]:
     text = {401: "missing or wrong bearer token", 404: "unknown id", 409: "result not ready",
             413: "request body too large", 422: "invalid input (each field named)",
-            503: "scheduler unreachable"}
+            429: "too many open cases (header Retry-After)",
+            503: "results store cannot take writes (the reason in detail)"}
     return {code: {"model": ErrorBody, "description": text[code]} for code in codes}

@@ -1,8 +1,11 @@
-"""Request guards: the body size cap (before any parsing) and the bearer token on POSTs."""
+"""Request guards: the body size cap (before any parsing), the bearer token on POSTs, and
+the capacity checks (free space, bounded queue) before work is accepted."""
 from __future__ import annotations
 
+import copy
 import json
 import secrets
+import shutil
 from typing import Optional
 
 from fastapi import Depends, HTTPException, Request, status
@@ -22,6 +25,57 @@ async def require_token(request: Request,
         raise HTTPException(status_code=status.HTTP_401_UNAUTHORIZED,
                             detail="missing or wrong bearer token",
                             headers={"WWW-Authenticate": "Bearer"})
+
+
+def check_capacity(request: Request, new_cases: int = 1) -> None:
+    """Refuse work the service cannot take now.
+
+    503 when the results directory has less free space than
+    ``settings.min_free_bytes``; 429 with ``Retry-After`` when ``new_cases`` more would
+    put the queued and running cases over ``settings.max_open_cases``.
+    """
+    if new_cases <= 0:
+        return
+    settings = request.app.state.settings
+    free = free_bytes(request.app.state.jobs.root)
+    if free < settings.min_free_bytes:
+        raise HTTPException(status_code=status.HTTP_503_SERVICE_UNAVAILABLE,
+                            detail=f"results store cannot take writes: {free / 2**20:.1f} MiB free, "
+                                   f"a case needs up to {settings.min_free_bytes / 2**20:.0f} MiB")
+    open_cases = request.app.state.jobs.store.count_open()
+    if open_cases + new_cases > settings.max_open_cases:
+        raise HTTPException(status_code=status.HTTP_429_TOO_MANY_REQUESTS,
+                            detail=f"{open_cases:,} cases are queued or running, the limit is "
+                                   f"{settings.max_open_cases:,}; retry later",
+                            headers={"Retry-After": str(settings.retry_after)})
+
+
+def free_bytes(root) -> int:
+    """Bytes available to this process in the file system of ``root`` (0 if it is unreachable)."""
+    try:
+        return shutil.disk_usage(root).free
+    except OSError:
+        return 0
+
+
+def openapi_auth_as_configured(app) -> None:
+    """Declare the bearer token in the OpenAPI schema only when one is configured."""
+    build = app.openapi
+
+    def openapi() -> dict:
+        schema = build()
+        if app.state.settings.token:
+            return schema
+        schema = copy.deepcopy(schema)  # the built schema is cached: leave it whole
+        schema.get("components", {}).pop("securitySchemes", None)
+        for operations in schema.get("paths", {}).values():
+            for operation in operations.values():
+                if isinstance(operation, dict):
+                    operation.pop("security", None)
+                    operation.get("responses", {}).pop("401", None)
+        return schema
+
+    app.openapi = openapi
 
 
 class BodyLimitMiddleware:

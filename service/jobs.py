@@ -33,18 +33,22 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import sqlite3
 from pathlib import Path
-from typing import Awaitable, Callable, Optional
+from typing import Awaitable, Callable, Optional, Sequence
 
 from distributed import Client, Future, fire_and_forget
 from distributed.client import FutureCancelledError
 
+from pydantic import ValidationError
+
+from solver.errors import field_errors, format_errors
 from solver.spec import CaseSpec
-from workflows.store import is_stored
-from workflows.summary import read_summary
+from workflows.store import remove_stale_temporaries, stored_case_ids
 from workflows.tasks import solve_and_store
 
-from .store import JobStore
+from .results import BrokenResult, public_error, result_state, stored_summary
+from .store import UNREADABLE, JobStore
 
 logger = logging.getLogger(__name__)
 
@@ -56,9 +60,10 @@ def task_key(case_id: str) -> str:
     return f"{KEY_PREFIX}{case_id}"
 
 
-def stored_summary(root: Path, case_id: str) -> Optional[dict[str, float]]:
-    """Scalars of the stored result of ``case_id``, or None if it is not stored."""
-    return read_summary(root, case_id) if is_stored(root, case_id) else None
+#: Longest pause (s) between retries of a job-record write or a failed background round.
+MAX_BACKOFF = 30.0
+#: Done results whose files each reconciliation reads back (a rolling check of the store).
+SCRUB_PER_ROUND = 20
 
 
 class Dispatcher:
@@ -86,6 +91,9 @@ class Dispatcher:
         self.client: Optional[Client] = None
         self._tracked: dict[str, Future] = {}
         self._pending: dict[str, str] = {}
+        self._force: set[str] = set()  # pending cases to recompute over a stored file
+        self._scrubbed: set[str] = set()
+        self._rounds = 0
         self._flush_timer: Optional[asyncio.TimerHandle] = None
         self._tasks: set[asyncio.Task] = set()
 
@@ -97,7 +105,11 @@ class Dispatcher:
         An unreachable scheduler does not stop the start: the service answers (``/health``
         says 503), records new cases as queued and connects when the scheduler appears.
         """
-        await self.reconcile()
+        try:
+            await self.reconcile()
+        except Exception as exc:  # e.g. a database that refuses writes: serve, retry later
+            logger.error("start-up reconciliation failed (%s: %s); retrying in the background",
+                         type(exc).__name__, exc)
         self._spawn(self._poll_running())
         self._spawn(self._reconcile_forever())
 
@@ -125,8 +137,10 @@ class Dispatcher:
 
     # -- submission ----------------------------------------------------------------------
 
-    def submit(self, case_id: str, spec_json: str) -> bool:
+    def submit(self, case_id: str, spec_json: str, *, force: bool = False) -> bool:
         """Queue ``case_id`` for the next batch to the scheduler; False if already on its way.
+
+        ``force``: recompute even over a stored result file (a broken one, or a retry).
 
         Batches go out ``batch_delay`` seconds after their first case, as one scheduler
         update (a sweep, or many clients posting at once, cost the scheduler one graph
@@ -136,6 +150,8 @@ class Dispatcher:
         if case_id in self._tracked or case_id in self._pending:
             return False
         self._pending[case_id] = spec_json
+        if force:
+            self._force.add(case_id)
         if self._flush_timer is None:
             self._flush_timer = asyncio.get_running_loop().call_later(self.batch_delay, self._flush)
         return True
@@ -144,6 +160,7 @@ class Dispatcher:
         """Send the pending cases to the scheduler, fire-and-forget, and watch them."""
         self._flush_timer = None
         batch, self._pending = self._pending, {}
+        force, self._force = self._force, set()
         if not batch:
             return
         if not self.connected:
@@ -152,7 +169,7 @@ class Dispatcher:
         ids = list(batch)
         try:
             futures = self.client.map(solve_and_store, [batch[c] for c in ids], [str(self.root)] * len(ids),
-                                      key=[task_key(c) for c in ids], pure=False)
+                                      [c in force for c in ids], key=[task_key(c) for c in ids], pure=False)
             fire_and_forget(futures)
         except Exception:
             logger.exception("could not submit %d cases; they stay queued", len(ids))
@@ -160,8 +177,50 @@ class Dispatcher:
         for case_id, future in zip(ids, futures):
             self._tracked[case_id] = future
             self._spawn(self._watch(case_id, future))
-        self.store.count_submissions(ids)
+        try:
+            self.store.count_submissions(ids)
+        except Exception as exc:  # only a counter: the tasks are on their way
+            logger.warning("could not count %d submissions: %s", len(ids), exc)
         logger.debug("submitted %d cases", len(ids))
+
+    async def retry(self, case_ids: list[str]) -> list[str]:
+        """Recompute the ``failed`` cases among ``case_ids``, and the ``done`` ones whose result
+        file is missing or unreadable; return their ids (now ``queued``)."""
+        records = self.store.get_cases(case_ids)
+        done = [c for c, r in records.items() if r.status == "done"]
+        broken = []
+        for case_id in done:
+            if await asyncio.to_thread(result_state, self.root, case_id) != "readable":
+                broken.append(case_id)
+        again = self.store.requeue([c for c, r in records.items() if r.status == "failed"], statuses=("failed",))
+        again += self.store.requeue(broken, statuses=("done",))
+        for case_id in again:
+            self.submit(case_id, CaseSpec.model_validate(records[case_id].spec).canonical_json(), force=True)
+        if again:
+            logger.info("recomputing %d cases", len(again))
+        return again
+
+    async def readable_results(self, case_ids: Sequence[str]) -> list[str]:
+        """The ``done`` cases among ``case_ids`` whose result file reads back, in order;
+        done cases whose file is missing or unreadable go back to the queue."""
+        statuses = self.store.statuses(case_ids)
+        done = [c for c in case_ids if statuses.get(c) == "done"]
+        states = await asyncio.to_thread(lambda: [result_state(self.root, c) for c in done])
+        for case_id, state in zip(done, states):
+            if state != "readable":
+                await self.recompute_broken(case_id)
+        return [c for c, state in zip(done, states) if state == "readable"]
+
+    async def recompute_broken(self, case_id: str) -> bool:
+        """Requeue a ``done`` case whose result file is missing or unreadable; True if it was."""
+        state = await asyncio.to_thread(result_state, self.root, case_id)
+        if state == "readable":
+            return False
+        record = self.store.get_case(case_id)
+        if record is not None and self.store.requeue([case_id], statuses=("done",)):
+            logger.warning("result of case %s is %s: recomputing it", case_id, state)
+            self.submit(case_id, CaseSpec.model_validate(record.spec).canonical_json(), force=state == "broken")
+        return True
 
     async def _watch(self, case_id: str, future: Future) -> None:
         """Wait for one task and record its outcome."""
@@ -171,43 +230,67 @@ class Dispatcher:
             except FutureCancelledError as exc:
                 logger.warning("task of case %s cancelled (%s)", case_id, exc.reason)
                 if not await self._resolve_from_store(case_id):
-                    self.store.mark_queued(case_id)  # resubmitted by the next reconciliation
+                    # resubmitted by the next reconciliation
+                    await self._persist(self.store.mark_queued, case_id)
                 return
             except Exception as exc:  # the task raised: KilledWorker, import errors, ...
                 logger.warning("task of case %s raised %s: %s", case_id, type(exc).__name__, exc)
                 if not await self._resolve_from_store(case_id):
-                    self.store.finish(case_id, status="failed", error=f"{type(exc).__name__}: {exc}")
+                    await self._persist(self.store.finish, case_id, status="failed",
+                                        error=public_error(f"{type(exc).__name__}: {exc}", self.root))
                 return
-            self._record(case_id, outcome)
+            await self._record(case_id, outcome)
         finally:
             if self._tracked.get(case_id) is future:
                 del self._tracked[case_id]
             future.release()
 
-    def _record(self, case_id: str, outcome: dict) -> None:
+    async def _record(self, case_id: str, outcome: dict) -> None:
         seconds = outcome.get("seconds")
         if outcome.get("status") == "done":
-            self.store.finish(case_id, status="done", summary=outcome.get("summary"), seconds=seconds)
+            await self._persist(self.store.finish, case_id, status="done", summary=outcome.get("summary"),
+                                seconds=seconds)
         else:
-            self.store.finish(case_id, status="failed", error=outcome.get("error") or "unknown error",
-                              seconds=seconds)
+            error = public_error(outcome.get("error") or "unknown error", self.root)
+            await self._persist(self.store.finish, case_id, status="failed", error=error, seconds=seconds)
+
+    async def _persist(self, write: Callable, *args, **kwargs) -> None:
+        """Call the job-record write ``write(*args, **kwargs)`` until it succeeds.
+
+        A full or read-only disk makes SQLite raise; the outcome is kept here and written
+        once the database takes writes again (pauses double up to :data:`MAX_BACKOFF` s).
+        """
+        pause = 0.1
+        while True:
+            try:
+                return write(*args, **kwargs)
+            except sqlite3.Error as exc:
+                logger.warning("job records refuse a write (%s); retrying in %.1f s", exc, pause)
+                await asyncio.sleep(pause)
+                pause = min(2 * pause, MAX_BACKOFF)
 
     async def _resolve_from_store(self, case_id: str) -> bool:
-        """Mark ``case_id`` done if its result file is stored; True if it was."""
+        """Mark ``case_id`` done if its result file is stored and readable; True if it was."""
         try:
             summary = await asyncio.to_thread(stored_summary, self.root, case_id)
-        except Exception:
-            logger.exception("stored result of case %s is unreadable", case_id)
+        except BrokenResult as exc:
+            logger.warning("stored result of case %s is unreadable: %s", case_id, public_error(str(exc), self.root))
             return False
         if summary is None:
             return False
-        self.store.finish(case_id, status="done", summary=summary)
+        await self._persist(self.store.finish, case_id, status="done", summary=summary)
         return True
 
     # -- background loops ----------------------------------------------------------------
 
     async def reconcile(self) -> None:
-        """Settle every open record that no watcher owns: done from the store, else resubmit."""
+        """Settle every open record that no watcher owns: done from the store, else resubmit.
+
+        Also: a record whose case no longer validates (written by an older version, or
+        damaged) is ``failed`` with the reason instead of stopping the service; a ``done``
+        case whose file has gone is recomputed, and a few done files are read back each
+        round (a broken one is recomputed too); stale temporary files are removed.
+        """
         if not self.connected:
             await self._reconnect()
         for case_id in self.store.open_case_ids():
@@ -217,10 +300,51 @@ class Dispatcher:
                 logger.info("case %s found in the store: done", case_id)
                 continue
             record = self.store.get_case(case_id)
-            if record is not None and record.status in ("queued", "running"):
-                self.store.mark_queued(case_id)
-                if self.submit(case_id, CaseSpec.model_validate(record.spec).canonical_json()):
-                    logger.info("case %s resubmitted", case_id)
+            if record is None or record.status not in ("queued", "running"):
+                continue
+            spec = self._valid_spec(case_id, record.spec)
+            if spec is None:
+                continue
+            self.store.mark_queued(case_id)
+            broken = await asyncio.to_thread(result_state, self.root, case_id) == "broken"
+            if self.submit(case_id, spec.canonical_json(), force=broken):
+                logger.info("case %s resubmitted", case_id)
+        await self._check_done_results()
+        if self._rounds % 60 == 0:
+            removed = await asyncio.to_thread(remove_stale_temporaries, self.root)
+            if removed:
+                logger.info("removed %d stale temporary files", removed)
+        self._rounds += 1
+
+    def _valid_spec(self, case_id: str, spec: dict) -> Optional[CaseSpec]:
+        """The case of a record, or None after marking the record failed (quarantine)."""
+        try:
+            if UNREADABLE in spec:
+                raise ValueError(spec[UNREADABLE])
+            return CaseSpec.model_validate(spec)
+        except ValidationError as exc:
+            reason = f"invalid job record: {format_errors(field_errors(exc))}"
+        except Exception as exc:
+            reason = f"invalid job record: {exc}"
+        logger.error("case %s quarantined: %s", case_id, reason)
+        self.store.finish(case_id, status="failed", error=reason)
+        return None
+
+    async def _check_done_results(self) -> None:
+        """Recompute done cases whose file is missing; read back a few others (rolling)."""
+        done = self.store.case_ids_with_status("done")
+        if not done:
+            return
+        stored = set(await asyncio.to_thread(stored_case_ids, self.root))
+        for case_id in (c for c in done if c not in stored):
+            await self.recompute_broken(case_id)
+        unchecked = [c for c in done if c in stored and c not in self._scrubbed]
+        if not unchecked:
+            self._scrubbed.clear()
+            return
+        for case_id in unchecked[:SCRUB_PER_ROUND]:
+            self._scrubbed.add(case_id)
+            await self.recompute_broken(case_id)
 
     async def _reconnect(self) -> None:
         if self.client is not None and self.client.status in ("connecting", "newly-created"):
@@ -233,18 +357,25 @@ class Dispatcher:
             logger.warning("scheduler unreachable: %s", exc)
 
     async def _reconcile_forever(self) -> None:
+        pause = self.reconcile_interval
         while True:
-            await asyncio.sleep(self.reconcile_interval)
+            await asyncio.sleep(pause)
             try:
                 await self.reconcile()
-            except Exception:
-                logger.exception("reconciliation failed; retrying in %s s", self.reconcile_interval)
+                pause = self.reconcile_interval
+            except Exception as exc:  # a database or scheduler error: log, back off, go on
+                pause = min(2 * pause, max(MAX_BACKOFF, self.reconcile_interval))
+                logger.warning("reconciliation failed (%s: %s); retrying in %.1f s",
+                               type(exc).__name__, exc, pause)
 
     async def _poll_running(self) -> None:
         while True:
             await asyncio.sleep(self.poll_interval)
             if self._tracked and self.connected:
-                await self._mark_executing()
+                try:
+                    await self._mark_executing()
+                except Exception as exc:  # e.g. the job records refuse writes: next poll retries
+                    logger.warning("could not record running cases: %s", exc)
 
     async def _mark_executing(self) -> None:
         """Move the queued records of tasks a worker is executing right now to ``running``."""

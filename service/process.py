@@ -94,14 +94,27 @@ def dask_command(*args: str) -> list[str]:
     return [str(Path(sys.executable).with_name("dask")), *args]
 
 
+#: Where dask's HTTP pages listen in this topology: loopback, a free port.
+LOOPBACK_ANY_PORT = "127.0.0.1:0"
+
+
+def worker_command(address: str, name: str) -> list[str]:
+    """Command line of one single-threaded ``dask worker`` on loopback for ``address``."""
+    return dask_command("worker", address, "--nthreads", "1", "--host", "127.0.0.1", "--no-dashboard",
+                        "--dashboard-address", LOOPBACK_ANY_PORT, "--name", name)
+
+
 @contextmanager
 def running_cluster(n_workers: int = 2, *, logs: Optional[Path] = None, nice: int = 0,
-                    port: Optional[int] = None) -> Iterator[str]:
+                    port: Optional[int] = None, env: Optional[dict] = None) -> Iterator[str]:
     """A ``dask scheduler`` and ``n_workers`` single-threaded ``dask worker`` processes on
     loopback (the deployment's topology); yield the scheduler address, stop them on exit.
 
     ``nice`` > 0 lowers the workers' CPU priority (so the API stays responsive when
-    they share its cores); ``port`` is the scheduler's (default: a free one).
+    they share its cores); ``port`` is the scheduler's (default: a free one); ``env``
+    is added to every process's environment (e.g. ``DASK_DISTRIBUTED__...`` settings).
+    Every port listens on loopback only: with ``--no-dashboard`` dask still serves its
+    HTTP pages (health, metrics), by default on all interfaces and port 8787.
     """
     port = port or free_port()
     address = f"tcp://127.0.0.1:{port}"
@@ -109,12 +122,12 @@ def running_cluster(n_workers: int = 2, *, logs: Optional[Path] = None, nice: in
     processes = []
     try:
         processes.append(start(dask_command("scheduler", "--host", "127.0.0.1", "--port", str(port),
-                                             "--no-dashboard"), log=log("scheduler")))
+                                             "--no-dashboard", "--dashboard-address", LOOPBACK_ANY_PORT),
+                               log=log("scheduler"), env=env))
         for i in range(n_workers):
             niced = ["nice", "-n", str(nice)] if nice else []
-            processes.append(start(niced + dask_command("worker", address, "--nthreads", "1", "--host", "127.0.0.1",
-                                                "--no-dashboard", "--name", f"worker-{i}"),
-                                   log=log(f"worker-{i}")))
+            processes.append(start(niced + worker_command(address, f"worker-{i}"), log=log(f"worker-{i}"),
+                                   env=env))
         yield address
     finally:
         for process in reversed(processes):

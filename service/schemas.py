@@ -6,6 +6,7 @@ from typing import Literal, Optional
 
 from pydantic import BaseModel, Field
 
+from .results import finite_summary
 from .store import CaseRecord, SweepRecord
 
 Status = Literal["queued", "running", "done", "failed", "cancelled"]
@@ -22,7 +23,8 @@ class Case(BaseModel):
     id: str = Field(description="case id: 16 hex digits of the hash of the canonical case JSON")
     status: Status
     spec: dict = Field(description="the case with every default filled in")
-    summary: Optional[dict[str, float]] = Field(None, description="result scalars (SPEC §3) once done")
+    summary: Optional[dict[str, Optional[float]]] = Field(
+        None, description="result scalars (SPEC §3) once done; null where not finite")
     error: Optional[str] = Field(None, description="why the case failed")
     submitted_at: datetime
     started_at: Optional[datetime] = None
@@ -32,7 +34,7 @@ class Case(BaseModel):
     @classmethod
     def of(cls, record: CaseRecord) -> "Case":
         return cls(
-            id=record.id, status=record.status, spec=record.spec, summary=record.summary,
+            id=record.id, status=record.status, spec=record.spec, summary=finite_summary(record.summary),
             error=record.error, submitted_at=_time(record.submitted_at),
             started_at=_time(record.started_at), finished_at=_time(record.finished_at),
             result=f"/cases/{record.id}/result.nc" if record.status == "done" else None)
@@ -106,16 +108,20 @@ class SweepAccepted(SweepStatus):
 
     created: bool = Field(description="false when the same sweep was posted before")
     new_cases: int = Field(description="cases not known before this request (the others are reused)")
+    resubmitted: int = Field(0, description="cases recomputed by this request (retry=failed)")
 
 
 class Health(BaseModel):
     """``GET /health``: 200 when everything is reachable, else 503 with the same body."""
 
     status: Literal["ok", "degraded"]
+    reasons: list[str] = Field([], description="what is wrong when degraded")
     scheduler: Optional[str] = Field(description="scheduler address")
     scheduler_reachable: bool
     workers: int = Field(description="workers connected to the scheduler")
-    results_writable: bool = Field(description="results directory and job database accept writes")
+    results_writable: bool = Field(description="results directory and job database accept writes, "
+                                               "with room for a case")
+    results_free_bytes: int = Field(description="free space in the results directory (bytes)")
     queued: int
     running: int
 

@@ -13,13 +13,14 @@ from .settings import Settings
 logger = logging.getLogger(__name__)
 
 
-def serve(*, host: str = "127.0.0.1", port: int = 8000, scheduler: Optional[str] = None,
+def serve(*, host: Optional[str] = None, port: Optional[int] = None, scheduler: Optional[str] = None,
           results: str | Path | None = None, token: Optional[str] = None) -> None:
     """Serve the API until interrupted.
 
     Parameters
     ----------
-    host, port : bind address; loopback unless asked otherwise.
+    host, port : bind address; None: ``TUNNEL_CONTACT_HOST`` / ``TUNNEL_CONTACT_PORT`` or
+        127.0.0.1:8000 (loopback unless asked otherwise).
     scheduler : dask scheduler address; None: ``DASK_SCHEDULER_ADDRESS`` or an embedded cluster.
     results : results directory; None: ``TUNNEL_CONTACT_RESULTS`` or ``./results``.
     token : bearer token required on POST; None: ``TUNNEL_CONTACT_TOKEN`` (or none).

@@ -17,6 +17,13 @@ Environment variables
     Request body cap (default 1 MiB) and sweep size cap (default 1000 cases).
 ``TUNNEL_CONTACT_LOCAL_WORKERS``
     Worker processes of the embedded cluster (default: one per CPU).
+``TUNNEL_CONTACT_MAX_OPEN_CASES``
+    Queued plus running cases above which a submission is refused with 429 and
+    ``Retry-After`` (default 10000).
+``TUNNEL_CONTACT_MIN_FREE_BYTES``
+    Free space the results directory needs to take cases (default 32 MiB, the size of
+    the largest result the element cap allows); below it submissions get 503 and
+    ``/health`` is degraded.
 """
 from __future__ import annotations
 
@@ -37,6 +44,8 @@ ENVIRONMENT = {
     "max_body_bytes": "TUNNEL_CONTACT_MAX_BODY_BYTES",
     "max_sweep_cases": "TUNNEL_CONTACT_MAX_SWEEP_CASES",
     "local_workers": "TUNNEL_CONTACT_LOCAL_WORKERS",
+    "max_open_cases": "TUNNEL_CONTACT_MAX_OPEN_CASES",
+    "min_free_bytes": "TUNNEL_CONTACT_MIN_FREE_BYTES",
 }
 
 
@@ -55,6 +64,10 @@ class Settings(BaseModel):
     local_workers: Optional[int] = Field(None, gt=0, description="embedded cluster worker processes")
     poll_interval: float = Field(0.5, gt=0, description="seconds between scheduler polls for running tasks")
     reconcile_interval: float = Field(5.0, gt=0, description="seconds between record/store reconciliations")
+    max_open_cases: int = Field(10_000, gt=0, description="queued + running cases above which POST answers 429")
+    retry_after: int = Field(30, gt=0, description="seconds a client is told to wait after a 429")
+    min_free_bytes: int = Field(32 << 20, ge=0, description="free space (bytes) needed to accept cases: "
+                                                            "about the largest result the element cap allows")
 
     @property
     def database(self) -> Path:

@@ -77,10 +77,25 @@ class SweepRecord:
     case_ids: tuple[str, ...]
 
 
+#: Key of the ``spec`` of a record whose JSON cannot be parsed (the record is then quarantined).
+UNREADABLE = "unreadable_record"
+
+
+def _json(text: Optional[str], default):
+    """``text`` parsed, or ``default`` (a damaged record must not stop every listing)."""
+    try:
+        return json.loads(text) if text else None
+    except (ValueError, TypeError) as exc:
+        return default if default is not None else {UNREADABLE: f"not JSON ({exc})"}
+
+
 def _case(row: sqlite3.Row) -> CaseRecord:
+    spec = _json(row["spec"], None)
+    summary = _json(row["summary"], {})
     return CaseRecord(
-        id=row["id"], spec=json.loads(row["spec"]), status=row["status"],
-        summary=json.loads(row["summary"]) if row["summary"] else None, error=row["error"],
+        id=row["id"], spec=spec if isinstance(spec, dict) else {UNREADABLE: "not a JSON object"},
+        status=row["status"],
+        summary=summary if isinstance(summary, dict) and summary else None, error=row["error"],
         submitted_at=row["submitted_at"], started_at=row["started_at"],
         finished_at=row["finished_at"], submissions=row["submissions"])
 
@@ -166,6 +181,15 @@ class JobStore:
         rows = self._read("SELECT id FROM cases WHERE status IN ('queued', 'running') "
                           "ORDER BY submitted_at, id")
         return [r["id"] for r in rows]
+
+    def case_ids_with_status(self, status: str) -> list[str]:
+        """Ids of the cases in ``status``, oldest first."""
+        return [r["id"] for r in self._read("SELECT id FROM cases WHERE status = ? ORDER BY submitted_at, id",
+                                            (status,))]
+
+    def count_open(self) -> int:
+        """How many cases are ``queued`` or ``running`` (the queue the 429 limit bounds)."""
+        return self._read("SELECT count(*) AS n FROM cases WHERE status IN ('queued', 'running')")[0]["n"]
 
     def count_submissions(self, case_ids: Sequence[str]) -> None:
         """Note that the cases were (re)submitted to the scheduler."""

@@ -2,18 +2,19 @@
 from __future__ import annotations
 
 import asyncio
+from typing import Optional
 
 from fastapi import APIRouter, Depends, Request, Response
 from fastapi.responses import FileResponse, JSONResponse
 
 from solver.spec import CaseSpec
 from workflows import Sweep, SweepError, expand_sweep
-from workflows.store import is_stored
 from workflows.sweep import sweep_size
 
 from workflows.artifacts import write_combined
 from .errors import invalid, responses
-from .guards import require_token
+from .cases import RETRY_QUERY, Retry
+from .guards import check_capacity, require_token
 from .params import NETCDF, SweepId, jobs_of, not_found, not_ready, settings_of
 from .schemas import FieldError, SweepAccepted, SweepStatus
 
@@ -21,9 +22,11 @@ router = APIRouter(prefix="/sweeps", tags=["sweeps"])
 
 
 @router.post("", status_code=202, response_model=SweepAccepted,
-             dependencies=[Depends(require_token)], responses=responses(401, 413, 422))
-async def submit_sweep(sweep: Sweep, request: Request, response: Response) -> SweepAccepted | JSONResponse:
-    """Expand a sweep into cases, record them and queue the ones not known before."""
+             dependencies=[Depends(require_token)], responses=responses(401, 413, 422, 429, 503))
+async def submit_sweep(sweep: Sweep, request: Request, response: Response,
+                       retry: Optional[Retry] = RETRY_QUERY) -> SweepAccepted | JSONResponse:
+    """Expand a sweep into cases, record them and queue the ones not known before
+    (``retry=failed``: and recompute those of its cases that failed)."""
     jobs = jobs_of(request)
     record = jobs.store.get_sweep(sweep.sweep_id)
     created, new = False, []
@@ -39,6 +42,7 @@ async def submit_sweep(sweep: Sweep, request: Request, response: Response) -> Sw
             return invalid([FieldError(field=path, reason=message, type="value_error")
                             for path, message in exc.errors])
         cases = [(s.case_id, s.canonical_json()) for s in specs]
+        check_capacity(request, len(cases) - len(jobs.store.statuses([c for c, _ in cases])))
         record, new = jobs.store.add_sweep(sweep.sweep_id, sweep.name, sweep.canonical_json(), cases)
         created = True
         specs_by_id = dict(cases)
@@ -48,9 +52,14 @@ async def submit_sweep(sweep: Sweep, request: Request, response: Response) -> Sw
     for case_id in jobs.store.requeue(record.case_ids):
         new.append(case_id)
         jobs.submit(case_id, CaseSpec.model_validate(jobs.store.get_case(case_id).spec).canonical_json())
+    retried = []
+    if retry:
+        check_capacity(request, jobs.store.status_counts(record.case_ids)["failed"])
+        retried = await jobs.retry(list(record.case_ids))
     response.headers["Location"] = f"/sweeps/{record.id}"
     counts = jobs.store.status_counts(record.case_ids)
-    return SweepAccepted(**SweepStatus.of(record, counts).model_dump(), created=created, new_cases=len(new))
+    return SweepAccepted(**SweepStatus.of(record, counts).model_dump(), created=created, new_cases=len(new),
+                         resubmitted=len(retried))
 
 
 @router.get("/{sweep_id}", response_model=SweepStatus, responses=responses(404))
@@ -73,8 +82,7 @@ async def get_sweep_result(sweep_id: SweepId, request: Request) -> FileResponse:
     record = jobs.store.get_sweep(sweep_id)
     if record is None:
         raise not_found("sweep", sweep_id)
-    statuses = jobs.store.statuses(record.case_ids)
-    done = [c for c in record.case_ids if statuses.get(c) == "done" and is_stored(jobs.root, c)]
+    done = await jobs.readable_results(record.case_ids)
     if not done:
         raise not_ready(f"sweep {sweep_id}", "no case is done yet")
     path = await asyncio.to_thread(write_combined, jobs.root, sweep_id, done)

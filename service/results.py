@@ -1,0 +1,108 @@
+"""The service's view of stored result files: missing, readable or broken.
+
+A ``done`` record promises a readable file. A file can go missing or be truncated
+after the fact (a full disk, an operator, a bad copy); the service checks before it
+serves one and when it reconciles, and a broken result is recomputed, never served.
+A file is read once per version (modification time and size); later checks are a
+``stat``.
+"""
+from __future__ import annotations
+
+import logging
+import math
+import os
+import re
+import threading
+from pathlib import Path
+from typing import Optional
+
+from workflows.store import case_path
+from workflows.summary import read_summary
+
+logger = logging.getLogger(__name__)
+
+_VERIFIED: dict[str, tuple[int, int]] = {}
+_LOCK = threading.Lock()  # netCDF/HDF5 reads one at a time
+
+
+class BrokenResult(Exception):
+    """A result file exists but cannot be read."""
+
+
+def _version(path: Path) -> Optional[tuple[int, int]]:
+    try:
+        st = path.stat()
+    except FileNotFoundError:
+        return None
+    return st.st_mtime_ns, st.st_size
+
+
+def stored_summary(root: Path, case_id: str) -> Optional[dict[str, float]]:
+    """Scalars of the stored result of ``case_id``; None if no file is stored.
+
+    Raises
+    ------
+    BrokenResult
+        If the file is there but unreadable (truncated, corrupted, not netCDF).
+    """
+    path = case_path(root, case_id)
+    if _version(path) is None:
+        return None
+    try:
+        with _LOCK:
+            summary = read_summary(root, case_id)
+    except FileNotFoundError:
+        return None
+    except Exception as exc:
+        raise BrokenResult(f"{type(exc).__name__}: {exc}") from None
+    version = _version(path)
+    if version is not None:
+        _VERIFIED[case_id] = version
+    return summary
+
+
+def result_state(root: Path, case_id: str) -> str:
+    """``"missing"``, ``"readable"`` or ``"broken"`` (reads the file unless this version was read)."""
+    version = _version(case_path(root, case_id))
+    if version is None:
+        return "missing"
+    if _VERIFIED.get(case_id) == version:
+        return "readable"
+    try:
+        stored_summary(root, case_id)
+    except BrokenResult as exc:
+        logger.warning("stored result of case %s is unreadable: %s", case_id, public_error(str(exc), root))
+        return "broken"
+    return "readable" if _version(case_path(root, case_id)) is not None else "missing"
+
+
+def finite_summary(summary: Optional[dict]) -> Optional[dict[str, Optional[float]]]:
+    """``summary`` with non-finite scalars as None (JSON has no NaN or Infinity)."""
+    if summary is None:
+        return None
+    return {k: (float(v) if isinstance(v, (int, float)) and math.isfinite(v) else None)
+            for k, v in summary.items()}
+
+
+_ADDRESS = re.compile(r"\b(?:tcp|tls|ucx|ws|wss|inproc)://[\w.\-\[\]:%]*[\w\]]")
+_ABSOLUTE_PATH = re.compile(r"(?<![\w.:/>])/(?:[^\s'\",;:()/]+/)+([^\s'\",;:()/]*)")
+
+
+def public_error(text: str, root: Optional[Path | str] = None) -> str:
+    """An error text fit for API clients: no server paths, no cluster addresses.
+
+    The results directory becomes ``<results>``, other absolute paths their file name,
+    worker and scheduler addresses ``<worker>``.
+
+    >>> public_error("KilledWorker: last worker was tcp://10.0.0.7:40123.", "/srv/r")
+    'KilledWorker: last worker was <worker>.'
+    >>> public_error("OSError: [Errno 28] No space left: '/srv/r/cases/.x.nc.tmp'", "/srv/r")
+    "OSError: [Errno 28] No space left: '<results>/cases/.x.nc.tmp'"
+    >>> public_error("cannot open /usr/lib/x/libfoo.so", None)
+    'cannot open libfoo.so'
+    """
+    if root is not None:
+        for form in {str(root), os.path.realpath(root)}:
+            text = text.replace(form.rstrip("/"), "<results>")
+    text = _ADDRESS.sub("<worker>", text)
+    return _ABSOLUTE_PATH.sub(lambda m: m.group(1), text)

@@ -1,0 +1,268 @@
+"""The service under bad input, a full disk, broken result files and damaged job records
+(issue 10): never a 500, never a broken file served, nothing stuck.
+
+One in-process app (TestClient) on an embedded one-worker LocalCluster.
+"""
+from __future__ import annotations
+
+import asyncio
+import errno
+import os
+import sqlite3
+import time
+
+import pytest
+from fastapi.testclient import TestClient
+
+from service.app import create_app
+from service.jobs import Dispatcher
+from service.settings import Settings
+from service.store import JobStore
+from service_helpers import COARSE, coarse_case, wait_until
+from solver.spec import CaseSpec
+from workflows.store import case_path, cases_dir
+
+
+@pytest.fixture(scope="module")
+def app(tmp_path_factory):
+    settings = Settings(results=tmp_path_factory.mktemp("results"), local_workers=1,
+                        poll_interval=0.1, reconcile_interval=3600, min_free_bytes=1 << 20)
+    return create_app(settings)
+
+
+@pytest.fixture(scope="module")
+def client(app):
+    with TestClient(app) as c:
+        yield c
+
+
+def finished(client, case_id: str) -> dict:
+    def check():
+        body = client.get(f"/cases/{case_id}").json()
+        return body if body["status"] in ("done", "failed") else None
+    return wait_until(check, what=f"case {case_id}")
+
+
+@pytest.fixture(scope="module")
+def done_case(client) -> dict:
+    body = finished(client, client.post("/cases", json=COARSE).json()["id"])
+    assert body["status"] == "done", body["error"]
+    return body
+
+
+# -- bad input: 422 naming the field, never 500 ---------------------------------------------
+
+@pytest.mark.parametrize("raw, field", [
+    (b'{"ground": {"young": Infinity}}', "ground.young"),
+    (b'{"lining": {"young": -Infinity}}', "lining.young"),
+    (b'{"lining": {"density": 1e400}}', "lining.density"),
+    (b'{"loads": {"surface_load": NaN}}', "loads.surface_load"),
+    (b'{"geometry": {"width": 1e308}}', "geometry.width"),
+    (b'{"mesh": {"interface_size": 1e-300}}', "mesh.interface_size"),
+])
+def test_non_finite_and_huge_numbers_are_422_naming_the_field(client, raw, field):
+    response = client.post("/cases", content=raw, headers={"content-type": "application/json"})
+    assert response.status_code == 422, response.text
+    assert field in {e["field"] for e in response.json()["errors"]}
+
+
+def test_non_finite_sweep_values_are_422_naming_the_varied_field(client):
+    raw = b'{"name": "inf", "base": {}, "vary": {"ground.young": [5e7, Infinity], "lining.young": [1e400]}}'
+    response = client.post("/sweeps", content=raw, headers={"content-type": "application/json"})
+    assert response.status_code == 422, response.text
+    fields = {e["field"] for e in response.json()["errors"]}
+    assert any("ground.young" in f for f in fields) and any("lining.young" in f for f in fields), fields
+
+
+@pytest.mark.parametrize("offset", ["1e23", str(10**30), "-1", "nan"])
+def test_huge_or_bad_offset_is_422(client, offset):
+    response = client.get("/cases", params={"offset": offset})
+    assert response.status_code == 422
+    assert response.json()["errors"][0]["field"] == "offset"
+
+
+# -- a store that cannot take writes: 503 with the reason -------------------------------------
+
+def test_post_is_503_with_the_reason_when_the_job_records_are_full(client, app, monkeypatch):
+    def full(*args, **kwargs):
+        raise sqlite3.OperationalError("database or disk is full")
+    monkeypatch.setattr(app.state.jobs.store, "_write", full)
+    response = client.post("/cases", json=coarse_case(loads={"surface_load": 4.321e4}))
+    assert response.status_code == 503
+    assert "cannot take writes" in response.json()["detail"] and "full" in response.json()["detail"]
+
+
+def test_plot_write_on_a_full_disk_is_503_without_server_paths(client, app, done_case, monkeypatch):
+    import service.cases
+
+    def enospc(root, case_id, name, *args):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(root / "plots" / case_id / f"{name}.png"))
+    monkeypatch.setattr(service.cases, "render_plot", enospc)
+    response = client.get(f"/cases/{done_case['id']}/plots/contact_pressure.png")
+    assert response.status_code == 503
+    assert "No space left" in response.json()["detail"] and str(app.state.jobs.root) not in response.text
+
+
+def test_too_little_free_space_is_503_on_post_and_degraded_health(client, monkeypatch):
+    import shutil as real_shutil
+
+    import service.guards
+
+    usage = real_shutil.disk_usage("/")
+
+    class Almost:
+        @staticmethod
+        def disk_usage(path):
+            return usage._replace(free=344 * 1024)
+
+    monkeypatch.setattr(service.guards, "shutil", Almost)
+    health = client.get("/health")
+    assert health.status_code == 503 and health.json()["results_writable"] is False
+    assert any("MiB free" in r for r in health.json()["reasons"])
+    response = client.post("/cases", json=coarse_case(loads={"surface_load": 4.322e4}))
+    assert response.status_code == 503 and "MiB free" in response.json()["detail"]
+
+
+def test_watchers_keep_an_outcome_until_the_database_takes_it(client, app, monkeypatch):
+    store = app.state.jobs.store
+    real, refusals = store.finish, []
+
+    def flaky(*args, **kwargs):
+        if len(refusals) < 3:
+            refusals.append(args)
+            raise sqlite3.OperationalError("database or disk is full")
+        return real(*args, **kwargs)
+    monkeypatch.setattr(store, "finish", flaky)
+    monkeypatch.setattr(store, "mark_running", lambda ids: (_ for _ in ()).throw(
+        sqlite3.OperationalError("database or disk is full")))
+    case_id = client.post("/cases", json=coarse_case(loads={"surface_load": 4.323e4})).json()["id"]
+    assert finished(client, case_id)["status"] == "done"
+    assert len(refusals) == 3
+    pollers = [t for t in app.state.jobs._tasks if "_poll_running" in repr(t.get_coro())]
+    assert pollers and not any(t.done() for t in pollers)
+
+
+# -- broken result files are recomputed, never served ------------------------------------------
+
+def test_truncated_result_is_recomputed_not_served(client, app, done_case):
+    path = case_path(app.state.jobs.root, done_case["id"])
+    good = path.read_bytes()
+    path.write_bytes(good[: len(good) // 3])
+    response = client.get(f"/cases/{done_case['id']}/result.nc")
+    assert response.status_code == 409 and "recomputed" in response.json()["detail"]
+    assert finished(client, done_case["id"])["status"] == "done"
+    again = client.get(f"/cases/{done_case['id']}/result.nc")
+    assert again.status_code == 200 and len(again.content) > len(good) // 3
+
+
+def test_deleted_result_is_recomputed_at_reconciliation(client, app, done_case):
+    case_path(app.state.jobs.root, done_case["id"]).unlink()
+    client.portal.call(app.state.jobs.reconcile)
+    assert client.get(f"/cases/{done_case['id']}").json()["status"] in ("queued", "running", "done")
+    assert finished(client, done_case["id"])["status"] == "done"
+    assert case_path(app.state.jobs.root, done_case["id"]).is_file()
+
+
+def test_stale_temporaries_are_removed_by_the_service(client, app):
+    jobs = app.state.jobs
+    stale = cases_dir(jobs.root) / ".0123456789abcdef.nc.x.tmp"
+    stale.parent.mkdir(parents=True, exist_ok=True)
+    stale.write_bytes(b"half")
+    os.utime(stale, (time.time() - 7200, time.time() - 7200))
+    jobs._rounds = 0
+    client.portal.call(jobs.reconcile)
+    assert not stale.exists()
+
+
+# -- recompute on request; the bounded queue ---------------------------------------------------
+
+def test_retry_failed_recomputes_a_failed_case_and_sweep(client, app):
+    bad = coarse_case(solver={"inner": "uzawa", "max_iterations": 1})
+    first = finished(client, client.post("/cases", json=bad).json()["id"])
+    assert first["status"] == "failed"
+    plain = client.post("/cases", json=bad).json()
+    assert plain["status"] == "failed" and plain["created"] is False
+    store = app.state.jobs.store
+    before = store.get_case(first["id"]).submissions
+    retried = client.post("/cases", json=bad, params={"retry": "failed"})
+    assert retried.status_code == 202 and retried.json()["status"] == "queued"
+    assert finished(client, first["id"])["status"] == "failed"  # the solver fails again, but it ran
+    assert store.get_case(first["id"]).submissions == before + 1
+
+    sweep = {"name": "retry", "base": bad, "vary": {"loads.surface_load": [1e5]}}
+    sweep_id = client.post("/sweeps", json=sweep).json()["id"]
+    wait_until(lambda: client.get(f"/sweeps/{sweep_id}").json()["finished"], what="the sweep")
+    body = client.post("/sweeps", json=sweep, params={"retry": "failed"}).json()
+    assert body["resubmitted"] == 1 and body["counts"]["failed"] == 0
+    assert client.post("/cases", json=bad, params={"retry": "everything"}).status_code == 422
+
+
+def test_429_with_retry_after_above_the_open_case_limit(client, app):
+    original = app.state.settings
+    open_now = app.state.jobs.store.count_open()
+    app.state.settings = original.model_copy(update={"max_open_cases": open_now + 1, "retry_after": 7})
+    try:
+        planted = CaseSpec.model_validate(coarse_case(loads={"surface_load": 4.324e4}))
+        app.state.jobs.store.add_case(planted.case_id, planted.canonical_json())  # fills the queue
+        response = client.post("/cases", json=coarse_case(loads={"surface_load": 4.325e4}))
+        assert response.status_code == 429 and response.headers["retry-after"] == "7"
+        assert "limit" in response.json()["detail"]
+        sweep = {"name": "full", "base": COARSE, "vary": {"loads.surface_load": [4.326e4, 4.327e4]}}
+        assert client.post("/sweeps", json=sweep).status_code == 429
+        known = client.post("/cases", json=coarse_case(loads={"surface_load": 4.324e4}))
+        assert known.status_code == 202 and known.json()["created"] is False  # no new work
+    finally:
+        app.state.settings = original
+        client.portal.call(app.state.jobs.reconcile)  # the planted case runs
+
+
+# -- start-up, OpenAPI, serve ----------------------------------------------------------------
+
+def test_startup_quarantines_unreadable_and_invalid_records(tmp_path):
+    store = JobStore(tmp_path / "jobs.sqlite")
+    store.add_case("00000000000000a1", '{"ground": {"poisson": 0.4999}}')  # valid before, not now
+    store.add_case("00000000000000a2", "{not json")
+    good = CaseSpec.model_validate(COARSE)
+    store.add_case(good.case_id, good.canonical_json())
+
+    async def unreachable():
+        raise OSError("no scheduler")
+
+    async def start_and_stop():
+        jobs = Dispatcher(unreachable, store, tmp_path, reconcile_interval=3600)
+        await jobs.start()
+        await jobs.stop()
+
+    asyncio.run(start_and_stop())
+    invalid, garbled = store.get_case("00000000000000a1"), store.get_case("00000000000000a2")
+    assert invalid.status == "failed" and "ground.poisson" in invalid.error and "invalid job record" in invalid.error
+    assert garbled.status == "failed" and "not JSON" in garbled.error
+    assert store.get_case(good.case_id).status == "queued"  # waits for the scheduler
+    store.close()
+
+
+def test_openapi_declares_a_bearer_token_only_when_configured(client, app):
+    def security(schema):
+        return "securitySchemes" in schema.get("components", {}) or any(
+            "security" in op for ops in schema["paths"].values() for op in ops.values())
+    assert not security(client.get("/openapi.json").json())
+    original = app.state.settings
+    app.state.settings = original.model_copy(update={"token": "s3cret"})
+    try:
+        assert security(client.get("/openapi.json").json())
+    finally:
+        app.state.settings = original
+
+
+def test_serve_honours_host_and_port_from_the_environment(monkeypatch, tmp_path):
+    import service.server
+    from service.cli import main
+
+    seen = {}
+    monkeypatch.setattr(service.server.uvicorn, "run", lambda app, host, port, **kw: seen.update(host=host, port=port))
+    monkeypatch.setenv("TUNNEL_CONTACT_HOST", "127.0.0.2")
+    monkeypatch.setenv("TUNNEL_CONTACT_PORT", "8123")
+    assert main(["serve", "--results", str(tmp_path)]) == 0
+    assert seen == {"host": "127.0.0.2", "port": 8123}
+    assert main(["serve", "--results", str(tmp_path), "--port", "8124"]) == 0
+    assert seen == {"host": "127.0.0.2", "port": 8124}
