@@ -1,17 +1,27 @@
-"""The result store: one netCDF-4 file per case under ``<root>/cases/``.
+"""The result store: :class:`ResultStore`, the one object that knows the file layout.
 
-Layout::
+Layout under the results directory ``root``::
 
-    <root>/cases/<case_id>.nc          the result Dataset (SPEC §3)
-    <root>/cases/<case_id>.error.json  why the case could not be solved
+    cases/<case_id>.nc                 the result Dataset of a case (SPEC §3): the truth
+    cases/<case_id>.error.json         why the case could not be solved
+    plots/<case_id>/<name>.png         cached figures of a case (workflows.artifacts)
+    sweeps/<sweep_id>-<digest>.nc      combined result of a sweep's finished cases
+    sweeps/plots/<sweep_id>-<digest>-<name>.png   cached figures of those cases
+    index/results.nc                   index of every case's scalars and θ-grid
+                                       interface quantities (workflows.index)
+    index/pending/<case_id>.nc         a case's index entry, written as the case lands
 
-Both are written atomically (temporary file in the same folder, flush, fsync,
-``os.replace``), so a reader never sees a half-written file under a final name and
-a crash leaves at most a ``.tmp`` file that :func:`remove_stale_temporaries` cleans.
-This is the only module that writes case files.
+Every file is written atomically (temporary file in the same folder, flush, fsync,
+``os.replace``), so a reader never sees a half-written file under a final name and a
+crash leaves at most a ``.tmp`` file that :meth:`ResultStore.remove_stale_temporaries`
+cleans. This module is the only one that writes case files.
+
+The module-level functions taking ``root`` first (``case_path(root, case_id)``, ...)
+are the older spelling of the same methods, kept for callers not yet migrated.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 import os
@@ -19,9 +29,10 @@ import re
 import shutil
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Union
 
 import dask
 import xarray as xr
@@ -29,11 +40,14 @@ import xarray as xr
 import solver
 from solver.spec import CaseSpec
 
+if TYPE_CHECKING:
+    from .index import ResultIndex
+
 logger = logging.getLogger(__name__)
 
 _CASE_ID = re.compile(r"[0-9a-f]{16}")
 _TMP_SUFFIX = ".tmp"
-#: Options every case file is opened with: values come back exactly as written
+#: Options every stored netCDF file is opened with: values come back exactly as written
 #: (integer ``face_nodes`` keep their dtype and ``_FillValue`` attribute).
 OPEN_OPTIONS: dict[str, Any] = dict(
     engine="netcdf4", mask_and_scale=False, decode_times=False, decode_timedelta=False)
@@ -49,87 +63,236 @@ def check_case_id(case_id: str) -> str:
     return case_id
 
 
-def cases_dir(root: str | os.PathLike) -> Path:
-    """Folder holding the case files of the store at ``root``."""
-    return Path(root) / "cases"
+#: What identifies one version of a case file: (inode, size, mtime ns, ctime ns).
+#: A rewrite (``os.replace`` of a new file) changes it.
+FileKey = tuple[int, int, int, int]
 
 
-def case_path(root: str | os.PathLike, case_id: str) -> Path:
-    """Path of the result file of ``case_id`` (it may not exist)."""
-    return cases_dir(root) / f"{check_case_id(case_id)}.nc"
+def file_key(stat: os.stat_result) -> FileKey:
+    """The :data:`FileKey` of a ``stat`` result."""
+    return (stat.st_ino, stat.st_size, stat.st_mtime_ns, stat.st_ctime_ns)
 
 
-def error_path(root: str | os.PathLike, case_id: str) -> Path:
-    """Path of the error record of ``case_id`` (it may not exist)."""
-    return cases_dir(root) / f"{check_case_id(case_id)}.error.json"
+@dataclass(frozen=True)
+class ResultStore:
+    """The results directory ``root`` and everything stored under it.
 
-
-def plot_dir(root: str | os.PathLike, case_id: str) -> Path:
-    """Folder of the cached figures of ``case_id`` (see :mod:`workflows.artifacts`)."""
-    return Path(root) / "plots" / check_case_id(case_id)
-
-
-def is_stored(root: str | os.PathLike, case_id: str) -> bool:
-    """True when the result of ``case_id`` is in the store."""
-    return case_path(root, case_id).is_file()
-
-
-def stored_case_ids(root: str | os.PathLike) -> list[str]:
-    """Ids of all stored results, sorted."""
-    folder = cases_dir(root)
-    if not folder.is_dir():
-        return []
-    return sorted(p.stem for p in folder.glob("*.nc") if _CASE_ID.fullmatch(p.stem))
-
-
-def run_and_store(spec: CaseSpec | dict[str, Any], root: str | os.PathLike, *, force: bool = False) -> str:
-    """Solve ``spec`` and store its result; return the case id.
-
-    A case already stored is returned without computing unless ``force``. When the
-    solver raises, the error is recorded with :func:`write_error` and re-raised; a
-    later success removes that record.
-
-    Parameters
-    ----------
-    spec : the case (a :class:`CaseSpec` or its dict).
-    root : folder of the store (created if missing).
-    force : recompute even if the result exists.
+    Cheap to create and picklable (it holds only the path), so it can be handed to
+    dask tasks; all state is in the files.
     """
-    spec = CaseSpec.model_validate(spec)
-    case_id = spec.case_id
-    if not force and is_stored(root, case_id):
-        logger.info("case %s already stored, not recomputed", case_id)
+
+    root: Path
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "root", Path(self.root))
+
+    # -- layout ------------------------------------------------------------------------
+
+    @property
+    def cases_dir(self) -> Path:
+        """Folder of the case files."""
+        return self.root / "cases"
+
+    def case_path(self, case_id: str) -> Path:
+        """Path of the result file of ``case_id`` (it may not exist)."""
+        return self.cases_dir / f"{check_case_id(case_id)}.nc"
+
+    def error_path(self, case_id: str) -> Path:
+        """Path of the error record of ``case_id`` (it may not exist)."""
+        return self.cases_dir / f"{check_case_id(case_id)}.error.json"
+
+    def plot_dir(self, case_id: str) -> Path:
+        """Folder of the cached figures of ``case_id``."""
+        return self.root / "plots" / check_case_id(case_id)
+
+    def plot_path(self, case_id: str, name: str) -> Path:
+        """Where the PNG ``name`` of ``case_id`` is cached."""
+        return self.plot_dir(case_id) / f"{name}.png"
+
+    @property
+    def sweeps_dir(self) -> Path:
+        """Folder of the combined files of sweeps."""
+        return self.root / "sweeps"
+
+    def combined_path(self, sweep_id: str, case_ids: Sequence[str]) -> Path:
+        """Where the combined file of ``sweep_id`` over exactly ``case_ids`` is kept.
+
+        The name carries a digest of the case ids, so a file never goes stale as more
+        cases of the sweep finish.
+        """
+        return self.sweeps_dir / f"{check_case_id(sweep_id)}-{_digest(case_ids)}.nc"
+
+    def sweep_plot_path(self, sweep_id: str, case_ids: Sequence[str], name: str) -> Path:
+        """Where the PNG ``name`` of ``sweep_id`` over exactly ``case_ids`` is cached."""
+        return self.sweeps_dir / "plots" / f"{check_case_id(sweep_id)}-{_digest(case_ids)}-{name}.png"
+
+    @property
+    def index_dir(self) -> Path:
+        """Folder of the index of stored results (:mod:`workflows.index`)."""
+        return self.root / "index"
+
+    # -- reading -----------------------------------------------------------------------
+
+    def is_stored(self, case_id: str) -> bool:
+        """True when the result of ``case_id`` is in the store."""
+        return self.case_path(case_id).is_file()
+
+    def case_ids(self) -> list[str]:
+        """Ids of all stored results, sorted."""
+        return sorted(self.file_keys())
+
+    def file_keys(self) -> dict[str, FileKey]:
+        """``{case_id: FileKey}`` of every stored result file (one directory scan)."""
+        keys: dict[str, FileKey] = {}
+        try:
+            entries = os.scandir(self.cases_dir)
+        except FileNotFoundError:
+            return keys
+        with entries:
+            for entry in entries:
+                stem, dot, ext = entry.name.partition(".")
+                if ext == "nc" and _CASE_ID.fullmatch(stem):
+                    try:
+                        keys[stem] = file_key(entry.stat())
+                    except FileNotFoundError:  # removed while we listed
+                        pass
+        return keys
+
+    def open_case(self, case_id: str) -> xr.Dataset:
+        """Read the stored result of ``case_id`` fully into memory (the file is closed).
+
+        Raises
+        ------
+        FileNotFoundError
+            If the case is not stored.
+        """
+        with xr.open_dataset(self.case_path(case_id), **OPEN_OPTIONS) as ds:
+            return ds.load()
+
+    def read_summary(self, case_id: str) -> dict[str, float]:
+        """The scalars of a stored case (see :func:`workflows.summary.summarize`), reading only them."""
+        from .summary import summarize
+
+        with xr.open_dataset(self.case_path(case_id), **OPEN_OPTIONS) as ds:
+            return summarize(ds)
+
+    def read_error(self, case_id: str) -> dict[str, Any] | None:
+        """The error record of ``case_id``, or None if it has none."""
+        try:
+            return json.loads(self.error_path(case_id).read_text())
+        except FileNotFoundError:
+            return None
+
+    @property
+    def index(self) -> ResultIndex:
+        """The index of stored results (scalars and θ-grid interface quantities)."""
+        from .index import ResultIndex
+
+        return ResultIndex(self)
+
+    def open_results(self, case_ids: Sequence[str] | None = None) -> xr.Dataset:
+        """Stored cases combined along ``case``; see :func:`workflows.open_results`."""
+        return self.index.open_results(case_ids)
+
+    # -- writing -----------------------------------------------------------------------
+
+    def run_and_store(self, spec: CaseSpec | dict[str, Any], *, force: bool = False) -> str:
+        """Solve ``spec`` and store its result; return the case id.
+
+        A case already stored is returned without computing unless ``force``. When the
+        solver raises, the error is recorded with :meth:`write_error` and re-raised; a
+        later success removes that record.
+        """
+        spec = CaseSpec.model_validate(spec)
+        case_id = spec.case_id
+        if not force and self.is_stored(case_id):
+            logger.info("case %s already stored, not recomputed", case_id)
+            return case_id
+        logger.info("solving case %s", case_id)
+        try:
+            ds = solver.run_case(spec)
+        except Exception as exc:
+            self.write_error(spec, exc)
+            raise
+        self.write_case(ds)
         return case_id
-    logger.info("solving case %s", case_id)
-    try:
-        ds = solver.run_case(spec)
-    except Exception as exc:
-        write_error(root, spec, exc)
-        raise
-    write_case(root, ds)
-    return case_id
+
+    def write_case(self, ds: xr.Dataset) -> Path:
+        """Write a result Dataset atomically under its ``case_id`` attribute; return the path.
+
+        Also drops the case's error record and cached figures (they belong to an older
+        result) and writes its index entry.
+        """
+        case_id = check_case_id(ds.attrs.get("case_id"))
+        target = self.case_path(case_id)
+
+        def write(tmp: Path) -> None:
+            # in-memory data to a private file: no dask, and no cluster-wide write lock
+            # (xarray would take a distributed.Lock when called inside a dask worker)
+            with dask.config.set(scheduler="synchronous"):
+                ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=netcdf_encoding(ds))
+
+        write_atomically(target, write)
+        key = file_key(target.stat())
+        self.error_path(case_id).unlink(missing_ok=True)
+        shutil.rmtree(self.plot_dir(case_id), ignore_errors=True)  # figures of an older result
+        self.index.add(ds, key)
+        logger.info("stored case %s in %s", case_id, target)
+        return target
+
+    def write_error(self, spec: CaseSpec, exc: BaseException) -> Path:
+        """Record why ``spec`` failed, atomically, as ``<case_id>.error.json``."""
+        record = {
+            "case_id": spec.case_id,
+            "error": f"{type(exc).__name__}: {exc}",
+            "type": type(exc).__name__,
+            "time": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+            "spec": json.loads(spec.canonical_json()),
+        }
+        target = self.error_path(spec.case_id)
+        write_atomically(target, lambda tmp: tmp.write_text(json.dumps(record, indent=1, sort_keys=True)))
+        logger.warning("case %s failed: %s", spec.case_id, record["error"])
+        return target
+
+    def remove_case(self, case_id: str) -> None:
+        """Delete a case's result, error record, figures and index entry (nothing if absent)."""
+        self.case_path(case_id).unlink(missing_ok=True)
+        self.error_path(case_id).unlink(missing_ok=True)
+        shutil.rmtree(self.plot_dir(case_id), ignore_errors=True)
+        self.index.discard(case_id)
+
+    def remove_stale_temporaries(self, *, older_than: float = 3600.0) -> int:
+        """Delete temporary files left by killed writers (older than ``older_than`` s); return how many.
+
+        Writers that fail normally remove their own temporary file; this is for
+        processes that died mid-write (e.g. a killed worker).
+        """
+        removed = 0
+        for folder in (self.cases_dir, self.index_dir, self.index_dir / "pending"):
+            for tmp in folder.glob(f"*{_TMP_SUFFIX}") if folder.is_dir() else ():
+                try:
+                    if time.time() - tmp.stat().st_mtime > older_than:
+                        tmp.unlink()
+                        removed += 1
+                except FileNotFoundError:
+                    pass
+        return removed
 
 
-def write_case(root: str | os.PathLike, ds: xr.Dataset) -> Path:
-    """Write a result Dataset atomically under its ``case_id`` attribute; return the path."""
-    case_id = check_case_id(ds.attrs.get("case_id"))
-    target = case_path(root, case_id)
-
-    def write(tmp: Path) -> None:
-        # in-memory data to a private file: no dask, and no cluster-wide write lock
-        # (xarray would take a distributed.Lock when called inside a dask worker)
-        with dask.config.set(scheduler="synchronous"):
-            ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=_encoding(ds))
-
-    write_atomically(target, write)
-    error_path(root, case_id).unlink(missing_ok=True)
-    shutil.rmtree(plot_dir(root, case_id), ignore_errors=True)  # figures of an older result
-    logger.info("stored case %s in %s", case_id, target)
-    return target
+StoreLike = Union[ResultStore, str, os.PathLike]
 
 
-def _encoding(ds: xr.Dataset) -> dict[str, dict[str, Any]]:
-    """netCDF encoding: no ``_FillValue`` where the data set has none, compressed arrays.
+def as_store(root: StoreLike) -> ResultStore:
+    """``root`` itself if it is a :class:`ResultStore`, else the store at that path."""
+    return root if isinstance(root, ResultStore) else ResultStore(root)
+
+
+def _digest(case_ids: Sequence[str]) -> str:
+    return hashlib.sha256(",".join(case_ids).encode()).hexdigest()[:12]
+
+
+def netcdf_encoding(ds: xr.Dataset, *, compress: bool = True) -> dict[str, dict[str, Any]]:
+    """netCDF encoding: no ``_FillValue`` where the data set has none; compressed arrays.
 
     xarray would otherwise add ``_FillValue = NaN`` to every float variable, which is
     a pure encoding artefact and would break the exact round trip.
@@ -139,65 +302,10 @@ def _encoding(ds: xr.Dataset) -> dict[str, dict[str, Any]]:
         e: dict[str, Any] = {}
         if "_FillValue" not in var.attrs and "_FillValue" not in var.encoding:
             e["_FillValue"] = None
-        if var.ndim and var.size > 1000 and var.dtype.kind in "iuf":
+        if compress and var.ndim and var.size > 1000 and var.dtype.kind in "iuf":
             e.update(zlib=True, complevel=4)
         enc[str(name)] = e
     return enc
-
-
-def open_case(root: str | os.PathLike, case_id: str) -> xr.Dataset:
-    """Read the stored result of ``case_id`` fully into memory (the file is closed).
-
-    Raises
-    ------
-    FileNotFoundError
-        If the case is not stored.
-    """
-    path = case_path(root, case_id)
-    with xr.open_dataset(path, **OPEN_OPTIONS) as ds:
-        return ds.load()
-
-
-def write_error(root: str | os.PathLike, spec: CaseSpec, exc: BaseException) -> Path:
-    """Record why ``spec`` failed, atomically, as ``<case_id>.error.json``."""
-    record = {
-        "case_id": spec.case_id,
-        "error": f"{type(exc).__name__}: {exc}",
-        "type": type(exc).__name__,
-        "time": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-        "spec": json.loads(spec.canonical_json()),
-    }
-    target = error_path(root, spec.case_id)
-
-    def write(tmp: Path) -> None:
-        tmp.write_text(json.dumps(record, indent=1, sort_keys=True))
-
-    write_atomically(target, write)
-    logger.warning("case %s failed: %s", spec.case_id, record["error"])
-    return target
-
-
-def read_error(root: str | os.PathLike, case_id: str) -> dict[str, Any] | None:
-    """The error record of ``case_id``, or None if it has none."""
-    try:
-        return json.loads(error_path(root, case_id).read_text())
-    except FileNotFoundError:
-        return None
-
-
-def remove_stale_temporaries(root: str | os.PathLike, *, older_than: float = 3600.0) -> int:
-    """Delete temporary files left by killed writers (older than ``older_than`` s); return how many.
-
-    Writers that fail normally remove their own temporary file; this is for
-    processes that died mid-write (e.g. a killed worker).
-    """
-    folder = cases_dir(root)
-    removed = 0
-    for tmp in folder.glob(f"*{_TMP_SUFFIX}") if folder.is_dir() else ():
-        if time.time() - tmp.stat().st_mtime > older_than:
-            tmp.unlink(missing_ok=True)
-            removed += 1
-    return removed
 
 
 def write_atomically(target: Path, write: Callable[[Path], object]) -> None:
@@ -235,3 +343,65 @@ def _fsync_dir(folder: Path) -> None:
         pass
     finally:
         os.close(fd)
+
+
+# -- the older spelling: a bare root first (kept for callers not yet migrated) -------------
+
+def cases_dir(root: StoreLike) -> Path:
+    return as_store(root).cases_dir
+
+
+def case_path(root: StoreLike, case_id: str) -> Path:
+    return as_store(root).case_path(case_id)
+
+
+def error_path(root: StoreLike, case_id: str) -> Path:
+    return as_store(root).error_path(case_id)
+
+
+def plot_dir(root: StoreLike, case_id: str) -> Path:
+    return as_store(root).plot_dir(case_id)
+
+
+def is_stored(root: StoreLike, case_id: str) -> bool:
+    return as_store(root).is_stored(case_id)
+
+
+def stored_case_ids(root: StoreLike) -> list[str]:
+    return as_store(root).case_ids()
+
+
+def write_case(root: StoreLike, ds: xr.Dataset) -> Path:
+    return as_store(root).write_case(ds)
+
+
+def write_error(root: StoreLike, spec: CaseSpec, exc: BaseException) -> Path:
+    return as_store(root).write_error(spec, exc)
+
+
+def read_error(root: StoreLike, case_id: str) -> dict[str, Any] | None:
+    return as_store(root).read_error(case_id)
+
+
+def remove_stale_temporaries(root: StoreLike, *, older_than: float = 3600.0) -> int:
+    return as_store(root).remove_stale_temporaries(older_than=older_than)
+
+
+def run_and_store(spec: CaseSpec | dict[str, Any], root: StoreLike, *, force: bool = False) -> str:
+    """Solve ``spec`` and store its result in ``root`` (a path or a store); return the case id.
+
+    A case already stored is returned without computing unless ``force``; see
+    :meth:`ResultStore.run_and_store`.
+    """
+    return as_store(root).run_and_store(spec, force=force)
+
+
+def open_case(root: StoreLike, case_id: str) -> xr.Dataset:
+    """The stored result of ``case_id`` in ``root`` (a path or a store), in memory.
+
+    Raises
+    ------
+    FileNotFoundError
+        If the case is not stored.
+    """
+    return as_store(root).open_case(case_id)

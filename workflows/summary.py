@@ -1,11 +1,7 @@
 """Small summaries of results: the 0-d scalars of a case as plain floats."""
 from __future__ import annotations
 
-import os
-
 import xarray as xr
-
-from .store import OPEN_OPTIONS, case_path
 
 
 def summarize(ds: xr.Dataset) -> dict[str, float]:
@@ -14,7 +10,9 @@ def summarize(ds: xr.Dataset) -> dict[str, float]:
             if var.ndim == 0 and var.dtype.kind in "biuf" and name != "mesh"}
 
 
-def read_summary(root: str | os.PathLike, case_id: str) -> dict[str, float]:
-    """Summary of a stored case, reading only its scalars."""
-    with xr.open_dataset(case_path(root, case_id), **OPEN_OPTIONS) as ds:
-        return summarize(ds)
+def read_summary(root, case_id: str) -> dict[str, float]:
+    """Summary of a stored case, reading only its scalars (older spelling of
+    :meth:`workflows.store.ResultStore.read_summary`)."""
+    from .store import as_store
+
+    return as_store(root).read_summary(case_id)

@@ -25,6 +25,7 @@ from solver.errors import field_errors
 from solver.spec import CaseSpec, canonical_json, content_id
 
 from .parameters import PATH_ALIASES, canonical_path, parameter_paths
+from .store import ResultStore, StoreLike, as_store
 
 logger = logging.getLogger(__name__)
 
@@ -159,64 +160,55 @@ def _messages(exc: ValidationError) -> list[tuple[str, str]]:
     return [(path or "case", reason) for path, reason in field_errors(exc)]
 
 
-def run_sweep(sweep: Sweep | dict[str, Any], root: str | os.PathLike, client=None, *, progress: bool = False,
+def run_sweep(sweep: Sweep | dict[str, Any], root: StoreLike, client=None, *, progress: bool = False,
               force: bool = False, on_result: Callable[[dict], None] | None = None) -> list[str]:
     """Solve every case of ``sweep`` on dask and store the results; return the case ids.
 
-    One task per case, key ``case-<case_id>``, running :func:`workflows.tasks.solve_and_store`.
-    Cases already stored are skipped without submitting anything (unless ``force``);
-    a failing case records its error file and does not stop the others.
+    The cases go to the scheduler through :func:`workflows.tasks.submit_cases` (one
+    task per case under :func:`workflows.tasks.task_key`, the key the service uses
+    too). Cases already stored are skipped without submitting anything (unless
+    ``force``); a failing case records its error file and does not stop the others.
 
     Parameters
     ----------
     sweep : the study (a :class:`Sweep` or its dict).
-    root : folder of the result store (it must be reachable from the workers).
+    root : the result store, or its folder (it must be reachable from the workers).
     client : a ``distributed.Client``; ``None`` starts an embedded LocalCluster
         (2 worker processes, 1 thread each) and closes it afterwards.
     progress : show a tqdm progress bar.
     force : recompute stored cases.
-    on_result : called with each task's summary dict as it completes.
+    on_result : called with each case's summary dict as it completes.
     """
     from distributed import as_completed
     from tqdm import tqdm
 
-    from .store import is_stored, remove_stale_temporaries
-    from .tasks import solve_and_store
+    from .tasks import outcomes, submit_cases
 
+    store = as_store(root)
     sweep = Sweep.model_validate(sweep)
     specs = expand_sweep(sweep)
-    remove_stale_temporaries(root)
+    store.remove_stale_temporaries()
     ids = [s.case_id for s in specs]
-    todo = [s for s in specs if force or not is_stored(root, s.case_id)]
+    todo = [s for s in specs if force or not store.is_stored(s.case_id)]
     logger.info("sweep %r: %d cases, %d to compute", sweep.name, len(ids), len(todo))
     if not todo:
         return ids
-    root = os.path.abspath(root)
+    store = ResultStore(os.path.abspath(store.root))
     with _client_or_local(client) as c:
-        futures = [c.submit(solve_and_store, s.canonical_json(), root, force,
-                            key=f"case-{s.case_id}", pure=False) for s in todo]
+        submitted = submit_cases(c, todo, store, force=force)
         bar = tqdm(total=len(todo), desc=f"sweep {sweep.name}", unit="case") if progress else None
         try:
-            for future in as_completed(futures):
-                result = _result_of(future)
-                logger.info("case %s %s", result["case_id"], result["status"])
-                if on_result is not None:
-                    on_result(result)
-                if bar is not None:
-                    bar.update(1)
+            for future in as_completed(submitted):
+                for result in outcomes(future, submitted[future]):
+                    logger.info("case %s %s", result["case_id"], result["status"])
+                    if on_result is not None:
+                        on_result(result)
+                    if bar is not None:
+                        bar.update(1)
         finally:
             if bar is not None:
                 bar.close()
     return ids
-
-
-def _result_of(future) -> dict:
-    """The task's summary dict; a task that died (e.g. a killed worker) counts as failed."""
-    try:
-        return future.result()
-    except Exception as exc:
-        return {"case_id": str(future.key).removeprefix("case-"), "status": "failed",
-                "error": f"{type(exc).__name__}: {exc}", "summary": {}}
 
 
 @contextmanager

@@ -1,18 +1,37 @@
-"""The dask task: one case in, a small summary out (no field arrays cross the wire)."""
+"""The dask task: one case in, a small summary out (no field arrays cross the wire).
+
+:func:`task_key` names the task of a case for every submitter (the command line's
+sweeps and the service), so on a shared scheduler a case submitted twice runs once.
+"""
 from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Sequence
 
 from solver.spec import CaseSpec
 
-from .store import is_stored, run_and_store
-from .summary import read_summary
+from .store import StoreLike, as_store
 
 logger = logging.getLogger(__name__)
 
+#: Prefix of the dask key of a case's task; the rest is the case id.
+TASK_KEY_PREFIX = "solve_and_store-"
 
-def solve_and_store(spec_json: str, root: str, force: bool = False) -> dict:
+
+def task_key(case_id: str) -> str:
+    """Dask key of the task computing ``case_id`` (stable across processes and restarts)."""
+    return f"{TASK_KEY_PREFIX}{case_id}"
+
+
+def case_id_of_key(key: object) -> str | None:
+    """The case id in a :func:`task_key`, or None for any other key."""
+    if isinstance(key, str) and key.startswith(TASK_KEY_PREFIX):
+        return key[len(TASK_KEY_PREFIX):]
+    return None
+
+
+def solve_and_store(spec_json: str, root: StoreLike, force: bool = False) -> dict:
     """Solve the case ``spec_json`` into the store at ``root`` unless it is stored.
 
     A pure function of its arguments (the same case always gives the same file), so
@@ -21,7 +40,7 @@ def solve_and_store(spec_json: str, root: str, force: bool = False) -> dict:
     Parameters
     ----------
     spec_json : the case as JSON (validated here again).
-    root : folder of the result store, as seen by the worker.
+    root : the result store (or its folder), as seen by the worker.
     force : recompute even if the result exists.
 
     Returns
@@ -37,15 +56,45 @@ def solve_and_store(spec_json: str, root: str, force: bool = False) -> dict:
     pydantic.ValidationError
         If ``spec_json`` is not a valid case.
     """
+    store = as_store(root)
     spec = CaseSpec.model_validate_json(spec_json)
     case_id = spec.case_id
-    computed = force or not is_stored(root, case_id)
+    computed = force or not store.is_stored(case_id)
     start = time.perf_counter()
     try:
-        run_and_store(spec, root, force=force)
+        store.run_and_store(spec, force=force)
     except Exception as exc:  # recorded in the store by run_and_store; the sweep goes on
         return {"case_id": case_id, "status": "failed", "error": f"{type(exc).__name__}: {exc}",
                 "summary": {}, "computed": True, "seconds": time.perf_counter() - start}
     return {"case_id": case_id, "status": "done", "error": None,
-            "summary": read_summary(root, case_id), "computed": computed,
+            "summary": store.read_summary(case_id), "computed": computed,
             "seconds": time.perf_counter() - start}
+
+
+def submit_cases(client, specs: Sequence[CaseSpec], root: StoreLike, *, force: bool = False) -> dict:
+    """Submit the cases ``specs`` to dask; return ``{future: [case ids it computes]}``.
+
+    Today one task per case (:func:`solve_and_store` under :func:`task_key`). This is
+    where cases that share a mesh and materials will be grouped onto one task that
+    builds the shared solver object once; a future may then stand for several cases,
+    which is why the mapping lists the case ids of each future (read the outcomes
+    with :func:`outcomes`).
+    """
+    root = str(as_store(root).root)
+    futures = client.map(solve_and_store, [s.canonical_json() for s in specs], [root] * len(specs),
+                         [force] * len(specs), key=[task_key(s.case_id) for s in specs], pure=False)
+    return {future: [spec.case_id] for future, spec in zip(futures, specs)}
+
+
+def outcomes(future, case_ids: Sequence[str]) -> list[dict]:
+    """The summary dicts of a finished future of :func:`submit_cases`, one per case.
+
+    A task that raised (e.g. ``KilledWorker`` after repeated worker deaths) counts
+    as failed for each of its cases.
+    """
+    try:
+        result = future.result()
+    except Exception as exc:
+        return [{"case_id": c, "status": "failed", "error": f"{type(exc).__name__}: {exc}", "summary": {}}
+                for c in case_ids]
+    return result if isinstance(result, list) else [result]
