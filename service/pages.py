@@ -10,9 +10,11 @@ from __future__ import annotations
 
 import json
 import logging
+import time
 from pathlib import Path
 from typing import Optional
 
+import httpx
 from fastapi import APIRouter, FastAPI, Request
 from fastapi.responses import HTMLResponse
 from fastapi.staticfiles import StaticFiles
@@ -49,22 +51,40 @@ def mount_static(app: FastAPI) -> None:
     app.mount("/static", StaticFiles(directory=HERE / "static"), name="static")
 
 
-def dask_dashboard(request: Request) -> Optional[str]:
-    """Link to the dask scheduler's dashboard, when the scheduler serves one."""
+async def dask_dashboard(request: Request) -> Optional[str]:
+    """Link to the dask scheduler's dashboard, when the scheduler serves one.
+
+    A scheduler always lists its HTTP server as ``dashboard``, even without bokeh or
+    with ``--no-dashboard``; so the link is shown only if it answers (checked once a
+    minute).
+    """
     jobs = jobs_of(request)
     if not jobs.connected:
         return None
     try:
         if "dashboard" not in jobs.client.scheduler_info().get("services", {}):
             return None
-        return jobs.client.dashboard_link
+        link = jobs.client.dashboard_link
     except Exception as exc:  # an older or unusual scheduler: no link rather than no page
         logger.debug("no dask dashboard link: %s", exc)
         return None
+    checked = _dashboard_checks.get(link)
+    if checked is None or time.monotonic() - checked[0] > _DASHBOARD_CHECK_EVERY:
+        try:
+            async with httpx.AsyncClient(timeout=1.0) as http:
+                serves = (await http.get(link)).status_code == 200
+        except httpx.HTTPError:
+            serves = False
+        checked = _dashboard_checks[link] = (time.monotonic(), serves)
+    return link if checked[1] else None
 
 
-def _render(request: Request, name: str, **context) -> HTMLResponse:
-    return templates.TemplateResponse(request, name, {"dask_dashboard": dask_dashboard(request), **context})
+_DASHBOARD_CHECK_EVERY = 60.0
+_dashboard_checks: dict[str, tuple[float, bool]] = {}
+
+
+async def _render(request: Request, name: str, **context) -> HTMLResponse:
+    return templates.TemplateResponse(request, name, {"dask_dashboard": await dask_dashboard(request), **context})
 
 
 @router.get("/", response_class=HTMLResponse)
@@ -72,7 +92,7 @@ async def index(request: Request) -> HTMLResponse:
     sweep_page = await studies.list_sweeps(request, limit=20, offset=0)
     case_page = await cases.list_cases(request, status=None, limit=20, offset=0, newest_first=True)
     workers = (await jobs_of(request).cluster_state())[1]
-    return _render(request, "index.html", sweeps=sweep_page, cases=case_page, workers=workers)
+    return await _render(request, "index.html", sweeps=sweep_page, cases=case_page, workers=workers)
 
 
 @router.get("/ui/sweeps/{sweep_id}", response_class=HTMLResponse)
@@ -80,17 +100,17 @@ async def sweep_page(sweep_id: SweepId, request: Request) -> HTMLResponse:
     status = await sweeps.get_sweep(sweep_id, request)
     table = await studies.get_sweep_table(sweep_id, request)
     spec = jobs_of(request).store.get_sweep(sweep_id).spec
-    return _render(request, "sweep.html", sweep=status, table=table, spec=spec, plots=SWEEP_PLOT_NAMES)
+    return await _render(request, "sweep.html", sweep=status, table=table, spec=spec, plots=SWEEP_PLOT_NAMES)
 
 
 @router.get("/ui/cases/{case_id}", response_class=HTMLResponse)
 async def case_page(case_id: CaseId, request: Request) -> HTMLResponse:
     case = await cases.get_case(case_id, request)
     columns = [scalar_column(n) for n in ordered_scalars(case.summary or {})]
-    return _render(request, "case.html", case=case, columns=columns, plots=list(PLOTS))
+    return await _render(request, "case.html", case=case, columns=columns, plots=list(PLOTS))
 
 
 @router.get("/ui/submit", response_class=HTMLResponse)
 async def submit_page(request: Request) -> HTMLResponse:
-    return _render(request, "submit.html", example_sweep=json.dumps(EXAMPLE_SWEEP, indent=2),
+    return await _render(request, "submit.html", example_sweep=json.dumps(EXAMPLE_SWEEP, indent=2),
                    example_case=json.dumps(EXAMPLE_CASE, indent=2))

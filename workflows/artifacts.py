@@ -29,7 +29,7 @@ import xarray as xr
 
 from .combine import open_results
 from .plots import PLOTS, SWEEP_PLOT_NAMES, SWEEP_PLOTS, case_labels, plot_interaction
-from .store import OPEN_OPTIONS, StoreLike, as_store, case_path, open_case, write_atomically
+from .store import OPEN_OPTIONS, ResultStore, StoreLike, as_store, write_atomically
 
 logger = logging.getLogger(__name__)
 
@@ -94,13 +94,7 @@ def write_combined(root: StoreLike, sweep_id: str, case_ids: Sequence[str]) -> P
     return target
 
 
-def sweep_plot_path(root: Path, sweep_id: str, case_ids: Sequence[str], name: str) -> Path:
-    """Where the PNG ``name`` of ``sweep_id`` over exactly ``case_ids`` is cached."""
-    digest = combined_path(root, sweep_id, case_ids).stem.rsplit("-", 1)[1]
-    return Path(root) / "sweeps" / "plots" / f"{sweep_id}-{digest}-{name}.png"
-
-
-def render_sweep_plot(root: Path, sweep_id: str, case_ids: Sequence[str], name: str) -> Path:
+def render_sweep_plot(root: StoreLike, sweep_id: str, case_ids: Sequence[str], name: str) -> Path:
     """The cached PNG of sweep plot ``name`` over ``case_ids`` (stored cases), rendered if missing.
 
     ``name`` is one of :data:`workflows.plots.SWEEP_PLOT_NAMES`; ``interaction`` reads
@@ -114,14 +108,15 @@ def render_sweep_plot(root: Path, sweep_id: str, case_ids: Sequence[str], name: 
     """
     if name not in SWEEP_PLOT_NAMES:
         raise KeyError(name)
-    target = sweep_plot_path(root, sweep_id, case_ids, name)
+    store = as_store(root)
+    target = store.sweep_plot_path(sweep_id, case_ids, name)
     if target.is_file():
         return target
     with _BUILD_LOCK:
         if not target.is_file():
-            combined = open_results(root, case_ids=list(case_ids))
+            combined = store.open_results(list(case_ids))
             if name == "interaction":
-                figure = plot_interaction([_section_forces(root, c) for c in case_ids], case_labels(combined))
+                figure = plot_interaction([_section_forces(store, c) for c in case_ids], case_labels(combined))
             else:
                 figure = SWEEP_PLOTS[name](combined)
             write_atomically(target, lambda tmp: figure.savefig(tmp, format="png", dpi=90))
@@ -132,8 +127,8 @@ def render_sweep_plot(root: Path, sweep_id: str, case_ids: Sequence[str], name: 
     return target
 
 
-def _section_forces(root: Path, case_id: str):
+def _section_forces(store: ResultStore, case_id: str) -> xr.Dataset:
     """The lining forces and design envelope of a stored case, without its mesh and fields."""
-    with xr.open_dataset(case_path(root, case_id), **OPEN_OPTIONS) as ds:
+    with xr.open_dataset(store.case_path(case_id), **OPEN_OPTIONS) as ds:
         names = [v for v in ("thrust", "moment", "utilization", "capacity_thrust", "capacity_moment") if v in ds]
         return ds[names].load()

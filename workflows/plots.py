@@ -290,8 +290,8 @@ def plot_scalars(combined: xr.Dataset, scalars: list[str] | None = None) -> Figu
         fig.text(0.5, 0.5, "no varied parameter, or no scalar that changes: nothing to plot",
                  ha="center", va="center")
         return fig
-    # one row per scalar when few parameters vary; a single parameter wraps over 4 columns
-    ncols = 4 if len(params) == 1 else min(len(params), 4)
+    # whole rows of scalars: 4 panels a row for one or two parameters, 3 for three, then 4
+    ncols = len(params) if len(params) == 3 else 4
     nrows = -(-len(panels) // ncols)
     fig = Figure(figsize=(3.4 * ncols, 2.4 * nrows + 0.4), layout="constrained")
     axes = fig.subplots(nrows, ncols, squeeze=False).ravel()

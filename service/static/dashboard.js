@@ -119,10 +119,18 @@
       TC.sortTable(document.getElementById("comparison-table"), sort);
       document.getElementById("cancel-message").textContent = message;
     });
+    // plots are drawn anew for every set of finished cases: at most every 15 s while the
+    // sweep runs, and once when it has finished
+    let plotsAt = 0;
     TC.poll(async () => {
       const sweep = await TC.getJSON("/sweeps/" + sweepId);
       if (signature(sweep.counts) !== status.dataset.signature) {
-        await TC.swap(["#sweep-status", "#comparison", "#plots", "#downloads"]);
+        const parts = ["#sweep-status", "#comparison", "#downloads"];
+        if (sweep.finished || Date.now() - plotsAt > 15000) {
+          parts.push("#plots");
+          plotsAt = Date.now();
+        }
+        await TC.swap(parts);
         TC.sortTable(document.getElementById("comparison-table"), sort);
       }
       return sweep.finished ? 5000 : 1000;

@@ -1,0 +1,262 @@
+"""The dashboard in a real headless Chromium, against the deployment's topology on loopback
+(a dask scheduler, one worker and the API as separate processes).
+
+Screenshots of every page are saved under the test's temporary directory.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import shutil
+import time
+from pathlib import Path
+
+import httpx
+import pytest
+
+from service.comparison import SCALAR_ORDER
+from service.process import running_cluster, running_service
+from service_helpers import wait_until
+from workflows.store import case_path
+
+selenium = pytest.importorskip("selenium", reason="selenium is in the 'test' extra")
+from selenium import webdriver  # noqa: E402
+from selenium.webdriver.chrome.service import Service  # noqa: E402
+from selenium.webdriver.common.by import By  # noqa: E402
+
+pytestmark = pytest.mark.slow
+
+CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+CHROMEDRIVER = shutil.which("chromedriver") or "/usr/bin/chromedriver"
+#: Chromium on a closed network: no first-run work, no background fetches, no GPU.
+CHROMIUM_FLAGS = ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                  "--disable-dev-shm-usage", "--window-size=1400,1000")
+#: Small cases that solve in about a second each.
+SMALL = {"geometry": {"depth": 10.0, "width": 20.0, "height": 25.0},
+         "mesh": {"interface_size": 0.2, "far_size": 8.0}}
+
+
+@pytest.fixture(scope="module")
+def service(tmp_path_factory):
+    """One dask worker (so cases queue behind each other), the API on a free port."""
+    logs = tmp_path_factory.mktemp("logs")
+    results = tmp_path_factory.mktemp("results")
+    with running_cluster(1, logs=logs) as scheduler:
+        with running_service(results, scheduler=scheduler, log=logs / "api.log") as url:
+            yield url, results
+
+
+@pytest.fixture(scope="module")
+def browser(tmp_path_factory):
+    if not (Path(CHROMIUM).exists() and Path(CHROMEDRIVER).exists()):
+        pytest.fail("Chromium and its driver are missing: `make sysdeps` installs Debian's "
+                    "chromium and chromium-driver")
+    options = webdriver.ChromeOptions()
+    options.binary_location = CHROMIUM
+    for flag in CHROMIUM_FLAGS:
+        options.add_argument(flag)
+    options.add_argument(f"--user-data-dir={tmp_path_factory.mktemp('chromium-profile')}")
+    driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
+    driver.set_page_load_timeout(30)
+    driver.set_script_timeout(30)
+    try:
+        yield driver
+    finally:
+        driver.quit()
+
+
+def screenshot(driver, path: Path) -> Path:
+    """The whole page as a PNG (the window grown to the page's height first)."""
+    height = driver.execute_script("return document.documentElement.scrollHeight")
+    driver.set_window_size(1400, min(max(height, 600), 6000) + 120)
+    driver.save_screenshot(str(path))
+    driver.set_window_size(1400, 1000)
+    return path
+
+
+def images_loaded(driver, selector: str) -> list[int]:
+    """naturalWidth of every image matched (0 while loading or broken)."""
+    return driver.execute_script(
+        "return [...document.querySelectorAll(arguments[0])].map(i => i.complete ? i.naturalWidth : 0)", selector)
+
+
+def state_shown(driver) -> tuple[str, str]:
+    """The counts signature and the state badge of a sweep page (read at once: parts are swapped live)."""
+    return tuple(driver.execute_script(
+        "const s = document.getElementById('sweep-status');"
+        "return [s.dataset.signature, s.querySelector('[data-field=state]').textContent];"))
+
+
+def column(driver, name: str) -> list[str]:
+    """The data-value of column ``name`` of the comparison table, in row order."""
+    return driver.execute_script("""
+        const table = document.getElementById('comparison-table');
+        const index = [...table.tHead.rows[0].cells].findIndex(th => th.dataset.col === arguments[0]);
+        return [...table.tBodies[0].rows].map(r => r.cells[index].dataset.value);""", name)
+
+
+def test_submit_a_sweep_watch_it_sort_it_open_a_case_download_the_csv(service, browser, tmp_path):
+    url, results = service
+    browser.get(url + "/")
+    assert "Sweeps" in browser.find_element(By.TAG_NAME, "h2").text
+    screenshot(browser, tmp_path / "index-empty.png")
+    # the test scheduler serves no dashboard (no bokeh, --no-dashboard): no dead link
+    assert not browser.find_elements(By.ID, "dask-dashboard")
+
+    # submit a 2 x 2 sweep through the form
+    browser.find_element(By.LINK_TEXT, "Submit").click()
+    sweep = {"name": "browser", "base": SMALL, "mode": "grid",
+             "vary": {"lining.thickness": [0.2, 0.3], "ground.young": [2e7, 5e7]}}
+    text = browser.find_element(By.ID, "body")
+    text.clear()
+    text.send_keys(json.dumps(sweep))
+    browser.find_element(By.ID, "submit").click()
+    wait_until(lambda: "/ui/sweeps/" in browser.current_url, timeout=20, what="the sweep page")
+    sweep_id = browser.current_url.rsplit("/", 1)[1]
+    record = httpx.get(f"{url}/sweeps/{sweep_id}").json()
+    assert record["name"] == "browser" and record["total"] == 4
+
+    # the status changes on this very page object: no reload
+    browser.execute_script("window.__marker = 'same page'")
+    first = state_shown(browser)[0]
+    assert first.split(",")[2] != "4", "the sweep finished before its page was shown"
+    seen = {first}
+
+    def finished():
+        signature, state = state_shown(browser)
+        seen.add(signature)
+        return state == "finished"
+    wait_until(finished, timeout=60, interval=0.2, what="the page to show the sweep finished")
+    assert browser.execute_script("return window.__marker") == "same page"
+    assert len(seen) >= 2  # at least one intermediate state was shown, then the final one
+    assert browser.find_element(By.ID, "sweep-status").get_attribute("data-signature") == "0,0,4,0,0"
+
+    # the table: one row per case; varied parameters, then the scalars
+    headers = [th.get_attribute("data-col") for th in browser.find_elements(By.CSS_SELECTOR, "#comparison-table th")]
+    assert headers[:4] == ["case_id", "status", "lining_thickness", "ground_young"]
+    assert headers[4] == "max_contact_pressure"
+    assert column(browser, "status") == ["done"] * 4
+
+    # sort by a scalar, both ways
+    browser.find_element(By.CSS_SELECTOR, "th[data-col=max_abs_moment]").click()
+    ascending = [float(v) for v in column(browser, "max_abs_moment")]
+    assert ascending == sorted(ascending) and len(set(ascending)) == 4
+    assert browser.find_element(By.CSS_SELECTOR, "th[data-col=max_abs_moment]").get_attribute(
+        "aria-sort") == "ascending"
+    browser.find_element(By.CSS_SELECTOR, "th[data-col=max_abs_moment]").click()
+    assert [float(v) for v in column(browser, "max_abs_moment")] == sorted(ascending, reverse=True)
+
+    # the sweep plots
+    wait_until(lambda: (w := images_loaded(browser, "#plots img")) and len(w) == 4 and all(w),
+               timeout=60, what="the sweep plots to load")
+    screenshot(browser, tmp_path / "sweep.png")
+
+    # download the CSV through the page's link
+    downloads = tmp_path / "downloads"
+    downloads.mkdir()
+    browser.execute_cdp_cmd("Page.setDownloadBehavior", {"behavior": "allow", "downloadPath": str(downloads)})
+    browser.find_element(By.ID, "download-csv").click()
+    csv_file = wait_until(lambda: next(downloads.glob("*.csv"), None), timeout=20, what="the CSV download")
+    rows = list(csv.DictReader(io.StringIO(csv_file.read_text())))
+    assert [r["case_id"] for r in rows] == record["case_ids"]
+    assert list(rows[0])[:4] == ["case_id", "status", "lining_thickness", "ground_young"]
+    assert [c for c in list(rows[0])[4:] if c in SCALAR_ORDER] == [c for c in SCALAR_ORDER if c in rows[0]]
+    assert {(float(r["lining_thickness"]), float(r["ground_young"])) for r in rows} == {
+        (t, e) for t in (0.2, 0.3) for e in (2e7, 5e7)}
+    for row in rows:
+        summary = httpx.get(f"{url}/cases/{row['case_id']}").json()["summary"]
+        assert row["status"] == "done"
+        assert float(row["max_contact_pressure"]) == summary["max_contact_pressure"]
+        assert float(row["max_abs_moment"]) == summary["max_abs_moment"]
+
+    # a case page: summary, plots, downloads, its JSON
+    first_case = browser.find_element(By.CSS_SELECTOR, "#comparison-table tbody tr a")
+    case_id = first_case.text
+    first_case.click()
+    wait_until(lambda: browser.current_url.endswith(f"/ui/cases/{case_id}"), timeout=20, what="the case page")
+    wait_until(lambda: (w := images_loaded(browser, ".plots img")) and len(w) == 3 and all(w),
+               timeout=60, what="the case plots to load")
+    assert browser.find_element(By.ID, "summary").text.count("\n") >= 10
+    assert browser.find_element(By.ID, "download-nc").get_attribute("href").endswith(f"/cases/{case_id}/result.nc")
+    spec = json.loads(browser.find_element(By.ID, "case-json").text)
+    assert spec["mesh"]["interface_size"] == 0.2
+    screenshot(browser, tmp_path / "case.png")
+
+    browser.get(url + "/")
+    assert sweep_id in browser.find_element(By.ID, "sweeps").text
+    assert case_id in browser.find_element(By.ID, "cases").text
+    screenshot(browser, tmp_path / "index.png")
+    print(f"screenshots in {tmp_path}")
+
+
+@pytest.mark.parametrize("kind, body, field", [
+    ("cases", {"geometry": {"thickness": -0.3}}, "geometry.thickness"),
+    ("sweeps", {"name": "bad", "base": SMALL, "vary": {"ground.young": [5e7, -1.0]}}, "ground.young"),
+])
+def test_a_bad_field_is_shown_beside_the_input_and_nothing_is_stored(service, browser, tmp_path, kind, body, field):
+    url, results = service
+    before = (httpx.get(f"{url}/cases").json()["total"], httpx.get(f"{url}/sweeps").json()["total"])
+    browser.get(url + "/ui/submit")
+    browser.find_element(By.CSS_SELECTOR, f"input[name=kind][value={kind}]").click()
+    text = browser.find_element(By.ID, "body")
+    text.clear()
+    text.send_keys(json.dumps(body))
+    browser.find_element(By.ID, "submit").click()
+    errors = browser.find_element(By.ID, "errors")
+    wait_until(errors.is_displayed, timeout=20, what="the error list")
+    items = browser.find_elements(By.CSS_SELECTOR, "#error-list li")
+    assert any(li.get_attribute("data-field").startswith(field) and li.text.startswith(field) for li in items), \
+        [li.text for li in items]
+    # beside the textarea: to its right, overlapping it vertically
+    box, area = errors.rect, text.rect
+    assert box["x"] >= area["x"] + area["width"] and box["y"] < area["y"] + area["height"]
+    assert browser.current_url.endswith("/ui/submit")
+    screenshot(browser, tmp_path / f"submit-{kind}-error.png")
+    after = (httpx.get(f"{url}/cases").json()["total"], httpx.get(f"{url}/sweeps").json()["total"])
+    assert after == before
+
+
+def test_cancel_keeps_queued_cases_from_running_and_they_can_be_submitted_again(service, browser, tmp_path):
+    url, results = service
+    # keep the only worker busy with a long case, so the sweep's cases stay queued
+    long_case = {"mesh": {"interface_size": 0.04, "far_size": 4.0}, "geometry": {"gap": 0.003}}
+    busy = httpx.post(f"{url}/cases", json=long_case).json()["id"]
+    wait_until(lambda: httpx.get(f"{url}/cases/{busy}").json()["status"] == "running", timeout=30,
+               what="the long case to run")
+    sweep = {"name": "to-cancel", "base": SMALL, "vary": {"ground.young": [3e7, 4e7, 6e7]}}
+    accepted = httpx.post(f"{url}/sweeps", json=sweep).json()
+    sweep_id, ids = accepted["id"], accepted["case_ids"]
+    assert accepted["counts"]["queued"] == 3
+
+    response = httpx.post(f"{url}/sweeps/{sweep_id}/cancel")
+    assert response.status_code == 200
+    body = response.json()
+    assert sorted(body["cancelled_now"]) == sorted(ids)
+    assert body["counts"] == {"queued": 0, "running": 0, "done": 0, "failed": 0, "cancelled": 3}
+    assert body["finished"]
+
+    # the page says so too
+    browser.get(f"{url}/ui/sweeps/{sweep_id}")
+    assert "3 cancelled" in browser.find_element(By.ID, "sweep-status").text
+    assert column(browser, "status") == ["cancelled"] * 3
+    screenshot(browser, tmp_path / "sweep-cancelled.png")
+
+    # the worker frees up and runs nothing of the cancelled sweep
+    wait_until(lambda: httpx.get(f"{url}/cases/{busy}").json()["status"] == "done", timeout=60,
+               what="the long case to finish")
+    time.sleep(2.0)  # several scheduler polls: a cancelled task that was still queued would have run
+    assert httpx.get(f"{url}/sweeps/{sweep_id}").json()["counts"]["cancelled"] == 3
+    assert not any(case_path(results, c).exists() for c in ids)
+    assert httpx.get(f"{url}/health").json()["running"] == 0
+
+    # a cancelled case can be submitted again, alone or with its sweep
+    again = httpx.post(f"{url}/cases", json=httpx.get(f"{url}/cases/{ids[0]}").json()["spec"])
+    assert again.status_code == 202 and again.json()["created"] and again.json()["status"] == "queued"
+    resubmitted = httpx.post(f"{url}/sweeps", json=sweep).json()
+    assert resubmitted["new_cases"] == 2
+    done = wait_until(lambda: (s := httpx.get(f"{url}/sweeps/{sweep_id}").json())["finished"] and s,
+                      timeout=60, what="the resubmitted cases")
+    assert done["counts"]["done"] == 3 and done["counts"]["cancelled"] == 0
+    assert all(case_path(results, c).exists() for c in ids)
