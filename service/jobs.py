@@ -45,20 +45,12 @@ from pydantic import ValidationError
 from solver.errors import field_errors, format_errors
 from solver.spec import CaseSpec
 from workflows.store import remove_stale_temporaries, stored_case_ids
-from workflows.tasks import solve_and_store
+from workflows.tasks import TASK_KEY_PREFIX as KEY_PREFIX, solve_and_store, task_key  # one key per case, CLI too
 
 from .results import BrokenResult, public_error, result_state, stored_summary
 from .store import UNREADABLE, JobStore
 
 logger = logging.getLogger(__name__)
-
-KEY_PREFIX = "solve_and_store-"
-
-
-def task_key(case_id: str) -> str:
-    """Dask key of the task computing ``case_id`` (stable across service restarts)."""
-    return f"{KEY_PREFIX}{case_id}"
-
 
 #: Longest pause (s) between retries of a job-record write or a failed background round.
 MAX_BACKOFF = 30.0
