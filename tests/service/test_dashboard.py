@@ -240,6 +240,7 @@ def test_cancel_keeps_queued_cases_from_running_and_they_can_be_submitted_again(
     # the page says so too
     browser.get(f"{url}/ui/sweeps/{sweep_id}")
     assert "3 cancelled" in browser.find_element(By.ID, "sweep-status").text
+    assert state_shown(browser) == ("0,0,0,0,3", "cancelled")
     assert column(browser, "status") == ["cancelled"] * 3
     screenshot(browser, tmp_path / "sweep-cancelled.png")
 
