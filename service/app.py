@@ -13,10 +13,11 @@ from typing import Optional
 
 from fastapi import FastAPI
 from fastapi.exceptions import RequestValidationError
+from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from . import cases, health, pages, studies, sweeps
 from .cluster import cluster_connection
-from .errors import overflow_handler, request_validation_handler, store_error_handler
+from .errors import http_error_handler, overflow_handler, request_validation_handler, store_error_handler
 from .guards import BodyLimitMiddleware, openapi_auth_as_configured
 from .jobs import Dispatcher
 from .settings import Settings, get_settings
@@ -74,6 +75,7 @@ def create_app(settings: Optional[Settings] = None) -> FastAPI:
     for error in (sqlite3.Error, OSError):  # a full or read-only store: 503 with the reason
         app.add_exception_handler(error, store_error_handler)
     app.add_exception_handler(OverflowError, overflow_handler)
+    app.add_exception_handler(StarletteHTTPException, http_error_handler)
     openapi_auth_as_configured(app)
     for module in (cases, sweeps, studies, health, pages):
         app.include_router(module.router)

@@ -11,9 +11,11 @@ import errno
 import logging
 from typing import Iterable
 
-from fastapi import Request
+from fastapi import Request, Response
+from fastapi.exception_handlers import http_exception_handler
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from solver.errors import field_errors as _field_reasons
 
@@ -61,6 +63,14 @@ async def store_error_handler(request: Request, exc: Exception) -> JSONResponse:
     logger.error("%s (%s %s)", reason, request.method, request.url.path)
     return JSONResponse(status_code=503, content=ErrorBody(detail=reason).model_dump(),
                         headers={"Retry-After": "60"})
+
+
+async def http_error_handler(request: Request, exc: StarletteHTTPException) -> Response:
+    """FastAPI's answer to an HTTP error, except that a body it cannot parse at all (not
+    UTF-8, say) is invalid input like any other: 422 naming the body, not 400."""
+    if exc.status_code == 400:
+        return invalid([FieldError(field="body", reason=f"cannot be parsed: {exc.detail}", type="json_invalid")])
+    return await http_exception_handler(request, exc)
 
 
 async def overflow_handler(request: Request, exc: OverflowError) -> JSONResponse:
