@@ -27,9 +27,18 @@ def test_default_case_and_stable_id():
 
 
 @pytest.mark.parametrize("patch, field, reason", [
-    ({"ground": {"poisson": 0.5}}, "ground.poisson", "less than 0.5"),
+    ({"ground": {"poisson": 0.5}}, "ground.poisson", "less than or equal to 0.49"),
+    ({"ground": {"young": float("inf")}}, "ground.young", "finite number"),
+    ({"lining": {"young": float("nan")}}, "lining.young", "finite number"),
+    ({"loads": {"surface_load": float("inf")}}, "loads.surface_load", "finite number"),
+    ({"interface": {"model": "coulomb"}}, "interface", "friction: interface.model 'coulomb' needs"),
+    ({"excavation": {"deconfinement": 1.5}}, "excavation.deconfinement", "less than or equal to 1"),
+    ({"excavation": {"method": "cut-and-cover"}}, "excavation.method", "'deconfinement' or 'wished-in-place'"),
+    ({"design": {"reinforcement_area": 0.01, "axis_distance": 0.2}}, "", "design.axis_distance"),
+    ({"design": {"reinforcement_area": 0.01}}, "", "design.reinforcement_area"),
+    ({"ground": {"young": 1e5}, "lining": {"young": 1e12}}, "", "lining.young: lining / ground stiffness ratio"),
     ({"lining": {"poisson": -0.1}}, "lining.poisson", "greater than or equal to 0"),
-    ({"ground": {"young": 0}}, "ground.young", "greater than 0"),
+    ({"ground": {"young": 0}}, "ground.young", "greater than or equal to 100000"),
     ({"lining": {"density": 0}}, "lining.density", "greater than 0"),
     ({"loads": {"gravity": 0}}, "loads.gravity", "greater than 0"),
     ({"geometry": {"thickness": -0.1}}, "geometry.thickness", "greater than 0"),
@@ -78,17 +87,20 @@ def test_mesh_contract(gap):
     # normals: unit, towards the tunnel axis
     np.testing.assert_allclose(np.hypot(*iface.normal), 1.0)
     assert np.all(np.sum(iface.normal * (c[:, None] - pg), axis=0) > 0)
-    # trapezoid weights sum to the polygonal arc length ~ pi * r
-    assert iface.weight.sum() == pytest.approx(math.pi * spec.geometry.hole_radius, rel=1e-3)
-    # at least four elements through the lining thickness
-    assert mesh.layers >= 4
-    r = np.hypot(*(mesh.lining.p - c[:, None]))
+    # Simpson weights on the arc: they sum to the half circumference, 1:4:1 per edge
+    assert iface.weight.sum() == pytest.approx(math.pi * spec.geometry.hole_radius, rel=1e-12)
+    np.testing.assert_allclose(iface.weight[1:-1:2] / (iface.weight[0] * 4), 1.0, rtol=1e-6)
+    # at least two quadratic elements through the lining thickness, vertices on layer circles
+    assert mesh.layers >= 2
+    r = np.hypot(*(mesh.lining.p[:, :mesh.lining.n_vertices] - c[:, None]))
     assert np.unique(np.round(r, 9)).size == mesh.layers + 1
+    # edge nodes on the interface lie on the circle (curved, isoparametric edges)
+    assert np.all(~iface.vertex[1::2]) and np.all(iface.vertex[0::2])
     # triangles counter-clockwise, all positive area
     for body in (mesh.ground, mesh.lining):
-        x, y = body.p[:, body.t]
+        x, y = body.p[:, body.t[:3]]
         area = 0.5 * ((x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]))
         assert area.min() > 0
     # interface element size near the requested one
-    seg = np.diff(np.radians(iface.theta)) * spec.geometry.hole_radius
+    seg = np.diff(np.radians(iface.theta[iface.vertex])) * spec.geometry.hole_radius
     assert seg.max() <= spec.mesh.interface_size * 1.0001
