@@ -259,7 +259,7 @@ def test_sweep_runs_and_combines(client, tmp_path):
 
     status = wait_until(lambda: (s := client.get(f"/sweeps/{body['id']}").json())["finished"] and s,
                         what="the sweep")
-    assert status["counts"] == {"queued": 0, "running": 0, "done": 4, "failed": 0}
+    assert status["counts"] == {"queued": 0, "running": 0, "done": 4, "failed": 0, "cancelled": 0}
 
     again = client.post("/sweeps", json=SWEEP).json()
     assert (again["id"], again["created"], again["new_cases"]) == (body["id"], False, 0)
