@@ -1,0 +1,79 @@
+"""The comparison table of a sweep (JSON and CSV) and the job records behind cancel, in process."""
+from __future__ import annotations
+
+import csv
+import io
+import math
+import sqlite3
+
+from service.comparison import SCALAR_ORDER, comparison_table, table_csv
+from service.store import JobStore
+from solver.spec import CaseSpec
+
+
+def specs(*youngs: float) -> list[tuple[str, str]]:
+    cases = [CaseSpec.model_validate({"ground": {"young": e}, "geometry": {"thickness": 0.3}}) for e in youngs]
+    return [(c.case_id, c.canonical_json()) for c in cases]
+
+
+def test_table_has_case_status_varied_parameters_then_scalars_and_csv_reads_back(tmp_path):
+    store = JobStore(tmp_path / "jobs.sqlite")
+    cases = specs(2e7, 5e7, 8e7)
+    record, _ = store.add_sweep("0123456789abcdef", "t", "{}", cases)
+    store.finish(cases[0][0], status="done", summary={"max_contact_pressure": 2.5e5, "max_utilization": math.inf,
+                                                      "extra_scalar": 1.0})
+    store.finish(cases[1][0], status="failed", error="boom")
+
+    table = comparison_table(store, record)
+    names = [c.name for c in table.columns]
+    assert names[:3] == ["case_id", "status", "ground_young"]  # thickness is the same in all: not shown
+    scalars = names[3:]
+    assert scalars[-1] == "extra_scalar"
+    assert [s for s in scalars if s in SCALAR_ORDER] == [s for s in SCALAR_ORDER if s in scalars]
+    assert table.model_dump_json()  # non-finite values survive JSON
+
+    rows = list(csv.DictReader(io.StringIO(table_csv(table))))
+    assert [r["case_id"] for r in rows] == [c for c, _ in cases]
+    assert [r["status"] for r in rows] == ["done", "failed", "queued"]
+    assert [float(r["ground_young"]) for r in rows] == [2e7, 5e7, 8e7]
+    assert float(rows[0]["max_contact_pressure"]) == 2.5e5
+    assert float(rows[0]["max_utilization"]) == math.inf
+    assert rows[1]["max_contact_pressure"] == rows[2]["max_contact_pressure"] == ""
+
+
+def test_cancel_takes_only_queued_cases_and_requeue_brings_them_back(tmp_path):
+    store = JobStore(tmp_path / "jobs.sqlite")
+    cases = specs(2e7, 5e7, 8e7)
+    record, _ = store.add_sweep("0123456789abcdef", "t", "{}", cases)
+    ids = [c for c, _ in cases]
+    store.mark_running([ids[0]])
+    store.finish(ids[1], status="done", summary={})
+    assert store.cancel_queued(ids) == [ids[2]]
+    assert store.status_counts(ids) == {"queued": 0, "running": 1, "done": 1, "failed": 0, "cancelled": 1}
+    assert store.open_case_ids() == [ids[0]]  # reconciliation leaves a cancelled case alone
+    assert store.requeue(ids) == [ids[2]]
+    assert store.get_case(ids[2]).status == "queued"
+
+
+def test_a_database_from_before_cancel_is_migrated(tmp_path):
+    path = tmp_path / "jobs.sqlite"
+    db = sqlite3.connect(path)
+    db.executescript("""
+        CREATE TABLE cases (id TEXT PRIMARY KEY, spec TEXT NOT NULL,
+            status TEXT NOT NULL CHECK (status IN ('queued', 'running', 'done', 'failed')),
+            summary TEXT, error TEXT, submitted_at REAL NOT NULL, started_at REAL, finished_at REAL,
+            submissions INTEGER NOT NULL DEFAULT 0);
+        CREATE TABLE sweeps (id TEXT PRIMARY KEY, name TEXT NOT NULL, spec TEXT NOT NULL, submitted_at REAL NOT NULL);
+        CREATE TABLE sweep_cases (sweep_id TEXT NOT NULL REFERENCES sweeps (id), position INTEGER NOT NULL,
+            case_id TEXT NOT NULL REFERENCES cases (id), PRIMARY KEY (sweep_id, position));
+        INSERT INTO cases (id, spec, status, submitted_at) VALUES ('aaaaaaaaaaaaaaaa', '{}', 'queued', 1.0);
+        INSERT INTO sweeps VALUES ('bbbbbbbbbbbbbbbb', 'old', '{}', 1.0);
+        INSERT INTO sweep_cases VALUES ('bbbbbbbbbbbbbbbb', 0, 'aaaaaaaaaaaaaaaa');""")
+    db.commit()
+    db.close()
+    store = JobStore(path)
+    assert store.get_sweep("bbbbbbbbbbbbbbbb").case_ids == ("aaaaaaaaaaaaaaaa",)
+    assert store.cancel_queued(["aaaaaaaaaaaaaaaa"]) == ["aaaaaaaaaaaaaaaa"]
+    assert store._db.execute("PRAGMA foreign_key_check").fetchall() == []
+    store.close()
+    assert JobStore(path).get_case("aaaaaaaaaaaaaaaa").status == "cancelled"
