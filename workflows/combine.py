@@ -38,22 +38,23 @@ def interface_quantities(ds: xr.Dataset) -> tuple[list[str], list[str]]:
     """
     names = [str(n) for n, v in ds.data_vars.items()
              if v.dims == ("interface",) and n not in MESH_VARIABLES]
-    nearest = [n for n in names if ds[n].dtype.kind in "biu"]
+    nearest = [n for n in names if ds.variables[n].dtype.kind in "biu"]
     return [n for n in names if n not in nearest], nearest
 
 
 def reduce_case(ds: xr.Dataset) -> xr.Dataset:
     """One case's interface quantities on :data:`THETA` and its 0-d scalars, in memory."""
-    theta = ds["theta"].values
+    var = ds.variables  # Variables, not DataArrays: building those costs more than the arithmetic
+    theta = var["theta"].values
     interpolated, nearest = interface_quantities(ds)
-    data = {name: ("theta", np.interp(THETA, theta, ds[name].values), dict(ds[name].attrs))
+    data = {name: ("theta", np.interp(THETA, theta, var[name].values), dict(var[name].attrs))
             for name in interpolated}
     if nearest:
         station = np.abs(THETA[:, None] - theta[None, :]).argmin(axis=1)
-        data.update({name: ("theta", ds[name].values[station], dict(ds[name].attrs)) for name in nearest})
-    data.update({name: ((), var.values, dict(var.attrs)) for name, var in ds.data_vars.items()
-                 if var.ndim == 0 and name != "mesh"})
-    return xr.Dataset(data, coords={"theta": ("theta", THETA, dict(ds["theta"].attrs))},
+        data.update({name: ("theta", var[name].values[station], dict(var[name].attrs)) for name in nearest})
+    data.update({name: ((), v.values, dict(v.attrs)) for name, v in ds.data_vars.items()
+                 if v.ndim == 0 and name != "mesh"})
+    return xr.Dataset(data, coords={"theta": ("theta", THETA, dict(var["theta"].attrs))},
                       attrs={k: ds.attrs[k] for k in CASE_ATTRS if k in ds.attrs})
 
 

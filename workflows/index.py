@@ -43,6 +43,7 @@ import json
 import logging
 import os
 import struct
+import zlib
 from collections import defaultdict
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -143,8 +144,9 @@ class ResultIndex:
                       "software_version": reduced.attrs.get("software_version", ""),
                       "file_key": list(key), "schema": schema}
             arrays = {str(n): v.values for n, v in reduced.data_vars.items()}
+            # not fsynced: an entry damaged by a crash fails its checksum and the case file is read
             write_atomically(self.pending_path(header["case_id"]),
-                             lambda tmp: tmp.write_bytes(_pack_entry(header, arrays)))
+                             lambda tmp: tmp.write_bytes(_pack_entry(header, arrays)), durable=False)
         except Exception:
             logger.warning("could not write the index entry of case %s", ds.attrs.get("case_id"),
                            exc_info=True)
@@ -374,7 +376,7 @@ def _stat(path: Path) -> tuple[int, int] | None:
 
 
 def _pack_entry(header: dict, arrays: dict[str, np.ndarray]) -> bytes:
-    """``_ENTRY_MAGIC``, header length (8 bytes), JSON header, then the raw arrays."""
+    """``_ENTRY_MAGIC``, header length (8 bytes), JSON header (with the arrays' CRC-32), the raw arrays."""
     variables, chunks, offset = [], [], 0
     for name, values in arrays.items():
         values = np.asarray(values, order="C")  # (ascontiguousarray would make 0-d arrays 1-d)
@@ -383,8 +385,9 @@ def _pack_entry(header: dict, arrays: dict[str, np.ndarray]) -> bytes:
         variables.append([name, values.dtype.str, list(values.shape), offset])
         chunks.append(values.tobytes())
         offset += len(chunks[-1])
-    text = json.dumps({**header, "variables": variables}).encode()
-    return _ENTRY_MAGIC + struct.pack("<Q", len(text)) + text + b"".join(chunks)
+    payload = b"".join(chunks)
+    text = json.dumps({**header, "variables": variables, "crc32": zlib.crc32(payload)}).encode()
+    return _ENTRY_MAGIC + struct.pack("<Q", len(text)) + text + payload
 
 
 def _unpack_entry(buffer: bytes) -> tuple[dict, dict[str, np.ndarray]]:
@@ -395,6 +398,8 @@ def _unpack_entry(buffer: bytes) -> tuple[dict, dict[str, np.ndarray]]:
     (length,) = struct.unpack("<Q", buffer[len(_ENTRY_MAGIC):start])
     header = json.loads(buffer[start:start + length])
     base = start + length
+    if zlib.crc32(buffer[base:]) != header["crc32"]:
+        raise ValueError("index entry fails its checksum")
     arrays = {}
     for name, dtype, shape, offset in header["variables"]:
         dtype = np.dtype(dtype)

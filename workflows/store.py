@@ -308,11 +308,12 @@ def netcdf_encoding(ds: xr.Dataset, *, compress: bool = True) -> dict[str, dict[
     return enc
 
 
-def write_atomically(target: Path, write: Callable[[Path], object]) -> None:
+def write_atomically(target: Path, write: Callable[[Path], object], *, durable: bool = True) -> None:
     """Call ``write(tmp)`` on a temporary file next to ``target``, then rename it into place.
 
-    The temporary file is flushed and fsynced before ``os.replace``; if ``write``
-    raises, it is removed and nothing appears under ``target``.
+    The temporary file is flushed and fsynced before ``os.replace`` (unless not
+    ``durable``: for caches that detect their own damage); if ``write`` raises, it is
+    removed and nothing appears under ``target``.
     """
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=_TMP_SUFFIX, dir=target.parent)
@@ -320,15 +321,17 @@ def write_atomically(target: Path, write: Callable[[Path], object]) -> None:
     tmp = Path(name)
     try:
         write(tmp)
-        with open(tmp, "rb+") as fh:  # the writer closed it; make its bytes durable
-            fh.flush()
-            os.fsync(fh.fileno())
+        if durable:
+            with open(tmp, "rb+") as fh:  # the writer closed it; make its bytes durable
+                fh.flush()
+                os.fsync(fh.fileno())
         os.chmod(tmp, 0o644)
         os.replace(tmp, target)
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
-    _fsync_dir(target.parent)
+    if durable:
+        _fsync_dir(target.parent)
 
 
 def _fsync_dir(folder: Path) -> None:

@@ -208,3 +208,14 @@ def test_run_and_store_accepts_a_store(tmp_path, monkeypatch, solved):
     store = ResultStore(tmp_path)
     assert run_and_store(spec, store) == spec.case_id
     assert store.is_stored(spec.case_id) and os.path.isfile(store.index.pending_path(spec.case_id))
+
+
+def test_damaged_pending_entry_is_not_used(store, caplog):
+    case_id = store.case_ids()[0]
+    entry = store.index.pending_path(case_id)
+    data = bytearray(entry.read_bytes())
+    data[-3] ^= 0xFF  # one flipped byte among the values
+    entry.write_bytes(bytes(data))
+    with caplog.at_level(logging.WARNING):
+        assert_same_as_files(store)
+    assert "checksum" in caplog.text and "case files" in caplog.text
