@@ -39,9 +39,13 @@ def interface_segments(spec) -> int:
 
 
 def size_field_distances(spec) -> tuple[float, float]:
-    """Distances from the interface over which the size grows from interface to far size (m)."""
+    """Distances from the interface over which the size grows from interface to far size (m).
+
+    The growth (1/6 of the size per metre) suits quadratic elements: against the
+    slower growth (1/12) P1 needed, the default case's lining forces change by less
+    than 2e-5 with 37 % fewer nodes (measured, README)."""
     r = spec.geometry.hole_radius
-    return 0.25 * r, 0.25 * r + 12.0 * (spec.mesh.far_size - spec.mesh.interface_size) + r
+    return 0.25 * r, 0.25 * r + 6.0 * (spec.mesh.far_size - spec.mesh.interface_size) + r
 
 
 #: Triangles gmsh makes per ideal equilateral triangle of the size field (measured on graded

@@ -157,3 +157,43 @@ def test_nnls_fallback_solves_the_same_bolted_problem(gap):
     np.testing.assert_allclose(fallback.lam, p, rtol=0, atol=1e-8 * p.max())
     assert abs(dual.F2 + np.sum(dual.nu2 * dual.w * fallback.lam)) < 1e-10 * abs(dual.F2)
     assert fallback.lam[np.arange(dual.m) != bolt].min() >= 0
+
+
+def _random_case(rng: np.random.Generator) -> CaseSpec:
+    a = rng.uniform(2.0, 4.0)
+    t = a * rng.choice([0.025, 0.05, 0.1, 0.2])
+    gap = rng.choice([0.0, 0.0, 0.002, 0.01])
+    depth = rng.uniform(3.0, 6.0) * (a + t)
+    return CaseSpec(
+        geometry=dict(inner_radius=a, thickness=t, gap=gap, depth=depth, width=depth + 4 * a,
+                      height=depth + 5 * a),
+        ground=dict(young=10 ** rng.uniform(7, 8.5), poisson=rng.uniform(0.2, 0.4), density=rng.uniform(1600, 2200)),
+        lining=dict(young=10 ** rng.uniform(9.5, 10.6), density=rng.uniform(2000, 2600)),
+        loads=dict(surface_load=rng.uniform(0, 2e5), lateral_ratio=rng.uniform(0.3, 1.5)),
+        excavation=dict(method=rng.choice(["deconfinement", "wished-in-place"]),
+                        deconfinement=rng.uniform(0, 0.9)),
+        boundaries=dict(side=rng.choice(["roller", "fixed", "pressure"])),
+        mesh=dict(interface_size=0.2, far_size=8.0))
+
+
+@pytest.mark.slow
+def test_inner_solvers_agree_on_random_cases():
+    """20 seeded random valid cases (thin linings, gaps, both loadings, every side): both
+    inner solvers meet the KKT tolerance and agree to 1e-6 in λ, or Uzawa says it did not
+    converge; one TunnelModel serves both solves of a case."""
+    rng = np.random.default_rng(20261122)
+    agreed = 0
+    for _ in range(20):
+        spec = _random_case(rng)
+        model = TunnelModel(spec)
+        exact = model.solve(spec)
+        assert exact.kkt_residual <= spec.solver.tolerance
+        try:
+            uz = model.solve(spec.model_copy(update={"solver": spec.solver.model_copy(update={"inner": "uzawa"})}))
+        except NotConvergedError as err:
+            assert "did not converge" in str(err)
+            continue
+        assert uz.kkt_residual <= spec.solver.tolerance
+        np.testing.assert_allclose(uz.lam, exact.lam, rtol=0, atol=1e-6 * exact.lam.max())
+        agreed += 1
+    assert agreed >= 15
