@@ -32,6 +32,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("run", help="solve one case and store it")
     p.add_argument("case", nargs="?", metavar="CASE.json", help="case file (default: the default case)")
     p.add_argument("--force", action="store_true", help="recompute even if stored")
+    p.add_argument("--retry-failed", action="store_true",
+                   help="recompute the case if it failed before (else its recorded failure is shown)")
     results(p)
 
     p = sub.add_parser("sweep", help="solve every case of a sweep on dask, print a comparison table")
@@ -70,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         if args.command == "run":
-            return commands.run_command(args.case, args.results, force=args.force)
+            return commands.run_command(args.case, args.results, force=args.force, retry_failed=args.retry_failed)
         if args.command == "sweep":
             return commands.sweep_command(args.sweep, args.results, scheduler=args.scheduler,
                                           progress=not args.no_progress)

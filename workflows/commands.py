@@ -89,10 +89,25 @@ def _one_line(exc: ValidationError) -> str:
     return format_errors(field_errors(exc))
 
 
-def run_command(case_file: str | None, results: str, *, force: bool = False,
+def run_command(case_file: str | None, results: str, *, force: bool = False, retry_failed: bool = False,
                 out: TextIO = sys.stdout) -> int:
-    """Solve one case into the store and print its summary; 1 if the solver fails."""
+    """Solve one case into the store and print its summary; 1 if the solver fails.
+
+    As in the service, a case that failed before is reported, not recomputed, unless
+    ``retry_failed``; a stored result that cannot be read is recomputed.
+    """
     spec = load_case(case_file)
+    if not force and is_stored(results, spec.case_id):
+        try:
+            read_summary(results, spec.case_id)
+        except Exception as exc:  # truncated or corrupted: never shown, computed again
+            logger.warning("stored result of case %s is unreadable (%s); recomputing", spec.case_id, exc)
+            force = True
+    elif not force and not retry_failed:
+        error = read_error(results, spec.case_id)
+        if error is not None:
+            print(f"case {spec.case_id} failed before: {error['error']} (--retry-failed recomputes it)", file=out)
+            return 1
     try:
         case_id = run_and_store(spec, results, force=force)
     except SolverError as exc:

@@ -1,0 +1,43 @@
+"""``tunnel-contact run``: a failed case is recomputed only with ``--retry-failed``
+(as ``POST /cases?retry=failed``), a broken stored result is recomputed, never shown."""
+from __future__ import annotations
+
+import io
+import json
+
+from service.cli import main
+from solver import CaseSpec
+from workflows.commands import run_command
+from workflows.store import case_path, error_path
+
+COARSE = {"mesh": {"interface_size": 0.25, "far_size": 8.0}}
+
+
+def test_failed_case_is_recomputed_only_when_asked(tmp_path):
+    case = {**COARSE, "solver": {"inner": "uzawa", "max_iterations": 1}}
+    (tmp_path / "case.json").write_text(json.dumps(case))
+    results = str(tmp_path / "results")
+    out = io.StringIO()
+    assert run_command(str(tmp_path / "case.json"), results, out=out) == 1
+    record = error_path(results, CaseSpec.model_validate(case).case_id)
+    first = json.loads(record.read_text())["time"], record.stat().st_mtime_ns
+
+    out = io.StringIO()
+    assert run_command(str(tmp_path / "case.json"), results, out=out) == 1
+    assert "failed before" in out.getvalue() and "--retry-failed" in out.getvalue()
+    assert record.stat().st_mtime_ns == first[1]
+
+    assert main(["run", str(tmp_path / "case.json"), "--results", results, "--retry-failed"]) == 1
+    assert record.stat().st_mtime_ns != first[1]  # solved (and failed) again
+
+
+def test_truncated_result_is_recomputed(tmp_path):
+    (tmp_path / "case.json").write_text(json.dumps(COARSE))
+    results = str(tmp_path / "results")
+    assert run_command(str(tmp_path / "case.json"), results, out=io.StringIO()) == 0
+    path = case_path(results, CaseSpec.model_validate(COARSE).case_id)
+    good = path.stat().st_size
+    path.write_bytes(path.read_bytes()[: good // 4])
+    out = io.StringIO()
+    assert run_command(str(tmp_path / "case.json"), results, out=out) == 0
+    assert path.stat().st_size > good // 4 and "max_contact_pressure" in out.getvalue()
