@@ -155,6 +155,8 @@ DISPLAY_UNITS: dict[str, tuple[str, float]] = {
     "Pa": ("kPa", 1e-3), "N m-1": ("kN/m", 1e-3), "N m m-1": ("kN·m/m", 1e-3),
     "m": ("mm", 1e3), "degree": ("°", 1.0), "s": ("s", 1.0), "1": ("", 1.0),
 }
+#: Scalars that describe the solve rather than the tunnel.
+_DIAGNOSTICS = ("bolt_theta", "bolt_trials", "iterations", "converged", "kkt_residual", "solve_seconds")
 #: Most cases for which a figure still gets a legend (more: colour only).
 _LEGEND_CASES = 10
 
@@ -186,6 +188,22 @@ def _case_colors(n: int) -> list:
     if n <= 10:
         return [colormaps["tab10"](i) for i in range(n)]
     return [colormaps["viridis"](i / (n - 1)) for i in range(n)]
+
+
+def plot_contact_pressure_comparison(combined: xr.Dataset) -> Figure:
+    """Contact pressure (kPa) against theta for every case of a combined result."""
+    fig = Figure(figsize=(7, 4.5), layout="constrained")
+    ax = fig.add_subplot()
+    labels, colors = case_labels(combined), _case_colors(combined.sizes["case"])
+    for i in range(combined.sizes["case"]):
+        ax.plot(combined["theta"], combined["contact_pressure"].isel(case=i) / 1e3, lw=1.2, color=colors[i],
+                label=labels[i])
+    ax.set_ylabel("contact pressure λ (kPa)")
+    _theta_axis(ax)
+    if combined.sizes["case"] <= _LEGEND_CASES:
+        ax.legend(fontsize="x-small")
+    ax.set_title(f"Contact pressure: {combined.sizes['case']} cases", fontsize="medium")
+    return fig
 
 
 def plot_lining_forces_comparison(combined: xr.Dataset) -> Figure:
@@ -276,12 +294,14 @@ def plot_scalars(combined: xr.Dataset, scalars: list[str] | None = None) -> Figu
     Parameters
     ----------
     combined : combined results (:func:`workflows.open_results`).
-    scalars : names of the scalars to show; default every numeric scalar along ``case``.
+    scalars : names of the scalars to show; default every numeric scalar along ``case``,
+        the solver's diagnostics (bolt, iterations, residual, time) last.
     """
     params = case_parameters(combined)
     if scalars is None:
         scalars = [str(n) for n, v in combined.data_vars.items()
                    if v.dims == ("case",) and v.dtype.kind in "biuf"]
+        scalars.sort(key=lambda name: name in _DIAGNOSTICS)
     constant = [s for s in scalars if np.allclose(combined[s].values.astype(float),
                                                   float(combined[s].values[0]), rtol=1e-9, atol=0)]
     panels = [(s, p) for s in scalars if s not in constant for p in params]
@@ -326,15 +346,11 @@ def plot_scalars(combined: xr.Dataset, scalars: list[str] | None = None) -> Figu
     return fig
 
 
-def _comparison_of(variable: str) -> Callable[[xr.Dataset], Figure]:
-    return lambda combined: plot_comparison(combined, variable)
-
-
 #: Plots of a sweep (combined results of its finished cases), by name. ``interaction``
 #: needs the cases themselves (their envelopes are not combined): see
 #: :func:`workflows.artifacts.render_sweep_plot`.
 SWEEP_PLOTS: dict[str, Callable[[xr.Dataset], Figure]] = {
-    "contact_pressure": _comparison_of("contact_pressure"),
+    "contact_pressure": plot_contact_pressure_comparison,
     "lining_forces": plot_lining_forces_comparison,
     "scalars": plot_scalars,
 }

@@ -142,7 +142,7 @@
     TC.poll(async () => {
       const record = await TC.getJSON("/cases/" + caseId);
       if (record.status !== main.dataset.signature) await TC.swap(["#case-main"]);
-      return ["queued", "running"].includes(record.status) ? 1000 : 5000;
+      return ["queued", "running"].includes(record.status) ? 1000 : 3000;
     }, 1000);
   };
 

@@ -89,6 +89,10 @@ def state_shown(driver) -> tuple[str, str]:
         "return [s.dataset.signature, s.querySelector('[data-field=state]').textContent];"))
 
 
+def case_status_shown(driver) -> str:
+    return driver.execute_script("return document.querySelector('#case-main h1 .badge').textContent")
+
+
 def column(driver, name: str) -> list[str]:
     """The data-value of column ``name`` of the comparison table, in row order."""
     return driver.execute_script("""
@@ -221,7 +225,7 @@ def test_a_bad_field_is_shown_beside_the_input_and_nothing_is_stored(service, br
 def test_cancel_keeps_queued_cases_from_running_and_they_can_be_submitted_again(service, browser, tmp_path):
     url, results = service
     # keep the only worker busy with a long case, so the sweep's cases stay queued
-    long_case = {"mesh": {"interface_size": 0.04, "far_size": 4.0}, "geometry": {"gap": 0.003}}
+    long_case = {"mesh": {"interface_size": 0.06, "far_size": 4.0}, "geometry": {"gap": 0.003}}
     busy = httpx.post(f"{url}/cases", json=long_case).json()["id"]
     wait_until(lambda: httpx.get(f"{url}/cases/{busy}").json()["status"] == "running", timeout=30,
                what="the long case to run")
@@ -252,9 +256,16 @@ def test_cancel_keeps_queued_cases_from_running_and_they_can_be_submitted_again(
     assert not any(case_path(results, c).exists() for c in ids)
     assert httpx.get(f"{url}/health").json()["running"] == 0
 
-    # a cancelled case can be submitted again, alone or with its sweep
+    # a cancelled case can be submitted again, alone or with its sweep; its page follows
+    browser.get(f"{url}/ui/cases/{ids[0]}")
+    browser.execute_script("window.__marker = 'same page'")
+    assert case_status_shown(browser) == "cancelled"
     again = httpx.post(f"{url}/cases", json=httpx.get(f"{url}/cases/{ids[0]}").json()["spec"])
     assert again.status_code == 202 and again.json()["created"] and again.json()["status"] == "queued"
+    wait_until(lambda: case_status_shown(browser) == "done", timeout=60, what="the case page to show done")
+    wait_until(lambda: (w := images_loaded(browser, ".plots img")) and len(w) == 3 and all(w),
+               timeout=60, what="the case plots to load")
+    assert browser.execute_script("return window.__marker") == "same page"
     resubmitted = httpx.post(f"{url}/sweeps", json=sweep).json()
     assert resubmitted["new_cases"] == 2
     done = wait_until(lambda: (s := httpx.get(f"{url}/sweeps/{sweep_id}").json())["finished"] and s,

@@ -1,0 +1,72 @@
+"""Figures of a sweep (workflows.plots): what they draw, on small in-memory results."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from workflows.plots import SWEEP_PLOTS, plot_interaction, plot_scalars
+
+THETA = np.arange(0.0, 181.0, 1.0)
+
+
+def combined_results() -> xr.Dataset:
+    """Four cases of a 2 x 2 grid over lining_thickness and ground_young."""
+    thickness = np.array([0.2, 0.2, 0.3, 0.3])
+    young = np.array([2e7, 5e7, 2e7, 5e7])
+    case = np.arange(4)
+    pressure = 1e5 * (1 + thickness[:, None]) * (1 + np.cos(np.radians(THETA))[None, :])
+    return xr.Dataset(
+        {"contact_pressure": (("case", "theta"), pressure, {"units": "Pa"}),
+         "thrust": (("case", "theta"), 4e5 + 0 * pressure, {"units": "N m-1"}),
+         "moment": (("case", "theta"), 1e4 * np.cos(np.radians(2 * THETA))[None, :] * young[:, None] / 2e7,
+                    {"units": "N m m-1"}),
+         "max_abs_moment": ("case", 1e4 * young / 2e7, {"units": "N m m-1"}),
+         "contact_extent": ("case", np.full(4, 180.0), {"units": "degree"}),
+         "iterations": ("case", np.array([1.0, 2.0, 1.0, 3.0]), {"units": "1"})},
+        coords={"theta": THETA, "case_id": ("case", [f"{i:016x}" for i in case]),
+                "lining_thickness": ("case", thickness), "ground_young": ("case", young)})
+
+
+def test_scalars_one_panel_per_changing_scalar_and_parameter_diagnostics_last():
+    figure = plot_scalars(combined_results())
+    panels = [ax for ax in figure.axes if ax.get_visible()]
+    # contact_extent is the same everywhere: named in the title, not plotted
+    assert [(ax.get_ylabel().split(" ")[0], ax.get_xlabel()) for ax in panels] == [
+        ("max_abs_moment", "lining_thickness"), ("max_abs_moment", "ground_young"),
+        ("iterations", "lining_thickness"), ("iterations", "ground_young")]
+    assert "contact_extent = 180" in figure._suptitle.get_text()
+    # against ground_young: one line per thickness, values in kN·m/m
+    lines = panels[1].get_lines()
+    assert len(lines) == 2
+    np.testing.assert_allclose(lines[0].get_ydata(), [10.0, 25.0])
+
+
+@pytest.mark.parametrize("envelope", [False, True])
+def test_interaction_draws_every_station_and_the_envelopes_when_present(envelope):
+    combined = combined_results()
+    cases = []
+    for i in range(4):
+        ds = combined[["thrust", "moment"]].isel(case=i).drop_vars(["case_id", "lining_thickness", "ground_young"])
+        ds.attrs["case_spec"] = json.dumps({"design": {"load_factor": 1.5}})
+        if envelope:
+            angle = np.linspace(0, 2 * np.pi, 50, endpoint=False)
+            ds["capacity_thrust"] = ("envelope", 2e6 * (1 + np.sin(angle)))
+            ds["capacity_moment"] = ("envelope", 2e5 * np.cos(angle))
+            ds["utilization"] = ("theta", np.full(THETA.size, 0.4 + 0.1 * i))
+        cases.append(ds)
+    ax = plot_interaction(cases).axes[0]
+    stations = [line for line in ax.get_lines() if line.get_marker() == "o"]
+    curves = [line for line in ax.get_lines() if line.get_marker() != "o" and len(line.get_xdata()) > 2]
+    assert len(stations) == 4 and all(len(line.get_xdata()) == THETA.size for line in stations)
+    factor = 1.5 if envelope else 1.0
+    np.testing.assert_allclose(stations[0].get_ydata(), factor * 400.0)  # kN/m
+    assert len(curves) == (4 if envelope else 0)
+    assert ("η = 0.7" in ax.get_title()) == envelope
+
+
+@pytest.mark.parametrize("name", sorted(SWEEP_PLOTS))
+def test_every_sweep_plot_draws_from_combined_results(name):
+    assert SWEEP_PLOTS[name](combined_results()).axes
