@@ -20,7 +20,9 @@ the lining in place and its weight, with contact on the increment.
 from __future__ import annotations
 
 import json
+import threading
 import time
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -280,3 +282,31 @@ class TunnelModel:
             raise SolverError("the bonded interface system is singular")
         return x[:R], float(x[R])
 
+
+
+_SHARED: "OrderedDict[str, TunnelModel]" = OrderedDict()
+_SHARED_LOCK = threading.Lock()
+#: Models a process keeps for reuse (a worker running a sweep over one geometry needs one).
+SHARED_MODELS = 2
+
+
+def shared_model(spec: CaseSpec) -> TunnelModel:
+    """The process's :class:`TunnelModel` for ``spec``'s :func:`model_key`, built on first use.
+
+    Cases of a sweep that share geometry, mesh, boundaries and materials (loads, K0,
+    deconfinement, interface, solver and design varying) then pay mesh, assembly and
+    factorization once per worker process. Least recently used models are dropped
+    beyond :data:`SHARED_MODELS`. Solving on a shared model gives the same result as on
+    a fresh one: the model holds no state that a solve changes except a load cache keyed
+    by the load parameters.
+    """
+    key = model_key(spec)
+    with _SHARED_LOCK:
+        if key in _SHARED:
+            _SHARED.move_to_end(key)
+            return _SHARED[key]
+        model = TunnelModel(spec)
+        _SHARED[key] = model
+        while len(_SHARED) > SHARED_MODELS:
+            _SHARED.popitem(last=False)
+        return model

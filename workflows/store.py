@@ -38,6 +38,7 @@ import dask
 import xarray as xr
 
 import solver
+from solver.model import shared_model
 from solver.spec import CaseSpec
 
 if TYPE_CHECKING:
@@ -210,7 +211,8 @@ class ResultStore:
             return case_id
         logger.info("solving case %s", case_id)
         try:
-            ds = solver.run_case(spec)
+            # cases sharing geometry, mesh and materials reuse one factorized model per process
+            ds = solver.run_case(spec, model=shared_model(spec))
         except Exception as exc:
             self.write_error(spec, exc)
             raise

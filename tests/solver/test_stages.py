@@ -149,3 +149,21 @@ def test_large_displacement_is_stored_with_a_warning():
     ds = run_case(CaseSpec(ground=dict(young=2.0e6), mesh=dict(interface_size=0.2, far_size=6.0)))
     warnings = json.loads(ds.attrs["warnings"])
     assert any("small-displacement" in w for w in warnings)
+
+
+def test_a_shared_model_gives_the_result_of_a_fresh_one():
+    """Cases that differ only in loads, stages, interface, solver and design reuse one model;
+    every stored array is bit-for-bit what the case computes alone."""
+    from solver.model import model_key, shared_model
+
+    base = CaseSpec(mesh=dict(interface_size=0.2, far_size=6.0))
+    others = [base.model_copy(update={"loads": base.loads.model_copy(update={"lateral_ratio": 0.8})}),
+              base.model_copy(update={"excavation": base.excavation.model_copy(update={"deconfinement": 0.6})}),
+              base.model_copy(update={"interface": base.interface.model_copy(update={"model": "bonded"})})]
+    model = shared_model(base)
+    for spec in [base, *others]:
+        assert model_key(spec) == model_key(base) and shared_model(spec) is model
+        together, alone = run_case(spec, model=model), run_case(spec)
+        for name, var in alone.data_vars.items():
+            if name != "solve_seconds":
+                np.testing.assert_array_equal(together[name].values, var.values, err_msg=name)
