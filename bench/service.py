@@ -6,7 +6,12 @@ cases, then has 20 concurrent clients (threads, one connection each) submit 200
 distinct cases (``POST /cases``) and read each back (``GET /cases/{id}``). Reports p50/p99/max latency of both and
 the error count (any non-2xx answer or transport error). Target: p99 < 50 ms, no errors.
 
-    python -m bench.service [--json] [--clients 20] [--submissions 200] [--scheduler ADDR]
+Then the bounded queue: the service runs with ``TUNNEL_CONTACT_MAX_OPEN_CASES`` = ``--max-open``
+and the same clients keep submitting new cases until they are refused; reported are how many
+cases were open at the first 429, how many submissions were accepted per second up to it, and
+the latency of the 429 answers.
+
+    python -m bench.service [--json] [--clients 20] [--submissions 200] [--max-open 400] [--scheduler ADDR]
 """
 from __future__ import annotations
 
@@ -63,6 +68,51 @@ def wait_busy(http: httpx.Client, workers: int, timeout: float = 60.0) -> None:
     raise RuntimeError(f"workers not busy after {timeout} s")
 
 
+def until_refused(http: httpx.Client, first: int, stride: int, accepted: list, refused: list,
+                  errors: list, attempts: int = 400) -> None:
+    """One client: submit new cases until it has been refused with 429 five times."""
+    mine = 0
+    for i in range(first, first + stride * attempts, stride):
+        start = time.perf_counter()
+        try:
+            response = http.post("/cases", json=submission(i))
+        except httpx.HTTPError as exc:
+            errors.append(f"{type(exc).__name__}: {exc}")
+            continue
+        elapsed = time.perf_counter() - start
+        if response.status_code == 202:
+            accepted.append(time.perf_counter())
+        elif response.status_code == 429 and "retry-after" in response.headers:
+            refused.append((time.perf_counter(), elapsed))
+            mine += 1
+            if mine >= 5:
+                return
+        else:
+            errors.append(f"POST {response.status_code}")
+
+
+def saturate(url: str, clients: int, offset: int) -> dict:
+    """Submit from ``clients`` threads until the service refuses with 429; where did it start?"""
+    accepted: list[float] = []
+    refused: list[tuple[float, float]] = []
+    errors: list[str] = []
+    with ExitStack() as stack:
+        http = stack.enter_context(httpx.Client(base_url=url, timeout=30))
+        pool = stack.enter_context(ThreadPoolExecutor(clients))
+        each = [stack.enter_context(httpx.Client(base_url=url, timeout=30)) for _ in range(clients)]
+        open_before = sum(http.get("/health").json()[k] for k in ("queued", "running"))
+        start = time.perf_counter()
+        list(pool.map(lambda k: until_refused(each[k], offset + k, clients, accepted, refused, errors),
+                      range(clients)))
+        health = http.get("/health").json()
+    onset = min((t for t, _ in refused), default=None)
+    before = [t for t in accepted if onset is None or t < onset]
+    return {"open_before": open_before, "accepted": len(accepted), "accepted_before_first_429": len(before),
+            "open_at_end": health["queued"] + health["running"],
+            "accepted_per_s": len(before) / ((onset or time.perf_counter()) - start),
+            "refused": [e for _, e in refused], "errors": errors}
+
+
 def load(url: str, clients: int, submissions: int) -> dict:
     """Keep the workers busy, then run the load from ``clients`` threads; return latencies (s) and errors."""
     posts: list[float] = []
@@ -101,14 +151,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--scheduler", default=None, help="use this scheduler instead of starting one")
     parser.add_argument("--workers", type=int, default=2, help="worker processes to start")
     parser.add_argument("--nice", type=int, default=0, help="CPU niceness of the started workers")
+    parser.add_argument("--max-open", type=int, default=400,
+                        help="TUNNEL_CONTACT_MAX_OPEN_CASES of the service (the 429 threshold)")
     args = parser.parse_args(argv)
 
     with ExitStack() as stack:
         work = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="bench-service-")))
         scheduler = args.scheduler or stack.enter_context(running_cluster(args.workers, logs=work, nice=args.nice))
         url = stack.enter_context(running_service(work / "results", scheduler=scheduler,
-                                                  log=work / "api.log", workers=1))
+                                                  log=work / "api.log", workers=1,
+                                                  env={"TUNNEL_CONTACT_MAX_OPEN_CASES": str(args.max_open)}))
         raw = load(url, args.clients, args.submissions)
+        full = saturate(url, args.clients, offset=10 * args.submissions)
 
     report = {
         "clients": args.clients, "submissions": args.submissions, "wall_s": raw["wall"],
@@ -117,6 +171,12 @@ def main(argv: list[str] | None = None) -> int:
         "errors": len(raw["errors"]), "error_samples": raw["errors"][:5],
         "queued_running_at_start": [raw["busy_before"]["queued"], raw["busy_before"]["running"]],
         "queued_running_at_end": [raw["busy_after"]["queued"], raw["busy_after"]["running"]],
+        "max_open_cases": args.max_open,
+        "bounded_queue": {"open_before": full["open_before"],
+                          "accepted_before_first_429": full["accepted_before_first_429"],
+                          "open_at_end": full["open_at_end"], "accepted_per_s": full["accepted_per_s"],
+                          "post_429": percentiles(full["refused"]) if full["refused"] else None,
+                          "errors": len(full["errors"]), "error_samples": full["errors"][:5]},
         "target_met": bool(raw["posts"] and raw["gets"] and not raw["errors"]
                            and percentiles(raw["posts"])["p99_ms"] < 50
                            and percentiles(raw["gets"])["p99_ms"] < 50),
@@ -134,6 +194,12 @@ def main(argv: list[str] | None = None) -> int:
                   f"max {p['max_ms']:6.1f} ms")
         print(f"  errors: {report['errors']}  target (p99 < 50 ms, no errors): "
               f"{'met' if report['target_met'] else 'NOT met'}")
+        q = report["bounded_queue"]
+        refused = q["post_429"] or {"n": 0, "p50_ms": float("nan"), "p99_ms": float("nan")}
+        print(f"bounded queue (max {args.max_open} open cases): {q['open_before']} open, then "
+              f"{q['accepted_before_first_429']} accepted at {q['accepted_per_s']:.0f}/s before the first 429; "
+              f"{q['open_at_end']} open at the end; 429 answers n={refused['n']} p50 {refused['p50_ms']:.1f} ms "
+              f"p99 {refused['p99_ms']:.1f} ms; other errors: {q['errors']}")
     return 0 if report["target_met"] else 1
 
 
