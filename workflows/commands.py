@@ -21,8 +21,8 @@ from solver import CaseSpec, SolverError
 from solver.errors import field_errors, format_errors
 
 from .parameters import flat_parameters, varying_parameters
-from .store import OPEN_OPTIONS, case_path, check_case_id, is_stored, open_case, read_error, run_and_store
-from .summary import read_summary, summarize
+from .store import OPEN_OPTIONS, ResultStore, StoreLike, as_store, check_case_id
+from .summary import summarize
 from .sweep import Sweep, SweepError, run_sweep
 
 logger = logging.getLogger(__name__)
@@ -97,24 +97,25 @@ def run_command(case_file: str | None, results: str, *, force: bool = False, ret
     ``retry_failed``; a stored result that cannot be read is recomputed.
     """
     spec = load_case(case_file)
-    if not force and is_stored(results, spec.case_id):
+    store = ResultStore(results)
+    if not force and store.is_stored(spec.case_id):
         try:
-            read_summary(results, spec.case_id)
+            store.read_summary(spec.case_id)
         except Exception as exc:  # truncated or corrupted: never shown, computed again
             logger.warning("stored result of case %s is unreadable (%s); recomputing", spec.case_id, exc)
             force = True
     elif not force and not retry_failed:
-        error = read_error(results, spec.case_id)
+        error = store.read_error(spec.case_id)
         if error is not None:
             print(f"case {spec.case_id} failed before: {error['error']} (--retry-failed recomputes it)", file=out)
             return 1
     try:
-        case_id = run_and_store(spec, results, force=force)
+        case_id = store.run_and_store(spec, force=force)
     except SolverError as exc:
         print(f"case {spec.case_id} failed: {exc}", file=out)
         return 1
-    print(f"case {case_id} stored in {Path(results) / 'cases' / (case_id + '.nc')}", file=out)
-    print(format_summary(read_summary(results, case_id)), file=out)
+    print(f"case {case_id} stored in {store.case_path(case_id)}", file=out)
+    print(format_summary(store.read_summary(case_id)), file=out)
     return 0
 
 
@@ -131,13 +132,13 @@ def sweep_command(sweep_file: str, results: str, *, scheduler: str | None = None
 
         client = Client(scheduler, timeout="10s")
     try:
-        case_ids = run_sweep(sweep, results, client=client, progress=progress)
+        case_ids = run_sweep(sweep, ResultStore(results), client=client, progress=progress)
     except SweepError as exc:
         raise InputError(f"{sweep_file}: {exc}") from None
     finally:
         if client is not None:
             client.close()
-    rows = [case_row(results, c) for c in case_ids]
+    rows = [case_row(ResultStore(results), c) for c in case_ids]
     print(comparison_table(rows), file=out)
     failed = [r for r in rows if r["status"] != "done"]
     print(f"{len(rows) - len(failed)} of {len(rows)} cases done; results in {results}", file=out)
@@ -153,19 +154,20 @@ def show_command(case_id: str, results: str, *, out: TextIO = sys.stdout) -> int
         check_case_id(case_id)
     except ValueError as exc:
         raise InputError(str(exc)) from None
-    if not is_stored(results, case_id):
-        error = read_error(results, case_id)
+    store = ResultStore(results)
+    if not store.is_stored(case_id):
+        error = store.read_error(case_id)
         if error is None:
             raise InputError(f"case {case_id} is not in {results}")
         print(f"case {case_id} failed: {error['error']}", file=out)
         return 1
-    ds = open_case(results, case_id)
+    ds = store.open_case(case_id)
     params = flat_parameters(ds.attrs["case_spec"])
     print(f"case {case_id}", file=out)
     print("\n".join(f"  {k} = {v}" for k, v in params.items()), file=out)
     print(format_summary(summarize(ds)), file=out)
     for name in PLOTS:
-        print(f"wrote {render_plot(Path(results), case_id, name, ds)}", file=out)
+        print(f"wrote {render_plot(store, case_id, name, ds)}", file=out)
     return 0
 
 
@@ -175,13 +177,14 @@ def format_summary(summary: dict[str, float]) -> str:
     return "\n".join(f"  {k:<{width}} = {v:.6g}" for k, v in summary.items())
 
 
-def case_row(results: str | os.PathLike, case_id: str) -> dict[str, Any]:
+def case_row(results: StoreLike, case_id: str) -> dict[str, Any]:
     """``{"case_id", "status", "params", "summary", "error"}`` of a case in the store."""
-    if is_stored(results, case_id):
-        with xr.open_dataset(case_path(results, case_id), **OPEN_OPTIONS) as ds:
+    store = as_store(results)
+    if store.is_stored(case_id):
+        with xr.open_dataset(store.case_path(case_id), **OPEN_OPTIONS) as ds:
             return {"case_id": case_id, "status": "done", "error": None,
                     "params": flat_parameters(ds.attrs["case_spec"]), "summary": summarize(ds)}
-    error = read_error(results, case_id) or {}
+    error = store.read_error(case_id) or {}
     return {"case_id": case_id, "status": "failed" if error else "missing",
             "params": flat_parameters(error["spec"]) if "spec" in error else {},
             "summary": {}, "error": error.get("error")}
