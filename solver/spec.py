@@ -158,7 +158,8 @@ class Design(_Frozen):
     concrete_strength: float = Field(3.0e7, ge=1.2e7, le=9.0e7, description="fck (Pa), C12 to C90")
     steel_strength: float = Field(5.0e8, ge=2.0e8, le=7.0e8, description="fyk (Pa)")
     reinforcement_area: float = Field(
-        0.0, ge=0, le=0.05, description="As per face (m^2/m), symmetric; 0 means plain concrete")
+        1.5e-3, ge=0, le=0.05,
+        description="As per face (m^2/m), symmetric (default: 14 mm bars at 100 mm); 0 means plain concrete")
     axis_distance: float = Field(0.05, gt=0, le=0.5, description="reinforcement axis distance from each face (m)")
     load_factor: float = Field(1.35, gt=0, le=10.0, description="gamma_F: design actions are gamma_F times N and M")
 
