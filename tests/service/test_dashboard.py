@@ -93,6 +93,12 @@ def case_status_shown(driver) -> str:
     return driver.execute_script("return document.querySelector('#case-main h1 .badge').textContent")
 
 
+def index_state_shown(driver, sweep_id: str) -> str:
+    return driver.execute_script(
+        "const row = document.querySelector(`#sweeps tr[data-key='${arguments[0]}']`);"
+        "return row && row.querySelector('[data-field=state]').textContent", sweep_id)
+
+
 def column(driver, name: str) -> list[str]:
     """The data-value of column ``name`` of the comparison table, in row order."""
     return driver.execute_script("""
@@ -266,9 +272,15 @@ def test_cancel_keeps_queued_cases_from_running_and_they_can_be_submitted_again(
     wait_until(lambda: (w := images_loaded(browser, ".plots img")) and len(w) == 3 and all(w),
                timeout=60, what="the case plots to load")
     assert browser.execute_script("return window.__marker") == "same page"
+    browser.get(url + "/")  # the list follows too
+    browser.execute_script("window.__marker = 'same page'")
+    assert index_state_shown(browser, sweep_id) == "cancelled"
     resubmitted = httpx.post(f"{url}/sweeps", json=sweep).json()
     assert resubmitted["new_cases"] == 2
     done = wait_until(lambda: (s := httpx.get(f"{url}/sweeps/{sweep_id}").json())["finished"] and s,
                       timeout=60, what="the resubmitted cases")
     assert done["counts"]["done"] == 3 and done["counts"]["cancelled"] == 0
+    wait_until(lambda: index_state_shown(browser, sweep_id) == "finished", timeout=20,
+               what="the list to show the sweep finished")
+    assert browser.execute_script("return window.__marker") == "same page"
     assert all(case_path(results, c).exists() for c in ids)
