@@ -9,6 +9,7 @@ import os
 import signal
 
 import httpx
+import psutil
 import pytest
 from distributed import Client
 
@@ -19,6 +20,11 @@ from service_helpers import coarse_case, wait_until
 #: A fresh worker process spends a second or more importing the solver before this case runs:
 #: time enough to kill it mid-task, again after its nanny has started a new one.
 SLOW = coarse_case(loads={"surface_load": 6.1e4})
+
+
+def listening(pid: int) -> list[tuple[str, int]]:
+    """The (address, port) pairs process ``pid`` listens on."""
+    return [c.laddr for c in psutil.Process(pid).net_connections(kind="inet") if c.status == psutil.CONN_LISTEN]
 
 
 def status_of(url: str, case_id: str, *wanted: str):
@@ -51,6 +57,8 @@ def test_worker_and_scheduler_deaths(tmp_path):
 
     processes = cluster()
     try:
+        wait_until(lambda: len(listening(processes[0].pid)) >= 2, what="the scheduler to listen (tcp, http)")
+        assert {host for host, _ in listening(processes[0].pid)} == {"127.0.0.1"}  # its HTTP pages too
         with running_service(tmp_path / "results", scheduler=address, log=tmp_path / "api.log") as url:
             repeated_worker_kill_fails_the_case_cleanly_and_retry_recomputes_it(url, address)
             for process in processes:  # the scheduler dies; a `dask worker` then exits (code 0)
