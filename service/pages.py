@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Optional
 
 import httpx
-from fastapi import APIRouter, FastAPI, Request
+from fastapi import APIRouter, FastAPI, HTTPException, Request
 from fastapi.responses import HTMLResponse
 from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
@@ -95,9 +95,18 @@ async def index(request: Request) -> HTMLResponse:
     return await _render(request, "index.html", sweeps=sweep_page, cases=case_page, workers=workers)
 
 
+async def _error_page(request: Request, exc: HTTPException) -> HTMLResponse:
+    response = await _render(request, "error.html", status_code=exc.status_code, detail=exc.detail)
+    response.status_code = exc.status_code
+    return response
+
+
 @router.get("/ui/sweeps/{sweep_id}", response_class=HTMLResponse)
 async def sweep_page(sweep_id: SweepId, request: Request) -> HTMLResponse:
-    status = await sweeps.get_sweep(sweep_id, request)
+    try:
+        status = await sweeps.get_sweep(sweep_id, request)
+    except HTTPException as exc:
+        return await _error_page(request, exc)
     table = await studies.get_sweep_table(sweep_id, request)
     spec = jobs_of(request).store.get_sweep(sweep_id).spec
     return await _render(request, "sweep.html", sweep=status, table=table, spec=spec, plots=SWEEP_PLOT_NAMES)
@@ -105,7 +114,10 @@ async def sweep_page(sweep_id: SweepId, request: Request) -> HTMLResponse:
 
 @router.get("/ui/cases/{case_id}", response_class=HTMLResponse)
 async def case_page(case_id: CaseId, request: Request) -> HTMLResponse:
-    case = await cases.get_case(case_id, request)
+    try:
+        case = await cases.get_case(case_id, request)
+    except HTTPException as exc:
+        return await _error_page(request, exc)
     columns = [scalar_column(n) for n in ordered_scalars(case.summary or {})]
     return await _render(request, "case.html", case=case, columns=columns, plots=list(PLOTS))
 

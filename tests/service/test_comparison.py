@@ -77,3 +77,20 @@ def test_a_database_from_before_cancel_is_migrated(tmp_path):
     assert store._db.execute("PRAGMA foreign_key_check").fetchall() == []
     store.close()
     assert JobStore(path).get_case("aaaaaaaaaaaaaaaa").status == "cancelled"
+
+
+def test_pages_render_without_a_scheduler_and_unknown_ids_are_html_404(tmp_path):
+    from fastapi.testclient import TestClient
+
+    from service.app import create_app
+    from service.settings import Settings
+
+    # no cluster needed for a 404: the scheduler address points nowhere and the app starts degraded
+    app = create_app(Settings(results=tmp_path, scheduler="tcp://127.0.0.1:9", reconcile_interval=3600))
+    with TestClient(app) as client:
+        for path in ("/ui/sweeps/0123456789abcdef", "/ui/cases/0123456789abcdef"):
+            response = client.get(path)
+            assert response.status_code == 404 and response.headers["content-type"].startswith("text/html")
+            assert "unknown" in response.text and "0123456789abcdef" in response.text
+        assert client.get("/").status_code == 200
+        assert "Submit" in client.get("/ui/submit").text
