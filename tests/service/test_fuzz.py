@@ -25,7 +25,7 @@ from service.process import free_port
 from service.settings import Settings
 
 #: Generated requests per operation and mode (valid data, then data the schema forbids).
-EXAMPLES = 25
+EXAMPLES = 20
 CHECKS = [not_a_server_error, status_code_conformance, content_type_conformance, response_schema_conformance]
 
 
