@@ -204,6 +204,7 @@ def test_429_with_retry_after_above_the_open_case_limit(client, app):
     try:
         planted = CaseSpec.model_validate(coarse_case(loads={"surface_load": 4.324e4}))
         app.state.jobs.store.add_case(planted.case_id, planted.canonical_json())  # fills the queue
+        app.state.open_count = None  # counted again now, not up to 0.25 s later
         response = client.post("/cases", json=coarse_case(loads={"surface_load": 4.325e4}))
         assert response.status_code == 429 and response.headers["retry-after"] == "7"
         assert "limit" in response.json()["detail"]
