@@ -75,6 +75,7 @@ def ring_in_medium_case(*, radii: float, K: float, P: float = 1.0e5, young_l: fl
         excavation=dict(method="wished-in-place" if loading == "external" else "deconfinement",
                         deconfinement=deconfinement),
         interface=dict(model=interface, friction=friction),
+        design=dict(reinforcement_area=0.0),  # plain section: valid for any thickness
     )
 
 

@@ -173,6 +173,7 @@ def _random_case(rng: np.random.Generator) -> CaseSpec:
         excavation=dict(method=rng.choice(["deconfinement", "wished-in-place"]),
                         deconfinement=rng.uniform(0, 0.9)),
         boundaries=dict(side=rng.choice(["roller", "fixed", "pressure"])),
+        design=dict(reinforcement_area=0.0),
         mesh=dict(interface_size=0.2, far_size=8.0))
 
 
