@@ -41,6 +41,7 @@ import fcntl
 import hashlib
 import json
 import logging
+import math
 import os
 import struct
 import zlib
@@ -54,6 +55,7 @@ from typing import TYPE_CHECKING
 import dask
 import numpy as np
 import xarray as xr
+from xarray.backends.netCDF4_ import NETCDF4_PYTHON_LOCK
 
 from .combine import label_cases, read_reduced, reduce_case, stack_cases
 from .store import OPEN_OPTIONS, FileKey, check_case_id, netcdf_encoding, write_atomically
@@ -238,7 +240,8 @@ class ResultIndex:
             yield _Table()
             return
         try:
-            nc = netCDF4.Dataset(self.path, "r")
+            with NETCDF4_PYTHON_LOCK:  # HDF5 is not thread-safe; xarray's reads take this lock too
+                nc = netCDF4.Dataset(self.path, "r")
         except Exception as exc:
             logger.warning("index %s is unreadable (%s); rebuilding it", self.path, exc)
             yield _Table(broken=True)
@@ -251,7 +254,8 @@ class ResultIndex:
                 table = _Table(broken=True)
             yield table
         finally:
-            nc.close()
+            with NETCDF4_PYTHON_LOCK:
+                nc.close()
 
     def _rewrite(self, keys: dict[str, FileKey], extra: _Table) -> _Table:
         """Write a new index file of the rows still true, every pending entry and ``extra``; return it."""
@@ -403,7 +407,7 @@ def _unpack_entry(buffer: bytes) -> tuple[dict, dict[str, np.ndarray]]:
     arrays = {}
     for name, dtype, shape, offset in header["variables"]:
         dtype = np.dtype(dtype)
-        count = int(np.prod(shape, dtype=np.int64))
+        count = math.prod(shape)
         if base + offset + count * dtype.itemsize > len(buffer):
             raise ValueError("index entry is truncated")
         arrays[name] = np.frombuffer(buffer, dtype=dtype, count=count, offset=base + offset).reshape(shape)
@@ -412,11 +416,13 @@ def _unpack_entry(buffer: bytes) -> tuple[dict, dict[str, np.ndarray]]:
 
 def _read_table(nc) -> _Table:
     """Rows and (lazy) blocks of an open index file."""
-    if int(nc.getncattr("index_format")) != INDEX_FORMAT:
-        raise ValueError(f"index format {nc.getncattr('index_format')} is not {INDEX_FORMAT}")
+    with NETCDF4_PYTHON_LOCK:
+        version, n_blocks = int(nc.getncattr("index_format")), int(nc.getncattr("blocks"))
+        groups = [nc.groups[f"schema{b}"] for b in range(n_blocks)]
+    if version != INDEX_FORMAT:
+        raise ValueError(f"index format {version} is not {INDEX_FORMAT}")
     rows = xr.open_dataset(xr.backends.NetCDF4DataStore(nc), **_DECODE).load()
-    table = _Table(blocks=[xr.open_dataset(xr.backends.NetCDF4DataStore(nc.groups[f"schema{b}"]), **_DECODE)
-                           for b in range(int(nc.getncattr("blocks")))])
+    table = _Table(blocks=[xr.open_dataset(xr.backends.NetCDF4DataStore(g), **_DECODE) for g in groups])
     block, position, key = rows["block"].values, rows["position"].values, rows["file_key"].values
     specs, versions = rows["case_spec"].values, rows["software_version"].values
     for i, case_id in enumerate(rows["case_id"].values):

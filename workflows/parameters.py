@@ -11,6 +11,7 @@ the dotted path ``lining.thickness`` is accepted as an alias of
 from __future__ import annotations
 
 import json
+from functools import lru_cache
 from typing import Any
 
 from pydantic import BaseModel
@@ -28,6 +29,7 @@ def canonical_path(path: str) -> str:
     return PATH_ALIASES.get(path, path)
 
 
+@lru_cache(maxsize=None)  # called for every parameter of every case combined
 def flat_name(path: str) -> str:
     """Flat name of a dotted parameter path: ``ground.young`` -> ``ground_young``."""
     path = canonical_path(path)

@@ -270,7 +270,7 @@ class ResultStore:
         processes that died mid-write (e.g. a killed worker).
         """
         removed = 0
-        for folder in (self.cases_dir, self.index_dir, self.index_dir / "pending"):
+        for folder in (self.cases_dir, self.index_dir, self.index_dir / "pending", self.index_dir / "schemas"):
             for tmp in folder.glob(f"*{_TMP_SUFFIX}") if folder.is_dir() else ():
                 try:
                     if time.time() - tmp.stat().st_mtime > older_than:

@@ -203,7 +203,7 @@ def test_one_task_key_per_case():
 
 
 def test_run_and_store_accepts_a_store(tmp_path, monkeypatch, solved):
-    monkeypatch.setattr(solver, "run_case", lambda spec: solved[0])
+    monkeypatch.setattr(solver, "run_case", lambda spec, **options: solved[0])
     spec = CaseSpec.model_validate_json(solved[0].attrs["case_spec"])
     store = ResultStore(tmp_path)
     assert run_and_store(spec, store) == spec.case_id
@@ -219,3 +219,15 @@ def test_damaged_pending_entry_is_not_used(store, caplog):
     with caplog.at_level(logging.WARNING):
         assert_same_as_files(store)
     assert "checksum" in caplog.text and "case files" in caplog.text
+
+
+def test_threads_reading_at_once_get_the_same_answer(store):
+    from concurrent.futures import ThreadPoolExecutor
+
+    store.index.update()
+    store.write_case(clone(store.open_case(store.case_ids()[0]), 4e4))  # one pending entry too
+    expected = combine_files(store)
+    with ThreadPoolExecutor(4) as pool:
+        answers = list(pool.map(lambda _: open_results(store), range(8)))
+    for got in answers:
+        xr.testing.assert_identical(got, expected)
