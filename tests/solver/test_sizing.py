@@ -74,7 +74,7 @@ def test_closed_form_is_exact_when_the_band_fits_and_an_upper_bound_otherwise():
         bound = ground_density_integral(R, area, size_min, far, d_min, d_max)
         exact = _quadrature(R, width, height, depth, size_min, far, d_min, d_max)
         fits = R + d_max < min(width, depth, height - depth)
-        assert bound >= 0.999 * exact
+        assert bound >= 0.99 * exact  # (the quadrature is good to a few 0.1 %)
         if fits:
             assert bound == pytest.approx(exact, rel=2e-3)
 
