@@ -184,13 +184,18 @@ def geostatic_stress(y: np.ndarray, *, q: float, rho_g: float, k0: float) -> tup
     return k0 * syy, syy
 
 
-def initial_stress_forces(basis: Basis, *, q: float, rho_g: float, k0: float) -> np.ndarray:
-    """Internal nodal forces of the geostatic stress, ∫ Bᵀ σ0 dΩ (full DOFs, N/m)."""
+def initial_stress_forces(basis: Basis, *, q: float, rho_g: float, k0: float,
+                          vertical: float = 1.0) -> np.ndarray:
+    """Internal nodal forces of the geostatic stress, ∫ Bᵀ σ0 dΩ (full DOFs, N/m).
+
+    ``vertical`` scales σ0_yy alone (1 for the geostatic state; 0 with k0 = 1 gives the
+    part of σ0_xx, so that ``∫Bᵀσ0 = K0 · [xx part] + [yy part]`` for any K0).
+    """
 
     @LinearForm
     def internal(v, w):
         sxx, syy = geostatic_stress(w.x[1], q=q, rho_g=rho_g, k0=k0)
-        return sxx * v.grad[0][0] + syy * v.grad[1][1]
+        return sxx * v.grad[0][0] + vertical * syy * v.grad[1][1]
 
     return asm(internal, basis)
 

@@ -65,10 +65,10 @@ class FactoredBody:
         x[keep] = self.factor.solve(rhs[keep])
         return x
 
-    def flexibility(self) -> np.ndarray:
-        """Dense ``B K⁺ Bᵀ`` (R, R) by one triangular solve on the trailing factor block."""
+    def flexibility(self, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
+        """Dense ``B K⁺ Bᵀ`` restricted to ``rows`` by one triangular solve on the trailing factor block."""
         dofs = np.unique(self.B.indices)  # the factor's trailing block, in this order
-        return self.factor.flexibility(self.B[:, dofs].toarray())
+        return self.factor.flexibility(self.B[rows][:, dofs].toarray())
 
 
 def factor_body(body: Body, B: sp.csr_matrix, pin: int | None = None) -> FactoredBody:

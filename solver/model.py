@@ -36,6 +36,14 @@ from .flexibility import FactoredBody, factor_body, interface_operator, interfac
 from .mesh import TunnelMesh, build_mesh
 from .spec import CaseSpec
 
+
+def _sigma0_unit(basis, q: float, rho_g: float) -> tuple[np.ndarray, np.ndarray]:
+    """∫Bᵀσ0 split by stress component: (xx part, yy part) of the geostatic stress of
+    (q, ρg) with K0 = 1, so ``∫Bᵀσ0 = K0·xx + yy`` for any K0."""
+    return (initial_stress_forces(basis, q=q, rho_g=rho_g, k0=1.0, vertical=0.0),
+            initial_stress_forces(basis, q=q, rho_g=rho_g, k0=0.0))
+
+
 #: Relative gap (to the largest displacement) below which a node counts as closed.
 CONTACT_GAP_TOL = 1e-6
 
@@ -129,62 +137,83 @@ class TunnelModel:
         Bl = interface_operator(lining, iface.lining_node[nodes], directions, -1.0)
         self.ground: FactoredBody = factor_body(ground, Bg)
         self.lining: FactoredBody = factor_body(lining, Bl, lining_pin(lining, iface.lining_node))
-        S = self.ground.flexibility() + self.lining.flexibility()
-        self.S = 0.5 * (S + S.T)
+        self._S: np.ndarray | None = None
+        self._S_normal: np.ndarray | None = None
         self.r = np.r_[iface.normal[1], iface.tangent[1, self.tangential]]
         self.w = np.r_[iface.weight, iface.weight[self.tangential]]
         self.rigid = lining.rigid_vertical()
         self.timings = {"mesh": t1 - t0, "assembly": t2 - t1, "factorization": time.perf_counter() - t2}
-        self._load_cache: dict = {}
+        self._units: dict[str, np.ndarray] = {}
 
     @property
     def m(self) -> int:
         return self.mesh.interface.size
 
+    def _flexibility(self, rows) -> np.ndarray:
+        t0 = time.perf_counter()
+        S = self.ground.flexibility(rows) + self.lining.flexibility(rows)
+        self.timings["flexibility"] = self.timings.get("flexibility", 0.0) + time.perf_counter() - t0
+        return 0.5 * (S + S.T)
+
+    @property
+    def S(self) -> np.ndarray:
+        """(R, R) interface flexibility of the normal and tangential rows (built on first use)."""
+        if self._S is None:
+            self._S = self._flexibility(slice(None))
+        return self._S
+
+    @property
+    def S_normal(self) -> np.ndarray:
+        """(m, m) normal block of :attr:`S`: all that frictionless contact needs (built on first
+        use, always from the normal rows alone, so a result never depends on what the model
+        solved before)."""
+        if self._S_normal is None:
+            self._S_normal = self._flexibility(slice(0, self.m))
+        return self._S_normal
+
     def accepts(self, spec: CaseSpec) -> bool:
         return model_key(spec) == self.key
 
     # -- loads -------------------------------------------------------------------------
-    def _cached(self, key, compute):
-        if key not in self._load_cache:
-            if len(self._load_cache) > 64:
-                self._load_cache.clear()
-            self._load_cache[key] = compute()
-        return self._load_cache[key]
+    def _unit(self, name: str, compute) -> np.ndarray:
+        """A unit load vector of this model, assembled on first use."""
+        if name not in self._units:
+            self._units[name] = compute()
+        return self._units[name]
 
     def ground_loads(self, spec: CaseSpec) -> np.ndarray:
-        """Full-DOF external loads on the ground: gravity, surface load, a 'pressure' side."""
+        """Full-DOF external loads on the ground: gravity, surface load, a 'pressure' side.
+
+        Every load is linear in (ρg, q, K0·q, K0·ρg), so it is a combination of unit
+        vectors assembled once per model: a sweep over loads and K0 assembles nothing.
+        """
         g, L = spec.geometry, spec.loads
-        rho_g = spec.ground.density * L.gravity
+        rho_g, q, k0 = spec.ground.density * L.gravity, L.surface_load, L.lateral_ratio
         basis = self.ground.body.basis
         scale = max(g.width, g.height)
-
-        def compute():
-            f = gravity_load(basis, spec.ground.density, L.gravity) + surface_load(basis, L.surface_load, scale=scale)
-            if spec.boundaries.side == "pressure":
-                f = f + side_pressure_load(basis, q=L.surface_load, rho_g=rho_g, k0=L.lateral_ratio,
-                                           width=g.width, scale=scale)
-            return f
-
-        return self._cached(("ground", spec.ground.density, L.gravity, L.surface_load, L.lateral_ratio), compute)
+        f = rho_g * self._unit("gravity", lambda: gravity_load(basis, 1.0, 1.0)) \
+            + q * self._unit("surface", lambda: surface_load(basis, 1.0, scale=scale))
+        if spec.boundaries.side == "pressure":
+            f = f + k0 * q * self._unit("side_q", lambda: side_pressure_load(
+                basis, q=1.0, rho_g=0.0, k0=1.0, width=g.width, scale=scale)) \
+                + k0 * rho_g * self._unit("side_rho_g", lambda: side_pressure_load(
+                    basis, q=0.0, rho_g=1.0, k0=1.0, width=g.width, scale=scale))
+        return f
 
     def excavation_load(self, spec: CaseSpec) -> np.ndarray:
         """Full-DOF excavation load ``r = f_ext - ∫Bᵀσ0`` (N/m): what σ0 leaves unbalanced."""
         L = spec.loads
-        rho_g = spec.ground.density * L.gravity
-
-        def compute():
-            internal = initial_stress_forces(self.ground.body.basis, q=L.surface_load, rho_g=rho_g,
-                                             k0=L.lateral_ratio)
-            return self.ground_loads(spec) - internal
-
-        return self._cached(("release", spec.ground.density, L.gravity, L.surface_load, L.lateral_ratio), compute)
+        rho_g, q, k0 = spec.ground.density * L.gravity, L.surface_load, L.lateral_ratio
+        basis = self.ground.body.basis
+        units = {(a, b): self._unit(f"sigma0_{a}_{b}", lambda a=a, b=b: _sigma0_unit(basis, a, b))
+                 for a, b in ((1, 0), (0, 1))}
+        internal = q * (k0 * units[(1, 0)][0] + units[(1, 0)][1]) + rho_g * (k0 * units[(0, 1)][0] + units[(0, 1)][1])
+        return self.ground_loads(spec) - internal
 
     def stage_loads(self, spec: CaseSpec) -> StageLoads:
         ground, lining = self.ground.body, self.lining.body
-        f_l = lining.restrict(self._cached(
-            ("lining", spec.lining.density, spec.loads.gravity),
-            lambda: gravity_load(lining.basis, spec.lining.density, spec.loads.gravity)))
+        f_l = lining.restrict(spec.lining.density * spec.loads.gravity
+                              * self._unit("lining_gravity", lambda: gravity_load(lining.basis, 1.0, 1.0)))
         if spec.excavation.method == "wished-in-place":
             return StageLoads(None, ground.restrict(self.ground_loads(spec)), f_l, None)
         release = ground.restrict(self.excavation_load(spec))
@@ -261,7 +290,7 @@ class TunnelModel:
 
     def _dual(self, d: np.ndarray, F2: float, g0: float) -> DualProblem:
         m, iface = self.m, self.mesh.interface
-        return DualProblem(S=self.S[:m, :m], d=d[:m], g0=np.full(m, g0), w=iface.weight.copy(),
+        return DualProblem(S=self.S_normal, d=d[:m], g0=np.full(m, g0), w=iface.weight.copy(),
                            nu2=iface.normal[1].copy(), F2=F2)
 
     def dual_problem(self, spec: CaseSpec) -> DualProblem:
