@@ -200,19 +200,21 @@ def initial_stress_forces(basis: Basis, *, q: float, rho_g: float, k0: float,
     return asm(internal, basis)
 
 
-def _strain_basis(body: Body, points: np.ndarray) -> Basis:
+def point_basis(body: Body, points: np.ndarray = SUBTRIANGLE_CENTROIDS) -> Basis:
+    """The body's basis evaluated at reference ``points`` (2, P) of every element (no weights)."""
     W = np.full(points.shape[1], 0.5 / points.shape[1])  # unused: only point values are read
     return Basis(body.basis.mesh, body.basis.elem, quadrature=(points, W))
 
 
 def stress_at(body: Body, young: float, poisson: float, u_nodes: np.ndarray,
-              points: np.ndarray = SUBTRIANGLE_CENTROIDS) -> np.ndarray:
-    """Stress (4, E, P) in Pa (xx, yy, xy, zz; tension positive) at reference ``points`` (2, P).
+              basis: Basis | None = None) -> np.ndarray:
+    """Stress (4, E, P) in Pa (xx, yy, xy, zz; tension positive) at the points of ``basis``
+    (:func:`point_basis`, the sub-triangle centroids by default).
 
     ``u_nodes`` is the nodal displacement (2, N); plane strain gives
     σ_zz = λ (ε_xx + ε_yy).
     """
-    basis = _strain_basis(body, points)
+    basis = point_basis(body) if basis is None else basis
     grad = basis.interpolate(body.full(u_nodes)).grad  # (2, 2, E, P): du_i/dx_j
     return _hooke(grad, young, poisson)
 

@@ -59,14 +59,10 @@ def _face_stress(model: TunnelModel, body: str, spec, u_nodes: np.ndarray) -> np
     """(4, 4E) stress at the sub-triangle centroids; total stress (σ0 + increment) in the ground."""
     fb = getattr(model, body).body
     mat = getattr(spec, body)
-    s = stress_at(fb, mat.young, mat.poisson, u_nodes)  # (4, E, 4)
+    basis = model.point_basis(body)
+    s = stress_at(fb, mat.young, mat.poisson, u_nodes, basis)  # (4, E, 4)
     if body == "ground" and spec.excavation.method == "deconfinement":
-        from skfem import Basis
-
-        from .assembly import SUBTRIANGLE_CENTROIDS
-
-        y = Basis(fb.basis.mesh, fb.basis.elem, quadrature=(SUBTRIANGLE_CENTROIDS, np.ones(4))) \
-            .global_coordinates().value[1]
+        y = basis.global_coordinates().value[1]
         L = spec.loads
         sxx, syy = geostatic_stress(y, q=L.surface_load, rho_g=spec.ground.density * L.gravity, k0=L.lateral_ratio)
         s = s + np.stack([sxx, syy, np.zeros_like(y), sxx])

@@ -35,6 +35,8 @@ Choices (EN 1992-1-1 recommended values):
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 __all__ = [
@@ -310,6 +312,17 @@ def utilization(N, M, envelope_N, envelope_M, *, chunk: int = 256) -> np.ndarray
     return eta.reshape(N.shape)
 
 
+@lru_cache(maxsize=256)
+def _cached_envelope(thickness: float, fck: float, fyk: float, area: float, axis: float):
+    """:func:`interaction_envelope` once per section (sweeps check one section many times);
+    the arrays are read-only because they are shared."""
+    env = interaction_envelope(thickness, concrete_strength=fck, steel_strength=fyk,
+                               reinforcement_area=area, axis_distance=axis)
+    for a in env:
+        a.flags.writeable = False
+    return env
+
+
 def design_utilization(N, M, thickness: float, design) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Utilization of the characteristic forces N, M with N_Ed = γF N, M_Ed = γF M.
 
@@ -330,9 +343,9 @@ def design_utilization(N, M, thickness: float, design) -> tuple[np.ndarray, np.n
     envelope_N, envelope_M : ndarray
         The closed envelope (:func:`interaction_envelope`).
     """
-    env_N, env_M = interaction_envelope(
-        thickness, concrete_strength=design.concrete_strength, steel_strength=design.steel_strength,
-        reinforcement_area=design.reinforcement_area, axis_distance=design.axis_distance)
+    env_N, env_M = _cached_envelope(float(thickness), float(design.concrete_strength),
+                                    float(design.steel_strength), float(design.reinforcement_area),
+                                    float(design.axis_distance))
     gamma = design.load_factor
     return utilization(gamma * np.asarray(N, float), gamma * np.asarray(M, float), env_N, env_M), env_N, env_M
 

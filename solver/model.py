@@ -29,7 +29,7 @@ import numpy as np
 import scipy.linalg as la
 
 from . import friction
-from .assembly import (assemble_body, gravity_load, ground_constraints, initial_stress_forces,
+from .assembly import (Basis, assemble_body, point_basis, gravity_load, ground_constraints, initial_stress_forces,
                        lining_constraints, side_pressure_load, surface_load, vector_basis)
 from .contact import BoltTrial, DualProblem, SolverError, solve_contact
 from .flexibility import FactoredBody, factor_body, interface_operator, interface_rows, lining_pin
@@ -144,10 +144,17 @@ class TunnelModel:
         self.rigid = lining.rigid_vertical()
         self.timings = {"mesh": t1 - t0, "assembly": t2 - t1, "factorization": time.perf_counter() - t2}
         self._units: dict[str, np.ndarray] = {}
+        self._point_bases: dict = {}
 
     @property
     def m(self) -> int:
         return self.mesh.interface.size
+
+    def point_basis(self, body: str) -> "Basis":
+        """``'ground'`` or ``'lining'`` basis at the sub-triangle centroids (built on first use)."""
+        if body not in self._point_bases:
+            self._point_bases[body] = point_basis(getattr(self, body).body)
+        return self._point_bases[body]
 
     def _flexibility(self, rows) -> np.ndarray:
         t0 = time.perf_counter()
