@@ -1,6 +1,9 @@
-"""Tunnel lining / ground frictionless contact, Janovský & Procházka (1980) bolt-point method.
+"""Tunnel lining / ground contact, Janovský & Procházka (1980) bolt-point method.
 
-Pure numerics: ``CaseSpec -> run_case -> xarray.Dataset``. No files, no network.
+Isoparametric P2 plane-strain elasticity, construction stages (in-situ stress, deconfinement),
+frictionless, Coulomb or bonded interfaces, EN 1992-1-1 section check. Pure numerics:
+``CaseSpec -> TunnelModel -> solve -> to_dataset -> xarray.Dataset`` (``run_case``). No files,
+no network.
 """
 from .contact import NoAdmissibleBoltError, NotConvergedError, SolverError
 from .run import run_case

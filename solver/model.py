@@ -20,6 +20,7 @@ the lining in place and its weight, with contact on the increment.
 from __future__ import annotations
 
 import json
+import os
 import threading
 import time
 from collections import OrderedDict
@@ -34,6 +35,7 @@ from .assembly import (Basis, assemble_body, point_basis, gravity_load, ground_c
 from .contact import BoltTrial, DualProblem, SolverError, solve_contact
 from .flexibility import FactoredBody, factor_body, interface_operator, interface_rows, lining_pin
 from .mesh import TunnelMesh, build_mesh
+from .post import kkt_residual
 from .spec import CaseSpec
 
 
@@ -276,8 +278,6 @@ class TunnelModel:
         residuals = [(fb.body.K @ u + fb.B.T @ Wt - f, np.abs(f) + np.abs(fb.B.T @ Wt))
                      for fb, u, f in ((ground, u_g, loads.ground), (lining, u_l, loads.lining))]
         balance = F2 + float(np.sum(self.r * Wt))
-        from .post import kkt_residual
-
         kkt = kkt_residual(K_u_minus_f=residuals, balance=balance, F2=F2, lam=lam, gap=g0 - J[:m],
                            p_ref=p_ref, u_ref=u_ref, model=model, shear=shear, tangential_jump=jt,
                            mu=spec.interface.friction, g0=g0)
@@ -322,8 +322,9 @@ class TunnelModel:
 
 _SHARED: "OrderedDict[str, TunnelModel]" = OrderedDict()
 _SHARED_LOCK = threading.Lock()
-#: Models a process keeps for reuse (a worker running a sweep over one geometry needs one).
-SHARED_MODELS = 2
+#: Models a process keeps for reuse (a worker running a sweep over one geometry needs one);
+#: ``TUNNEL_CONTACT_SHARED_MODELS=0`` turns reuse off (every case built from nothing).
+SHARED_MODELS = int(os.environ.get("TUNNEL_CONTACT_SHARED_MODELS", "2"))
 
 
 def shared_model(spec: CaseSpec) -> TunnelModel:
@@ -336,6 +337,8 @@ def shared_model(spec: CaseSpec) -> TunnelModel:
     a fresh one: the model holds no state that a solve changes except a load cache keyed
     by the load parameters.
     """
+    if SHARED_MODELS <= 0:
+        return TunnelModel(spec)
     key = model_key(spec)
     with _SHARED_LOCK:
         if key in _SHARED:
