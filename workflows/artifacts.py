@@ -98,7 +98,8 @@ def render_sweep_plot(root: StoreLike, sweep_id: str, case_ids: Sequence[str], n
     """The cached PNG of sweep plot ``name`` over ``case_ids`` (stored cases), rendered if missing.
 
     ``name`` is one of :data:`workflows.plots.SWEEP_PLOT_NAMES`; ``interaction`` reads
-    every case's file (their design envelopes are not part of the combined results).
+    every case's file (their design envelopes are not part of the combined results) and
+    adds ``max_utilization`` against each varied parameter.
     Figures over fewer cases of the same sweep are removed once a few minutes old.
 
     Raises
@@ -116,7 +117,8 @@ def render_sweep_plot(root: StoreLike, sweep_id: str, case_ids: Sequence[str], n
         if not target.is_file():
             combined = store.open_results(list(case_ids))
             if name == "interaction":
-                figure = plot_interaction([_section_forces(store, c) for c in case_ids], case_labels(combined))
+                figure = plot_interaction([_section_forces(store, c) for c in case_ids], case_labels(combined),
+                                          combined=combined)
             else:
                 figure = SWEEP_PLOTS[name](combined)
             write_atomically(target, lambda tmp: figure.savefig(tmp, format="png", dpi=90))

@@ -8,12 +8,14 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import os
 import sys
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, TextIO
 
+import numpy as np
 import xarray as xr
 from pydantic import ValidationError
 
@@ -27,13 +29,17 @@ from .sweep import Sweep, SweepError, run_sweep
 
 logger = logging.getLogger(__name__)
 
-#: Columns of the comparison table: (summary scalar, header, divisor to the shown unit).
-TABLE_COLUMNS: tuple[tuple[str, str, float], ...] = (
-    ("max_contact_pressure", "max λ (kPa)", 1e3),
-    ("contact_extent", "contact (deg)", 1.0),
-    ("max_thrust", "max N (kN/m)", 1e3),
-    ("max_abs_moment", "max |M| (kN·m/m)", 1e3),
-    ("crown_settlement", "crown settl. (mm)", 1e-3),
+#: Columns of the comparison table: (summary scalar, header, unit, divisor to the shown unit).
+TABLE_COLUMNS: tuple[tuple[str, str, str, float], ...] = (
+    ("max_contact_pressure", "max λ", "kPa", 1e3),
+    ("contact_extent", "contact", "deg", 1.0),
+    ("max_thrust", "max N", "kN/m", 1e3),
+    ("max_abs_moment", "max |M|", "kN·m/m", 1e3),
+    ("max_utilization", "max η", "≤ 1", 1.0),
+    ("crown_settlement", "lining crown", "mm", 1e-3),
+    ("ground_crown_settlement", "ground crown", "mm", 1e-3),
+    ("max_surface_settlement", "surface", "mm", 1e-3),
+    ("volume_loss", "vol. loss", "%", 1e-2),
 )
 
 
@@ -166,15 +172,48 @@ def show_command(case_id: str, results: str, *, out: TextIO = sys.stdout) -> int
     print(f"case {case_id}", file=out)
     print("\n".join(f"  {k} = {v}" for k, v in params.items()), file=out)
     print(format_summary(summarize(ds)), file=out)
+    if "utilization" in ds:
+        print(utilization_report(ds), file=out)
+    warnings = ds.attrs.get("warnings", "[]")
+    for warning in json.loads(warnings) if isinstance(warnings, str) else list(warnings):
+        print(f"warning: {warning}", file=out)
     for name in PLOTS:
         print(f"wrote {render_plot(store, case_id, name, ds)}", file=out)
     return 0
 
 
 def format_summary(summary: dict[str, float]) -> str:
-    """The scalars of one case, one per line."""
+    """The scalars of one case, one per line (SI units; non-finite values as ``inf``/``nan``)."""
     width = max((len(k) for k in summary), default=0)
-    return "\n".join(f"  {k:<{width}} = {v:.6g}" for k, v in summary.items())
+    return "\n".join(f"  {k:<{width}} = {_summary_value(v)}" for k, v in summary.items())
+
+
+def _summary_value(value: Any) -> str:
+    try:
+        return f"{float(value):.6g}"
+    except (TypeError, ValueError):
+        return "-"
+
+
+def utilization_report(ds: xr.Dataset) -> str:
+    """Where the lining is most utilized (EN 1992-1-1, SPEC §1.3): η, θ, side, N_Ed and M_Ed there."""
+    from .case_plots import load_factor, station_name
+
+    eta = ds["utilization"].values
+    if np.isnan(eta).all():
+        return "max utilization: not computed"
+    k = int(np.nanargmax(eta))
+    gamma = load_factor(ds)
+    theta = float(ds["theta"].values[k])
+    n_ed, m_ed = gamma * float(ds["thrust"].values[k]), gamma * float(ds["moment"].values[k])
+    worst = float(eta[k])
+    verdict = "passes" if worst <= 1 else "fails" + (" at any load level" if math.isinf(worst) else "")
+    fibre = "inner fibre compressed" if m_ed > 0 else "outer fibre compressed"
+    failing = int(np.count_nonzero(eta > 1))
+    return (f"max utilization η = {worst:.3g} ({verdict}; EN 1992-1-1, γF = {gamma:g})\n"
+            f"  at θ = {theta:.1f}° ({station_name(theta)} side): N_Ed = {n_ed / 1e3:.1f} kN/m, "
+            f"M_Ed = {m_ed / 1e3:.1f} kN·m/m ({fibre})\n"
+            f"  stations with η > 1: {failing} of {eta.size}")
 
 
 def case_row(results: StoreLike, case_id: str) -> dict[str, Any]:
@@ -191,27 +230,44 @@ def case_row(results: StoreLike, case_id: str) -> dict[str, Any]:
 
 
 def comparison_table(rows: Iterable[dict[str, Any]]) -> str:
-    """Plain-text table: case id, the parameters that vary, the key results.
+    """Plain-text table: case id, the parameters that vary, the key results (two header lines:
+    names, then units).
 
-    ``rows`` are :func:`case_row` dicts; failed cases show their status instead of numbers.
+    ``rows`` are :func:`case_row` dicts; failed cases show their status instead of numbers;
+    a missing or NaN value shows ``-``, an infinite one ``inf``.
     """
     rows = list(rows)
     varied = varying_parameters([r["params"] for r in rows if r["params"]])
-    header = ["case_id", *varied, *(h for _, h, _ in TABLE_COLUMNS)]
+    header = ["case_id", *varied, *(h for _, h, _, _ in TABLE_COLUMNS)]
+    units = ["", *([""] * len(varied)), *(u for _, _, u, _ in TABLE_COLUMNS)]
     lines = []
     for r in rows:
         cells = [r["case_id"], *(_fmt(r["params"].get(n, "")) for n in varied)]
         if r["status"] == "done":
-            cells += [_fmt(r["summary"][k] / scale) for k, _, scale in TABLE_COLUMNS]
+            cells += [_scaled(r["summary"].get(k), scale) for k, _, _, scale in TABLE_COLUMNS]
         else:
             cells += [r["status"]] + [""] * (len(TABLE_COLUMNS) - 1)
         lines.append(cells)
-    widths = [max(len(str(c)) for c in col) for col in zip(header, *lines)]
+    widths = [max(len(str(c)) for c in col) for col in zip(header, units, *lines)]
     fmt = "  ".join(f"{{:>{w}}}" for w in widths)
-    text = [fmt.format(*header), fmt.format(*("-" * w for w in widths))]
+    text = [fmt.format(*header), fmt.format(*units).rstrip(), fmt.format(*("-" * w for w in widths))]
     text += [fmt.format(*cells) for cells in lines]
     errors = [f"  {r['case_id']}: {r['error']}" for r in rows if r["error"]]
     return "\n".join(text + (["failures:"] + errors if errors else []))
+
+
+def _scaled(value: Any, scale: float) -> str:
+    """``value / scale`` for the table: ``-`` if missing or NaN, ``inf`` if infinite.
+
+    Values from the REST service arrive as None (JSON has no inf) or as text (``'inf'``).
+    """
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return "-"
+    if math.isnan(number):
+        return "-"
+    return _fmt(number / scale) if math.isfinite(number) else ("inf" if number > 0 else "-inf")
 
 
 def _fmt(value: Any) -> str:

@@ -2,6 +2,8 @@
 
 Every function returns a :class:`matplotlib.figure.Figure` built without pyplot, so
 nothing is kept in a global figure registry; save it with ``fig.savefig(path)``.
+The figures of one case live in :mod:`workflows.case_plots`; this module holds the
+figures of many cases and the registries :data:`PLOTS` and :data:`SWEEP_PLOTS`.
 """
 from __future__ import annotations
 
@@ -10,114 +12,18 @@ from collections.abc import Callable
 
 import numpy as np
 import xarray as xr
-from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.figure import Figure
-from matplotlib.tri import Triangulation
 
-_CONTACT_COLOR = "tab:red"
-
-
-def _contact_spans(ax, ds: xr.Dataset) -> None:
-    """Shade the theta ranges where the interface is in contact."""
-    theta, on = ds["theta"].values, ds["in_contact"].values.astype(bool)
-    labelled = False
-    for run in np.split(np.arange(theta.size), np.flatnonzero(np.diff(on.astype(int))) + 1):
-        if run.size and on[run[0]]:
-            ax.axvspan(theta[run[0]], theta[run[-1]], color=_CONTACT_COLOR, alpha=0.12, lw=0,
-                       label=None if labelled else "in contact")
-            labelled = True
-
-
-def _theta_axis(ax) -> None:
-    ax.set_xlim(0, 180)
-    ax.set_xticks(np.arange(0, 181, 30))
-    ax.set_xlabel("θ (deg from crown)")
-    ax.grid(True, alpha=0.3)
-
-
-def _title(ds: xr.Dataset) -> str:
-    return f"case {ds.attrs.get('case_id', '?')}"
-
-
-def plot_contact_pressure(ds: xr.Dataset) -> Figure:
-    """Contact pressure λ (kPa) and remaining gap (mm) along the interface."""
-    fig = Figure(figsize=(7, 4.5), layout="constrained")
-    ax = fig.add_subplot()
-    _contact_spans(ax, ds)
-    ax.plot(ds["theta"], ds["contact_pressure"] / 1e3, color="k", lw=1.5, label="contact pressure λ")
-    ax.set_ylabel("contact pressure λ (kPa)")
-    _theta_axis(ax)
-    gap_ax = ax.twinx()
-    gap_ax.plot(ds["theta"], ds["gap"] * 1e3, color="tab:blue", lw=1, ls="--", label="gap g0 − [u]ν")
-    gap_ax.set_ylabel("gap (mm)", color="tab:blue")
-    lines = ax.get_legend_handles_labels()
-    gap_lines = gap_ax.get_legend_handles_labels()
-    ax.legend(lines[0] + gap_lines[0], lines[1] + gap_lines[1], loc="upper right", fontsize="small")
-    ax.set_title(f"Contact pressure, {_title(ds)}: max {float(ds['max_contact_pressure']) / 1e3:.4g} kPa, "
-                 f"extent {float(ds['contact_extent']):.4g}°", fontsize="medium")
-    return fig
-
-
-def plot_lining_forces(ds: xr.Dataset) -> Figure:
-    """Thrust (kN/m, compression positive) and bending moment (kN·m/m) along the lining."""
-    fig = Figure(figsize=(7, 6), layout="constrained")
-    ax_n, ax_m = fig.subplots(2, 1, sharex=True)
-    for ax, name, scale, label in ((ax_n, "thrust", 1e3, "thrust N (kN/m)"),
-                                   (ax_m, "moment", 1e3, "moment M (kN·m/m),\n+ = inner fibre compressed")):
-        _contact_spans(ax, ds)
-        ax.plot(ds["theta"], ds[name] / scale, color="k", lw=1.5)
-        ax.axhline(0.0, color="0.5", lw=0.8)
-        ax.set_ylabel(label)
-        _theta_axis(ax)
-    ax_n.set_xlabel("")
-    ax_n.set_title(f"Lining forces, {_title(ds)}", fontsize="medium")
-    return fig
-
-
-def plot_deformed_mesh(ds: xr.Dataset, *, scale: float | None = None) -> Figure:
-    """The mesh near the tunnel, deformed by scaled displacements, contact zone marked.
-
-    Parameters
-    ----------
-    ds : a case result.
-    scale : displacement magnification; default makes the largest displacement near
-        the tunnel 8 % of the lining outer radius.
-    """
-    x, y = ds["node_x"].values, ds["node_y"].values
-    ux, uy = ds["displacement_x"].values, ds["displacement_y"].values
-    tri = ds["face_nodes"].values.astype(np.int64)
-    body = ds["body"].values
-    lining_nodes = ds["lining_node"].values.astype(np.int64)
-    cx = 0.0
-    cy = float(np.mean(ds["interface_y"].values[[0, -1]]))
-    radius = float(np.max(np.hypot(ds["interface_x"].values - cx, ds["interface_y"].values - cy)))
-    view = 2.2 * radius
-    near = np.hypot(x - cx, y - cy) < view
-    umax = float(np.max(np.hypot(ux[near], uy[near]))) if near.any() else 0.0
-    if scale is None:
-        scale = 0.08 * radius / umax if umax > 0 else 1.0
-    xd, yd = x + scale * ux, y + scale * uy
-
-    fig = Figure(figsize=(6, 7), layout="constrained")
-    ax = fig.add_subplot()
-    ax.triplot(Triangulation(x, y, tri), color="0.85", lw=0.3)
-    ax.triplot(Triangulation(xd, yd, tri[body == 0]), color="tab:brown", lw=0.3, alpha=0.6)
-    lining = tri[body == 1]
-    ax.add_collection(PolyCollection(np.stack([xd[lining], yd[lining]], axis=-1), facecolors="0.75",
-                                     edgecolors="0.35", linewidths=0.3, label="lining"))
-    on = ds["in_contact"].values.astype(bool)
-    pts = np.column_stack([xd[lining_nodes], yd[lining_nodes]])
-    segs = [pts[i:i + 2] for i in range(len(pts) - 1) if on[i] and on[i + 1]]
-    ax.add_collection(LineCollection(segs, colors=_CONTACT_COLOR, linewidths=3, label="in contact"))
-    ax.plot(pts[on, 0], pts[on, 1], "o", color=_CONTACT_COLOR, ms=2)
-    ax.set_xlim(cx - 0.05 * view, cx + view)
-    ax.set_ylim(cy - view, cy + view)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    ax.legend(loc="upper right", fontsize="small")
-    ax.set_title(f"Deformed mesh ×{scale:.3g} (grey: undeformed), {_title(ds)}", fontsize="medium")
-    return fig
+from .case_plots import (
+    draw_envelope,
+    load_factor,
+    plot_contact_pressure,
+    plot_deformed_mesh,
+    plot_lining_forces,
+    plot_surface_settlement,
+    theta_axis,
+)
+from .case_plots import plot_interaction as plot_case_interaction
 
 
 def plot_comparison(combined: xr.Dataset, variable: str = "contact_pressure") -> Figure:
@@ -134,7 +40,7 @@ def plot_comparison(combined: xr.Dataset, variable: str = "contact_pressure") ->
         ax.plot(combined["theta"], da.isel(case=i), lw=1.3,
                 label=label or str(combined["case_id"].values[i]))
     ax.set_ylabel(f"{da.attrs.get('long_name', variable)} ({da.attrs.get('units', '')})")
-    _theta_axis(ax)
+    theta_axis(ax)
     ax.legend(fontsize="small")
     ax.set_title(f"{variable}: {combined.sizes['case']} cases", fontsize="medium")
     return fig
@@ -144,6 +50,8 @@ def plot_comparison(combined: xr.Dataset, variable: str = "contact_pressure") ->
 PLOTS: dict[str, Callable[[xr.Dataset], Figure]] = {
     "contact_pressure": plot_contact_pressure,
     "lining_forces": plot_lining_forces,
+    "interaction": plot_case_interaction,
+    "surface_settlement": plot_surface_settlement,
     "deformed_mesh": plot_deformed_mesh,
 }
 
@@ -199,7 +107,7 @@ def plot_contact_pressure_comparison(combined: xr.Dataset) -> Figure:
         ax.plot(combined["theta"], combined["contact_pressure"].isel(case=i) / 1e3, lw=1.2, color=colors[i],
                 label=labels[i])
     ax.set_ylabel("contact pressure λ (kPa)")
-    _theta_axis(ax)
+    theta_axis(ax)
     if combined.sizes["case"] <= _LEGEND_CASES:
         ax.legend(fontsize="x-small")
     ax.set_title(f"Contact pressure: {combined.sizes['case']} cases", fontsize="medium")
@@ -217,7 +125,7 @@ def plot_lining_forces_comparison(combined: xr.Dataset) -> Figure:
             ax.plot(combined["theta"], combined[name].isel(case=i) / 1e3, lw=1.2, color=colors[i], label=labels[i])
         ax.axhline(0.0, color="0.5", lw=0.8)
         ax.set_ylabel(label)
-        _theta_axis(ax)
+        theta_axis(ax)
     ax_n.set_xlabel("")
     if combined.sizes["case"] <= _LEGEND_CASES:
         ax_n.legend(fontsize="x-small")
@@ -225,42 +133,58 @@ def plot_lining_forces_comparison(combined: xr.Dataset) -> Figure:
     return fig
 
 
-def plot_interaction(cases: list[xr.Dataset], labels: list[str] | None = None) -> Figure:
-    """N–M diagram of a set of cases: each case's thrust and moment at every station.
+def plot_interaction(cases: list[xr.Dataset], labels: list[str] | None = None, *,
+                     combined: xr.Dataset | None = None) -> Figure:
+    """N–M diagram of a set of cases and, given ``combined``, max utilization against each parameter.
 
     Where a case carries its design envelope (``capacity_thrust``, ``capacity_moment``
     on ``envelope``, SPEC §1.3), the envelope is drawn and the stations are the design
     actions (γF·N, γF·M, with γF = ``design.load_factor`` of the case); otherwise the
-    stations are the computed (N, M).
+    stations are the computed (N, M). With ``combined`` results holding ``max_utilization``
+    and varied parameters, one panel per parameter shows ``max_utilization`` against it
+    (cases sharing the other parameters joined), with the limit η = 1: the table a
+    reader uses to pick the thinnest section that passes.
     """
-    import json
-
-    fig = Figure(figsize=(7, 6), layout="constrained")
-    ax = fig.add_subplot()
+    params = case_parameters(combined) if combined is not None and "max_utilization" in combined else []
+    fig = Figure(figsize=(7 + 4 * bool(params), 6), layout="constrained")
+    if params:
+        grid = fig.add_gridspec(len(params), 2, width_ratios=(7, 4))
+        ax = fig.add_subplot(grid[:, 0])
+        for row, param in enumerate(params):
+            panel = fig.add_subplot(grid[row, 1])
+            _scalar_panel(panel, combined, "max_utilization", param, legend=True)
+            panel.axhline(1.0, color="tab:red", lw=1.0, ls="--")
+            panel.set_ylabel("max utilization η (≤ 1 passes)", fontsize="small")
+    else:
+        ax = fig.add_subplot()
     labels = labels or [str(ds.attrs.get("case_id", i)) for i, ds in enumerate(cases)]
     colors = _case_colors(len(cases))
     with_envelope = [all(v in ds for v in ("capacity_thrust", "capacity_moment")) for ds in cases]
     worst = None
+    drawn: list[np.ndarray] = []
     for ds, label, color, design in zip(cases, labels, colors, with_envelope):
         factor = 1.0
         if design:
-            factor = float(json.loads(ds.attrs.get("case_spec", "{}")).get("design", {}).get("load_factor", 1.0))
-            n_env, m_env = ds["capacity_thrust"].values / 1e3, ds["capacity_moment"].values / 1e3
-            ax.plot(np.append(m_env, m_env[:1]), np.append(n_env, n_env[:1]), color=color, lw=1.0)
+            factor = load_factor(ds)
+            envelope = ds["capacity_thrust"].values
+            if not any(e.shape == envelope.shape and np.array_equal(e, envelope) for e in drawn):
+                drawn.append(envelope)  # cases sharing a section share one envelope
+                draw_envelope(ax, ds, color=color, label=None)
+                _label_section(ax, ds, color)
         ax.plot(factor * ds["moment"].values / 1e3, factor * ds["thrust"].values / 1e3, "o", ms=2.5,
                 color=color, label=label)
-        if "utilization" in ds:
+        if "utilization" in ds and not np.isnan(ds["utilization"].values).all():
             eta = float(np.nanmax(ds["utilization"].values))
             worst = eta if worst is None else max(worst, eta)
     ax.axhline(0.0, color="0.5", lw=0.8)
     ax.axvline(0.0, color="0.5", lw=0.8)
     ax.grid(True, alpha=0.3)
     if any(with_envelope):
-        ax.set_xlabel("design moment M_Ed (kN·m/m)")
-        ax.set_ylabel("design thrust N_Ed (kN/m, compression +)")
+        ax.set_xlabel("design moment M_Ed (kN·m/m), + = inner fibre compressed")
+        ax.set_ylabel("design thrust N_Ed (kN/m), compression up")
         title = "N–M interaction: design envelopes (lines) and actions at every station (dots)"
         if worst is not None:
-            title += f"\nlargest utilization η = {worst:.3g}" + (" (fails)" if worst > 1 else "")
+            title += f"\nlargest utilization η = {worst:.3g}" + (" (fails)" if worst > 1 else " (passes)")
     else:
         ax.set_xlabel("moment M (kN·m/m)")
         ax.set_ylabel("thrust N (kN/m, compression +)")
@@ -269,6 +193,21 @@ def plot_interaction(cases: list[xr.Dataset], labels: list[str] | None = None) -
         ax.legend(fontsize="x-small", markerscale=2)
     ax.set_title(title, fontsize="medium")
     return fig
+
+
+def _label_section(ax, ds: xr.Dataset, color) -> None:
+    """Name the section (thickness, reinforcement) at the top of its envelope."""
+    import json
+
+    spec = json.loads(ds.attrs.get("case_spec", "{}"))
+    if "thickness" not in spec.get("geometry", {}):
+        return
+    area = spec.get("design", {}).get("reinforcement_area", 0.0)
+    text = f"h = {spec['geometry']['thickness']:g} m" + (f", As = {area * 1e4:g} cm²/m" if area > 0 else ", plain")
+    k = int(np.argmax(ds["capacity_thrust"].values))
+    ax.annotate(text, (ds["capacity_moment"].values[k] / 1e3, ds["capacity_thrust"].values[k] / 1e3),
+                xytext=(0, 2), textcoords="offset points", ha="center", va="bottom", fontsize="x-small",
+                color=color)
 
 
 def _format_value(value) -> str:
@@ -281,6 +220,37 @@ def _parameter_axis(values: np.ndarray) -> tuple[np.ndarray, list[str] | None]:
         return values.astype(float), None
     categories = list(dict.fromkeys(values.tolist()))
     return np.array([categories.index(v) for v in values.tolist()], dtype=float), categories
+
+
+def _scalar_panel(ax, combined: xr.Dataset, scalar: str, param: str, *, legend: bool) -> None:
+    """``scalar`` against ``param``; cases sharing the other varied parameters joined by a line."""
+    params = case_parameters(combined)
+    unit, factor = display_unit(combined[scalar].attrs.get("units", ""))
+    y = combined[scalar].values.astype(float) * factor
+    x, categories = _parameter_axis(combined[param].values)
+    others = [p for p in params if p != param]
+    groups: dict[tuple, list[int]] = {}
+    for i in range(combined.sizes["case"]):
+        groups.setdefault(tuple(_format_value(combined[o].values[i]) for o in others), []).append(i)
+    colors = _case_colors(len(groups))
+    for color, (key, members) in zip(colors, groups.items()):
+        members = sorted(members, key=lambda i: x[i])
+        ax.plot(x[members], y[members], "o-", ms=3, lw=1, color=color,
+                label=", ".join(f"{o}={v}" for o, v in zip(others, key)))
+    if legend and others and len(groups) <= 6:
+        ax.legend(fontsize="xx-small")
+    if categories is not None:
+        ax.set_xticks(range(len(categories)), categories, fontsize="x-small")
+    else:
+        if np.all(x > 0) and x.max() > 5 * x.min():  # e.g. ground stiffness: a factor per step
+            ax.set_xscale("log")
+            ax.minorticks_off()
+        if np.unique(x).size <= 8:  # the values swept, not matplotlib's round numbers
+            ax.set_xticks(np.unique(x), [f"{v:.3g}" for v in np.unique(x)], fontsize="x-small")
+    ax.set_xlabel(param, fontsize="small")
+    ax.set_ylabel(f"{scalar}" + (f" ({unit})" if unit else ""), fontsize="small")
+    ax.tick_params(labelsize="x-small")
+    ax.grid(True, alpha=0.3)
 
 
 def plot_scalars(combined: xr.Dataset, scalars: list[str] | None = None) -> Figure:
@@ -318,26 +288,7 @@ def plot_scalars(combined: xr.Dataset, scalars: list[str] | None = None) -> Figu
     for ax in axes[len(panels):]:
         ax.set_visible(False)
     for k, (ax, (scalar, param)) in enumerate(zip(axes, panels)):
-        unit, factor = display_unit(combined[scalar].attrs.get("units", ""))
-        y = combined[scalar].values.astype(float) * factor
-        x, categories = _parameter_axis(combined[param].values)
-        others = [p for p in params if p != param]
-        groups: dict[tuple, list[int]] = {}
-        for i in range(combined.sizes["case"]):
-            groups.setdefault(tuple(_format_value(combined[o].values[i]) for o in others), []).append(i)
-        colors = _case_colors(len(groups))
-        for color, (key, members) in zip(colors, groups.items()):
-            members = sorted(members, key=lambda i: x[i])
-            ax.plot(x[members], y[members], "o-", ms=3, lw=1, color=color,
-                    label=", ".join(f"{o}={v}" for o, v in zip(others, key)))
-        if k < ncols and others and len(groups) <= 6:
-            ax.legend(fontsize="xx-small")
-        if categories is not None:
-            ax.set_xticks(range(len(categories)), categories, fontsize="x-small")
-        ax.set_xlabel(param, fontsize="small")
-        ax.set_ylabel(f"{scalar}" + (f" ({unit})" if unit else ""), fontsize="small")
-        ax.tick_params(labelsize="x-small")
-        ax.grid(True, alpha=0.3)
+        _scalar_panel(ax, combined, scalar, param, legend=k < ncols)
     title = f"Summary scalars against the varied parameters: {combined.sizes['case']} cases"
     if constant:
         shown = ", ".join(f"{s} = {float(combined[s].values[0]):.4g}" for s in constant)

@@ -53,8 +53,9 @@ def test_interaction_draws_every_station_and_the_envelopes_when_present(envelope
         ds.attrs["case_spec"] = json.dumps({"design": {"load_factor": 1.5}})
         if envelope:
             angle = np.linspace(0, 2 * np.pi, 50, endpoint=False)
-            ds["capacity_thrust"] = ("envelope", 2e6 * (1 + np.sin(angle)))
-            ds["capacity_moment"] = ("envelope", 2e5 * np.cos(angle))
+            # one section per case (cases sharing a section share one drawn envelope)
+            ds["capacity_thrust"] = ("envelope", 2e6 * (1 + 0.1 * i) * (1 + np.sin(angle)))
+            ds["capacity_moment"] = ("envelope", 2e5 * (1 + 0.1 * i) * np.cos(angle))
             ds["utilization"] = ("theta", np.full(THETA.size, 0.4 + 0.1 * i))
         cases.append(ds)
     ax = plot_interaction(cases).axes[0]

@@ -1,0 +1,321 @@
+"""Figures of one case result (matplotlib, no pyplot: nothing kept in a global registry).
+
+Units shown: kPa (tractions), kN/m (thrust, shear force), kN·m/m (moment), mm
+(settlements and gaps), θ in degrees from the crown (0) through the springline (90)
+to the invert (180). Each function returns a :class:`matplotlib.figure.Figure`.
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import xarray as xr
+from matplotlib.collections import LineCollection, PolyCollection
+from matplotlib.figure import Figure
+from matplotlib.tri import Triangulation
+
+_CONTACT_COLOR = "tab:red"
+_SLIP_COLOR = "tab:orange"
+#: Lining stations named on the figures (θ in degrees).
+STATIONS = {"crown": 0.0, "springline": 90.0, "invert": 180.0}
+
+
+def _spans(ax, theta: np.ndarray, on: np.ndarray, *, color: str, label: str, alpha: float = 0.12,
+           hatch: str | None = None) -> None:
+    """Shade the theta ranges where ``on`` holds (one legend entry)."""
+    labelled = False
+    for run in np.split(np.arange(theta.size), np.flatnonzero(np.diff(on.astype(int))) + 1):
+        if run.size and on[run[0]]:
+            ax.axvspan(theta[run[0]], theta[run[-1]], color=color, alpha=alpha, lw=0, hatch=hatch,
+                       label=None if labelled else label)
+            labelled = True
+
+
+def _contact_spans(ax, ds: xr.Dataset) -> None:
+    """Shade the theta ranges where the interface is in contact."""
+    _spans(ax, ds["theta"].values, ds["in_contact"].values.astype(bool), color=_CONTACT_COLOR, label="in contact")
+
+
+def theta_axis(ax) -> None:
+    ax.set_xlim(0, 180)
+    ax.set_xticks(np.arange(0, 181, 30))
+    ax.set_xlabel("θ (deg from crown; 90 springline, 180 invert)")
+    ax.grid(True, alpha=0.3)
+
+
+def _title(ds: xr.Dataset) -> str:
+    return f"case {ds.attrs.get('case_id', '?')}"
+
+
+def case_spec(ds: xr.Dataset) -> dict:
+    """The case specification stored with a result (``{}`` if absent)."""
+    return json.loads(ds.attrs.get("case_spec", "{}"))
+
+
+def load_factor(ds: xr.Dataset) -> float:
+    """γF of the case (``design.load_factor``), 1 if the result has none."""
+    return float(case_spec(ds).get("design", {}).get("load_factor", 1.0))
+
+
+def station_name(theta: float) -> str:
+    """The named station nearest ``theta`` (deg): crown, springline or invert."""
+    return min(STATIONS, key=lambda name: abs(STATIONS[name] - theta))
+
+
+def plot_contact_pressure(ds: xr.Dataset) -> Figure:
+    """Contact pressure λ and gap (top), shear traction s (bottom) along the interface (kPa, mm).
+
+    Contact zones are shaded in both panels, slipping zones (Coulomb) hatched in the
+    shear panel; for ``coulomb`` the cone ±μλ is drawn dashed.
+    """
+    theta = ds["theta"].values
+    model = ds.attrs.get("interface_model", case_spec(ds).get("interface", {}).get("model", "?"))
+    fig = Figure(figsize=(7.5, 6.5), layout="constrained")
+    ax, ax_s = fig.subplots(2, 1, sharex=True, height_ratios=(3, 2))
+    _contact_spans(ax, ds)
+    ax.plot(theta, ds["contact_pressure"] / 1e3, color="k", lw=1.5, label="contact pressure λ")
+    ax.set_ylabel("contact pressure λ (kPa)")
+    ax.set_ylim(bottom=0.0, top=1.15 * max(float(np.nanmax(ds["contact_pressure"].values)) / 1e3, 1e-3))
+    theta_axis(ax)
+    ax.set_xlabel("")
+    gap_ax = ax.twinx()
+    gap_ax.plot(theta, ds["gap"] * 1e3, color="tab:blue", lw=1, ls="--", label="gap g0 − [u]ν")
+    gap_ax.set_ylabel("gap (mm)", color="tab:blue")
+    gap_ax.set_ylim(bottom=0.0, top=max(1.0, 1.1 * float(np.nanmax(ds["gap"].values)) * 1e3))
+    lines, gap_lines = ax.get_legend_handles_labels(), gap_ax.get_legend_handles_labels()
+    ax.legend(lines[0] + gap_lines[0], lines[1] + gap_lines[1], loc="lower right", fontsize="small")
+
+    _contact_spans(ax_s, ds)
+    if "slipping" in ds and model == "coulomb":  # frictionless slips everywhere, bonded nowhere
+        slipping = ds["slipping"].values.astype(bool) & ds["in_contact"].values.astype(bool)
+        _spans(ax_s, theta, slipping, color=_SLIP_COLOR, label="slipping", alpha=0.3, hatch="//")
+    shear = ds["shear_traction"].values / 1e3 if "shear_traction" in ds else np.zeros_like(theta)
+    ax_s.plot(theta, shear, color="tab:purple", lw=1.5, label="shear traction s (on lining, + towards θ↑)")
+    friction = float(case_spec(ds).get("interface", {}).get("friction", 0.0))
+    if model == "coulomb" and friction > 0:
+        cone = friction * ds["contact_pressure"].values / 1e3
+        ax_s.plot(theta, cone, color="0.4", lw=0.8, ls="--", label=f"Coulomb bound ±μλ, μ = {friction:g}")
+        ax_s.plot(theta, -cone, color="0.4", lw=0.8, ls="--")
+    ax_s.axhline(0.0, color="0.5", lw=0.8)
+    if model == "frictionless":
+        ax_s.text(0.5, 0.5, "frictionless interface: no shear traction", transform=ax_s.transAxes,
+                  ha="center", va="center", color="0.4", fontsize="small")
+    ax_s.set_ylabel("shear traction s (kPa)")
+    reach = max(float(np.max(np.abs(shear))), 1.0)
+    if model == "coulomb" and friction > 0:
+        reach = max(reach, float(np.max(cone)))
+    ax_s.set_ylim(-1.1 * reach, 1.9 * reach)  # room for the legend above the curves
+    theta_axis(ax_s)
+    ax_s.legend(loc="upper center", ncols=2, fontsize="x-small")
+    ax.set_title(f"Interface tractions ({model}), {_title(ds)}: max λ "
+                 f"{float(ds['max_contact_pressure']) / 1e3:.4g} kPa, contact over "
+                 f"{float(ds['contact_extent']):.4g}°", fontsize="medium")
+    return fig
+
+
+def _mid_radius(ds: xr.Dataset) -> float:
+    """Mid-surface radius of the lining (m)."""
+    geometry = case_spec(ds).get("geometry", {})
+    if "inner_radius" in geometry and "thickness" in geometry:
+        return geometry["inner_radius"] + 0.5 * geometry["thickness"]
+    cy = float(np.mean(ds["interface_y"].values[[0, -1]]))
+    return float(np.max(np.hypot(ds["interface_x"].values, ds["interface_y"].values - cy)))
+
+
+def _force_diagram(ax, theta_deg: np.ndarray, values: np.ndarray, radius: float, *, symbol: str, unit: str,
+                   title: str, outward: str) -> None:
+    """``values`` drawn as offsets from the half ring, scaled so the largest is 0.35 radius."""
+    theta = np.radians(theta_deg)
+    nx, ny = np.sin(theta), np.cos(theta)
+    peak = float(np.max(np.abs(values))) if values.size else 0.0
+    values = np.where(np.abs(values) < 1e-6 * peak, 0.0, values)  # round-off at the symmetry axis
+    scale = 0.35 * radius / peak if peak > 0 else 0.0
+    ring = np.column_stack([radius * nx, radius * ny])
+    ax.plot(ring[:, 0], ring[:, 1], color="0.3", lw=2.0, solid_capstyle="butt")
+    for part, color in ((np.maximum(values, 0.0), "tab:blue"), (np.minimum(values, 0.0), "tab:red")):
+        curve = ring + (scale * part)[:, None] * np.column_stack([nx, ny])
+        ax.fill(np.concatenate([ring[:, 0], curve[::-1, 0]]), np.concatenate([ring[:, 1], curve[::-1, 1]]),
+                color=color, alpha=0.3, lw=0)
+    curve = ring + (scale * values)[:, None] * np.column_stack([nx, ny])
+    ax.plot(curve[:, 0], curve[:, 1], color="k", lw=1.2, gid="forces")
+    ax.axvline(0.0, color="0.6", lw=0.8, ls="-.")
+    for name, where in STATIONS.items():
+        i = int(np.argmin(np.abs(theta_deg - where)))
+        tip = radius + max(scale * values[i], 0.0) + 0.06 * radius
+        x, y = tip * nx[i], tip * ny[i]
+        align = {"crown": ("left", "bottom"), "springline": ("left", "center"), "invert": ("left", "top")}[name]
+        ax.annotate(f"{name}\n{values[i]:.1f} {unit}", (x, y), ha=align[0], va=align[1], fontsize="small",
+                    xytext=(3 if name != "springline" else 0, 0), textcoords="offset points")
+    k = int(np.argmax(np.abs(values)))
+    ax.plot(*curve[k], "o", color="k", ms=4)
+    ax.set_title(f"{title}\nlargest |{symbol}| = {abs(values[k]):.1f} {unit} at θ = {theta_deg[k]:.0f}° (dot)\n"
+                 f"blue +, red −; {outward}", fontsize="small")
+    reach = 1.75 * radius  # the offsets (0.35 radius) and the station labels beyond them
+    ax.set_xlim(-0.15 * radius, 1.9 * radius)
+    ax.set_ylim(-reach, reach)
+    ax.set_aspect("equal")
+    ax.set_axis_off()
+
+
+def plot_lining_forces(ds: xr.Dataset) -> Figure:
+    """Thrust, moment and shear drawn around the half ring (the PLAXIS / RS2 picture).
+
+    Each quantity is an offset from the lining's mid-surface, scaled so its largest
+    magnitude is 35 % of the radius and filled between ring and curve (blue positive,
+    red negative), with its value at crown, springline and invert.
+    """
+    radius = _mid_radius(ds)
+    theta = ds["theta"].values
+    fig = Figure(figsize=(12, 5.4), layout="constrained")
+    axes = fig.subplots(1, 3)
+    panels = (("thrust", "N", "thrust N (kN/m), compression +", "kN/m", "+ drawn outward"),
+              ("moment", "M", "bending moment M (kN·m/m), + inner fibre compressed", "kN·m/m",
+               "drawn on the tension side"),
+              ("shear", "V", "shear force V (kN/m)", "kN/m", "+ drawn outward"))
+    for ax, (name, symbol, title, unit, outward) in zip(axes, panels):
+        _force_diagram(ax, theta, ds[name].values / 1e3, radius, symbol=symbol, unit=unit, title=title,
+                       outward=outward)
+    fig.suptitle(f"Lining forces, {_title(ds)} (half ring, symmetry axis dash-dotted; "
+                 f"mid-surface radius {radius:.3g} m)", fontsize="medium")
+    return fig
+
+
+def draw_envelope(ax, ds: xr.Dataset, *, color="k", label: str | None = "design envelope N_Rd–M_Rd",
+                  fill: bool = False) -> None:
+    """The closed design N–M envelope of ``ds`` (kN/m up, kN·m/m across)."""
+    n_env, m_env = ds["capacity_thrust"].values / 1e3, ds["capacity_moment"].values / 1e3
+    ax.plot(np.append(m_env, m_env[:1]), np.append(n_env, n_env[:1]), color=color, lw=1.2, label=label)
+    if fill:
+        ax.fill(m_env, n_env, color=color, alpha=0.06, lw=0)
+
+
+def _interaction_axes(ax) -> None:
+    ax.axhline(0.0, color="0.5", lw=0.8)
+    ax.axvline(0.0, color="0.5", lw=0.8)
+    ax.grid(True, alpha=0.3)
+    ax.set_xlabel("design moment M_Ed (kN·m/m), + = inner fibre compressed")
+    ax.set_ylabel("design thrust N_Ed (kN/m), compression up")
+
+
+def plot_interaction(ds: xr.Dataset) -> Figure:
+    """The N–M diagram of one case: design envelope and the design actions at every station.
+
+    Stations are (γF·M, γF·N), coloured by θ; the most utilized one is starred with
+    the ray from the origin to the envelope that defines its utilization (SPEC §1.3).
+    """
+    gamma = load_factor(ds)
+    theta = ds["theta"].values
+    n_ed, m_ed = gamma * ds["thrust"].values / 1e3, gamma * ds["moment"].values / 1e3
+    fig = Figure(figsize=(7.5, 6.5), layout="constrained")
+    ax = fig.add_subplot()
+    draw_envelope(ax, ds, fill=True)
+    points = ax.scatter(m_ed, n_ed, c=theta, cmap="viridis", vmin=0, vmax=180, s=12, zorder=3,
+                        label=f"stations (γF = {gamma:g})")
+    bar = fig.colorbar(points, ax=ax, ticks=np.arange(0, 181, 30))
+    bar.set_label("θ of the station (deg from crown)")
+    eta = ds["utilization"].values
+    spec = case_spec(ds)
+    title = f"N–M interaction (EN 1992-1-1), {_title(ds)}"
+    failing = eta > 1.0
+    if failing.any():
+        ax.scatter(m_ed[failing], n_ed[failing], s=40, facecolors="none", edgecolors="tab:red", lw=0.8, zorder=3,
+                   label=f"η > 1 ({int(failing.sum())} of {eta.size} stations)")
+    if not np.isnan(eta).all():
+        k = int(np.nanargmax(eta))
+        worst = float(eta[k])
+        ax.plot(m_ed[k], n_ed[k], "*", color="tab:red", ms=14, mec="k", zorder=4,
+                label=f"max η at θ = {theta[k]:.0f}° ({station_name(theta[k])}): "
+                      f"N_Ed = {n_ed[k]:.0f} kN/m, M_Ed = {m_ed[k]:.0f} kN·m/m")
+        if np.isfinite(worst) and worst > 0:
+            ax.plot([0, m_ed[k] / worst], [0, n_ed[k] / worst], color="tab:red", lw=0.8, ls="--",
+                    label="ray O→S→E: η = |OS| / |OE| (E on the envelope)")
+        if np.isinf(worst):
+            title += "\nmax utilization η = inf: fails at any load level (tension, or |M|/N ≥ h/2 in plain concrete)"
+        else:
+            title += f"\nmax utilization η = {worst:.3g} ({'passes' if worst <= 1 else 'fails'})"
+    design = spec.get("design", {})
+    geometry = spec.get("geometry", {})
+    if design:
+        area = design.get("reinforcement_area", 0.0)
+        section = (f"h = {geometry.get('thickness', float('nan')):g} m, fck = {design['concrete_strength'] / 1e6:g} MPa, "
+                   + (f"As = {area * 1e4:g} cm²/m per face, fyk = {design['steel_strength'] / 1e6:g} MPa"
+                      if area > 0 else "plain concrete (§12)"))
+        ax.text(0.02, 0.02, section, transform=ax.transAxes, va="bottom", fontsize="x-small",
+                bbox={"facecolor": "white", "alpha": 0.8, "lw": 0})
+    _interaction_axes(ax)
+    ax.legend(loc="upper right", fontsize="x-small", framealpha=0.9)
+    ax.set_title(title, fontsize="medium")
+    return fig
+
+
+def plot_surface_settlement(ds: xr.Dataset) -> Figure:
+    """Settlement trough of the ground surface (mm, downward), mirrored about the tunnel axis."""
+    x, s = ds["surface_x"].values, ds["surface_settlement"].values * 1e3
+    fig = Figure(figsize=(7.5, 4), layout="constrained")
+    ax = fig.add_subplot()
+    ax.plot(x, s, color="k", lw=1.5, marker="o", ms=2.5, label="computed (half model)")
+    ax.plot(-x, s, color="k", lw=1.0, ls="--", label="mirror image")
+    ax.fill_between(np.concatenate([-x[::-1], x]), np.concatenate([s[::-1], s]), color="tab:brown", alpha=0.15)
+    ax.axhline(0.0, color="0.5", lw=0.8)
+    ax.axvline(0.0, color="0.6", lw=0.8, ls="-.")
+    ax.invert_yaxis()
+    ax.set_xlabel("x, distance from the tunnel axis (m)")
+    ax.set_ylabel("surface settlement (mm, downward)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="lower right", fontsize="small")
+    since = "since excavation" if ds.attrs.get("excavation_method", "deconfinement") != "wished-in-place" \
+        else "since the stress-free start"
+    extras = ""
+    if "volume_loss" in ds:
+        extras += f", volume loss {100 * float(ds['volume_loss']):.3g} %"
+    if "ground_crown_settlement" in ds:
+        extras += f", ground at crown {1e3 * float(ds['ground_crown_settlement']):.3g} mm"
+    ax.set_title(f"Surface settlement trough ({since}), {_title(ds)}\nmax {float(np.max(s)):.3g} mm{extras}",
+                 fontsize="medium")
+    return fig
+
+
+def plot_deformed_mesh(ds: xr.Dataset, *, scale: float | None = None) -> Figure:
+    """The mesh near the tunnel, deformed by scaled displacements, contact zone marked.
+
+    Parameters
+    ----------
+    ds : a case result.
+    scale : displacement magnification; default makes the largest displacement near
+        the tunnel 8 % of the lining outer radius.
+    """
+    x, y = ds["node_x"].values, ds["node_y"].values
+    ux, uy = ds["displacement_x"].values, ds["displacement_y"].values
+    tri = ds["face_nodes"].values.astype(np.int64)
+    body = ds["body"].values
+    lining_nodes = ds["lining_node"].values.astype(np.int64)
+    cx = 0.0
+    cy = float(np.mean(ds["interface_y"].values[[0, -1]]))
+    radius = float(np.max(np.hypot(ds["interface_x"].values - cx, ds["interface_y"].values - cy)))
+    view = 2.2 * radius
+    near = np.hypot(x - cx, y - cy) < view
+    umax = float(np.max(np.hypot(ux[near], uy[near]))) if near.any() else 0.0
+    if scale is None:
+        scale = 0.08 * radius / umax if umax > 0 else 1.0
+    xd, yd = x + scale * ux, y + scale * uy
+
+    fig = Figure(figsize=(6, 7), layout="constrained")
+    ax = fig.add_subplot()
+    ax.triplot(Triangulation(x, y, tri), color="0.85", lw=0.3)
+    ax.triplot(Triangulation(xd, yd, tri[body == 0]), color="tab:brown", lw=0.3, alpha=0.6)
+    lining = tri[body == 1]
+    ax.add_collection(PolyCollection(np.stack([xd[lining], yd[lining]], axis=-1), facecolors="0.75",
+                                     edgecolors="0.35", linewidths=0.3, label="lining"))
+    on = ds["in_contact"].values.astype(bool)
+    pts = np.column_stack([xd[lining_nodes], yd[lining_nodes]])
+    segs = [pts[i:i + 2] for i in range(len(pts) - 1) if on[i] and on[i + 1]]
+    ax.add_collection(LineCollection(segs, colors=_CONTACT_COLOR, linewidths=3, label="in contact"))
+    ax.plot(pts[on, 0], pts[on, 1], "o", color=_CONTACT_COLOR, ms=2)
+    ax.set_xlim(cx - 0.05 * view, cx + view)
+    ax.set_ylim(cy - view, cy + view)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.legend(loc="upper right", fontsize="small")
+    ax.set_title(f"Deformed mesh ×{scale:.3g} (grey: undeformed), {_title(ds)}", fontsize="medium")
+    return fig
