@@ -383,3 +383,25 @@ def einstein_schwartz_slip_excavation(P: float, K: float, E: float, nu: float, E
     N0 = 0.5 * (1 + K) * (1 - a0) * P * R
     M2 = -0.5 * (1 - K) * (1 - 2 * a2) * P * R**2
     return M2, N0, M2 / R
+
+
+# ---------------------------------------------------------------------------
+# Reading a result the way the closed forms are written
+# ---------------------------------------------------------------------------
+
+
+def cos2_amplitude(ds, values) -> float:
+    """cos 2θ amplitude (θ from the crown) of interface ``values`` of a result Dataset.
+
+    Projected with the interface quadrature weights (those of the nodal contact
+    forces): the vertex and edge-node values of quadratic elements alternate slightly
+    about the smooth field, which a trapezoid in θ would misread.
+    """
+    w, c = ds.weight.values, np.cos(2 * np.radians(ds.theta.values))
+    return float(np.sum(w * np.asarray(values) * c) / np.sum(w * c * c))
+
+
+def interface_mean(ds, values) -> float:
+    """Mean of interface ``values`` over the half ring, weighted by the interface quadrature."""
+    w = ds.weight.values
+    return float(np.sum(w * np.asarray(values)) / np.sum(w))

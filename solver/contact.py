@@ -225,7 +225,7 @@ def active_set(dual: DualProblem, bolt: int, lam_init: np.ndarray, *, tol: float
     cycle) or ``max_iter`` passes, the bolted dual QP is finished by the
     Lawson-Hanson NNLS active-set method, which terminates finitely.
     """
-    m, w, nu2, S = dual.m, dual.w, dual.nu2, dual.S
+    m, w, S = dual.m, dual.w, dual.S
     L = float(np.max(np.diag(S) * w))  # scale only: c = 1/L makes λ and gap/L commensurate
     c = 1.0 / L
     lam = np.asarray(lam_init, float).copy()

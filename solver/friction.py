@@ -272,7 +272,6 @@ def solve_bolted(fp: FrictionProblem, bolt: int, sets: _Sets, *, tol: float, max
     The set iteration first; on a cycle, Tresca fixed-point steps g = μ max(λ, 0), each
     followed by the set iteration from the Tresca solution's sets.
     """
-    m = fp.m
     SW = fp.S * fp.w[None, :]
     c = 1.0 / float(np.max(np.diag(fp.S) * fp.w))
     t, sets, steps, status = _active_set(fp, SW, c, bolt, sets, tol=tol, max_iter=max_iter)

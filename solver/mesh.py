@@ -22,7 +22,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .sizing import check_mesh_size, interface_segments, lining_layers, size_field_distances
+from .sizing import (
+    check_mesh_size,
+    interface_segments,
+    lining_layers,
+    size_field_distances,
+)
 from .spec import CaseSpec
 
 # gmsh keeps global state: one meshing at a time per process.

@@ -30,10 +30,26 @@ import numpy as np
 import scipy.linalg as la
 
 from . import friction
-from .assembly import (Basis, assemble_body, point_basis, gravity_load, ground_constraints, initial_stress_forces,
-                       lining_constraints, side_pressure_load, surface_load, vector_basis)
+from .assembly import (
+    Basis,
+    assemble_body,
+    gravity_load,
+    ground_constraints,
+    initial_stress_forces,
+    lining_constraints,
+    point_basis,
+    side_pressure_load,
+    surface_load,
+    vector_basis,
+)
 from .contact import BoltTrial, DualProblem, SolverError, solve_contact
-from .flexibility import FactoredBody, factor_body, interface_operator, interface_rows, lining_pin
+from .flexibility import (
+    FactoredBody,
+    factor_body,
+    interface_operator,
+    interface_rows,
+    lining_pin,
+)
 from .mesh import TunnelMesh, build_mesh
 from .post import kkt_residual
 from .spec import CaseSpec

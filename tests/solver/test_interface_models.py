@@ -6,23 +6,17 @@ import pytest
 from pydantic import ValidationError
 
 from solver import CaseSpec, friction, run_case
-from solver.analytic import exact_ring, ring_in_medium_case
+from solver.analytic import (
+    cos2_amplitude,
+    exact_ring,
+    interface_mean,
+    ring_in_medium_case,
+)
 from solver.errors import field_errors
 from solver.model import TunnelModel
 
 P, K, E, NU, E_L, NU_L, A, B = 1.0e5, 0.5, 5.0e7, 0.3, 3e10, 0.2, 2.5, 2.8
 RADII = 30
-
-
-def cos2(ds, f) -> float:
-    """cos 2θ amplitude by the interface quadrature (P2 vertex/edge values alternate slightly)."""
-    w, c = ds.weight.values, np.cos(2 * np.radians(ds.theta.values))
-    return float(np.sum(w * f * c) / np.sum(w * c * c))
-
-
-def mean(ds, f) -> float:
-    w = ds.weight.values
-    return float(np.sum(w * f) / np.sum(w))
 
 
 def ring(loading: str, interface: str, friction: float = 0.0) -> CaseSpec:
@@ -60,12 +54,12 @@ def with_interface(spec: CaseSpec, **interface) -> CaseSpec:
 def test_bonded_matches_exact_no_slip_ring(loading, solve_ring):
     ds = solve_ring(loading, "bonded")
     exact = exact_ring(P, K, E, NU, E_L, NU_L, A, B, loading=loading, interface="bonded")
-    assert mean(ds, ds.thrust.values) == pytest.approx(exact.N0, rel=0.01)
-    assert cos2(ds, ds.thrust.values) == pytest.approx(exact.N2, rel=0.03)
-    assert cos2(ds, ds.moment.values) == pytest.approx(exact.M2, rel=0.03)
+    assert interface_mean(ds, ds.thrust.values) == pytest.approx(exact.N0, rel=0.01)
+    assert cos2_amplitude(ds, ds.thrust.values) == pytest.approx(exact.N2, rel=0.03)
+    assert cos2_amplitude(ds, ds.moment.values) == pytest.approx(exact.M2, rel=0.03)
     # the tie: no jumps, shear present
     assert np.max(np.abs(ds.tangential_jump.values)) <= 1e-9 * np.max(np.abs(ds.displacement_y.values))
-    assert cos2(ds, ds.contact_pressure.values) == pytest.approx(exact.p2, rel=0.03)
+    assert cos2_amplitude(ds, ds.contact_pressure.values) == pytest.approx(exact.p2, rel=0.03)
     assert float(ds.kkt_residual) <= 1e-8
 
 
@@ -89,7 +83,7 @@ def test_vanishing_friction_reproduces_frictionless(default_model, kkt):
 
 def test_large_friction_reproduces_bonded_in_full_compression(solve_ring, kkt):
     bonded = solve_ring("external", "bonded")
-    assert bonded.contact_pressure.min() > 0.5 * mean(bonded, bonded.contact_pressure.values)
+    assert bonded.contact_pressure.min() > 0.5 * interface_mean(bonded, bonded.contact_pressure.values)
     sticky = solve_ring("external", "coulomb", 5.0)
     kkt(sticky)
     N = bonded.thrust.values
@@ -112,7 +106,7 @@ def test_moderate_friction_is_coulomb_and_between_the_limits(loading, solve_ring
     stick = ~slipping
     u_ref = np.max(np.abs(jt))
     assert np.max(np.abs(jt[stick])) <= 1e-6 * u_ref                            # stick: no jump
-    n2 = cos2(ds, ds.thrust.values)
+    n2 = cos2_amplitude(ds, ds.thrust.values)
     lo, hi = (exact_ring(P, K, E, NU, E_L, NU_L, A, B, loading=loading, interface=i).N2
               for i in ("slip", "bonded"))
     assert min(lo, hi) < n2 < max(lo, hi)
