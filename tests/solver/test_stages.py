@@ -162,3 +162,15 @@ def test_a_shared_model_gives_the_result_of_a_fresh_one():
         for name, var in alone.data_vars.items():
             if name != "solve_seconds":
                 np.testing.assert_array_equal(together[name].values, var.values, err_msg=name)
+
+
+def test_volume_loss_integrates_the_settling_part_of_the_trough():
+    from solver.dataset import volume_loss
+
+    x = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
+    s = np.array([2.0, 2.0, 0.0, -1.0, -1.0])  # settles over [0, 2], heaves beyond
+    r = np.sqrt(2.0 / np.pi)  # half excavated area 1
+    assert volume_loss(x, s, r) == pytest.approx(3.0)
+    crossing = np.array([1.0, -1.0])  # zero at x = 0.5: a triangle of area 0.25
+    assert volume_loss(np.array([0.0, 1.0]), crossing, r) == pytest.approx(0.25)
+    assert volume_loss(x, -np.abs(s), r) == 0.0
