@@ -46,7 +46,7 @@ def test_round_trip_is_identical(tmp_path, solved):
 def test_stored_case_is_not_recomputed_unless_forced(tmp_path, monkeypatch, solved):
     calls = []
 
-    def counting(spec):
+    def counting(spec, **options):
         calls.append(spec.case_id)
         return solved
 
@@ -76,7 +76,7 @@ def test_crash_mid_write_leaves_no_file(tmp_path, monkeypatch, solved):
 def test_failure_is_recorded_and_cleared_by_a_later_success(tmp_path, monkeypatch, solved):
     spec = CaseSpec.model_validate(COARSE)
 
-    def failing(spec):
+    def failing(spec, **options):
         raise SolverError("no admissible bolt")
 
     monkeypatch.setattr(solver, "run_case", failing)
@@ -89,7 +89,7 @@ def test_failure_is_recorded_and_cleared_by_a_later_success(tmp_path, monkeypatc
     assert json.loads(error_path(tmp_path, spec.case_id).read_text()) == record
     assert not case_path(tmp_path, spec.case_id).exists()
 
-    monkeypatch.setattr(solver, "run_case", lambda spec: solved)
+    monkeypatch.setattr(solver, "run_case", lambda spec, **options: solved)
     run_and_store(spec, tmp_path)
     assert read_error(tmp_path, spec.case_id) is None
     assert sorted(p.name for p in (tmp_path / "cases").iterdir()) == [f"{spec.case_id}.nc"]
