@@ -139,12 +139,13 @@ def main(argv: list[str] | None = None) -> int:
         for ds in bases:
             store.write_case(ds)
         for n in sorted(args.cases):  # the index first: the old path takes minutes
-            entry = add_copies(store, bases, len(store.case_ids()) - len(bases), n - len(bases))
-            rows.append({**measure_index(store, n), "entry_write_seconds": entry})
+            before = len(store.case_ids())
+            entry = add_copies(store, bases, before - len(bases), n - len(bases))
+            rows.append({**measure_index(store, n), "entry_write_seconds": entry, "new_cases": n - before})
             if not args.json:
                 row = rows[-1]
-                print(f"{n:>6} cases: index {row['index_seconds']:.3f} s (first read, merging {n} pending "
-                      f"entries: {row['first_seconds']:.2f} s); 6 of them {row['subset_seconds']:.3f} s; "
+                print(f"{n:>6} cases: index {row['index_seconds']:.3f} s (first read, merging the "
+                      f"{n - before} new entries: {row['first_seconds']:.2f} s); 6 of them {row['subset_seconds']:.3f} s; "
                       f"index file {row['index_file_mb']:.0f} MB; entry write {1e3 * entry:.1f} ms a case",
                       flush=True)
         ids = store.case_ids()  # sorted ids: the first n are as good a sample as any
