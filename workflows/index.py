@@ -347,8 +347,11 @@ def _select(block: xr.Dataset, positions: list[int]) -> xr.Dataset:
 
 def _stack_entries(template: xr.Dataset, entries: list[dict[str, np.ndarray]]) -> xr.Dataset:
     """Pending entries of one schema as a block: the template's variables, stacked values."""
-    data = {name: (("case", *var.dims), np.stack([np.asarray(e[name], dtype=var.dtype) for e in entries]),
-                   dict(var.attrs)) for name, var in template.data_vars.items()}
+    data = {}
+    for name, var in template.data_vars.items():
+        dtype = var.dtype
+        data[name] = (("case", *var.dims), np.stack([np.asarray(e[name], dtype=dtype) for e in entries]),
+                      dict(var.attrs))
     coords = {name: (c.dims, c.values, dict(c.attrs)) for name, c in template.coords.items()}
     return xr.Dataset(data, coords=coords)
 
