@@ -144,7 +144,7 @@ def sweep_command(sweep_file: str, results: str, *, scheduler: str | None = None
     finally:
         if client is not None:
             client.close()
-    rows = [case_row(ResultStore(results), c) for c in case_ids]
+    rows = case_rows(ResultStore(results), case_ids)
     print(comparison_table(rows), file=out)
     failed = [r for r in rows if r["status"] != "done"]
     print(f"{len(rows) - len(failed)} of {len(rows)} cases done; results in {results}", file=out)
@@ -227,6 +227,24 @@ def case_row(results: StoreLike, case_id: str) -> dict[str, Any]:
     return {"case_id": case_id, "status": "failed" if error else "missing",
             "params": flat_parameters(error["spec"]) if "spec" in error else {},
             "summary": {}, "error": error.get("error")}
+
+
+def case_rows(results: StoreLike, case_ids: list[str]) -> list[dict[str, Any]]:
+    """:func:`case_row` of each case; the stored ones come from the index in one read."""
+    store = as_store(results)
+    done = [c for c in case_ids if store.is_stored(c)]
+    rows: dict[str, dict[str, Any]] = {}
+    try:
+        combined = store.open_results(done) if done else None
+    except FileNotFoundError:  # a case removed meanwhile: one by one
+        combined = None
+    if combined is not None:
+        scalars = [str(n) for n, v in combined.data_vars.items() if v.dims == ("case",) and v.dtype.kind in "biuf"]
+        for i, case_id in enumerate(done):
+            rows[case_id] = {"case_id": case_id, "status": "done", "error": None,
+                             "params": flat_parameters(str(combined["case_spec"].values[i])),
+                             "summary": {n: float(combined[n].values[i]) for n in scalars}}
+    return [rows[c] if c in rows else case_row(store, c) for c in case_ids]
 
 
 def comparison_table(rows: Iterable[dict[str, Any]]) -> str:

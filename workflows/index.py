@@ -44,6 +44,7 @@ import logging
 import math
 import os
 import struct
+import threading
 import zlib
 from collections import defaultdict
 from collections.abc import Iterator, Sequence
@@ -73,6 +74,9 @@ PENDING_FRACTION = 16
 _ENTRY_MAGIC = b"TCIDX1\n"
 _DECODE = {k: v for k, v in OPEN_OPTIONS.items() if k != "engine"}
 _NO_KEY: FileKey = (-1, -1, -1, -1)
+#: One index read or rewrite at a time in a process: netCDF-C/HDF5 are not thread-safe,
+#: and xarray does not lock the metadata reads of a file opened by handle.
+_THREAD_LOCK = threading.RLock()
 
 
 @dataclass
@@ -162,6 +166,18 @@ class ResultIndex:
     def open_results(self, case_ids: Sequence[str] | None = None) -> xr.Dataset:
         """:func:`workflows.open_results` from the index; identical to
         :func:`workflows.combine.combine_files`."""
+        with _THREAD_LOCK:
+            return self._open_results(case_ids)
+
+    def update(self) -> int:
+        """Rewrite the index file to hold every stored case now; return how many it holds."""
+        with _THREAD_LOCK:
+            keys = self.store.file_keys()
+            with self._opened() as index:
+                extra, _ = self._entries(index, sorted(keys), keys)
+            return len(self._rewrite(keys, extra).rows)
+
+    def _open_results(self, case_ids: Sequence[str] | None) -> xr.Dataset:
         keys = self.store.file_keys()
         ids = list(dict.fromkeys(check_case_id(c) for c in case_ids)) if case_ids is not None \
             else sorted(keys)
@@ -178,13 +194,6 @@ class ResultIndex:
             if index.broken or from_files or pending > limit or outdated > limit:
                 index, extra = self._rewrite(keys, extra), _Table()
             return _assemble(ids, [extra, index])
-
-    def update(self) -> int:
-        """Rewrite the index file to hold every stored case now; return how many it holds."""
-        keys = self.store.file_keys()
-        with self._opened() as index:
-            extra, _ = self._entries(index, sorted(keys), keys)
-        return len(self._rewrite(keys, extra).rows)
 
     # -- internals -------------------------------------------------------------------
 

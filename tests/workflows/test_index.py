@@ -231,3 +231,10 @@ def test_threads_reading_at_once_get_the_same_answer(store):
         answers = list(pool.map(lambda _: open_results(store), range(8)))
     for got in answers:
         xr.testing.assert_identical(got, expected)
+
+
+def test_cli_table_rows_from_the_index_match_the_files(store):
+    from workflows.commands import case_row, case_rows
+
+    ids = [*store.case_ids(), "0123456789abcdef"]  # the last one is not stored
+    assert case_rows(store, ids) == [case_row(store, c) for c in ids]
