@@ -251,9 +251,8 @@ class TunnelModel:
         if not self.accepts(spec):
             raise ValueError("the case does not share this model's geometry, mesh, boundaries and materials")
         t0 = time.perf_counter()
-        loads, ug_f, ul_f, d, F2 = self._contact_stage(spec)
+        loads, u1, ug_f, ul_f, d, F2 = self._contact_stage(spec)
         ground, lining = self.ground, self.lining
-        u1 = ground.solve(loads.stage1) if loads.stage1 is not None else np.zeros(ground.body.n)
         iface = self.mesh.interface
         m, g0, sv = self.m, spec.geometry.gap, spec.solver
         model = spec.interface.model
@@ -304,12 +303,22 @@ class TunnelModel:
                         timings={"contact": t_solve - t0, "recovery": time.perf_counter() - t_solve})
 
     def _contact_stage(self, spec: CaseSpec):
-        """Loads, ``K⁺f`` of both bodies, ``d = B K⁺ f`` and the lining's vertical load F2."""
+        """Loads, the stage-1 ground displacement, ``K⁺f`` of both bodies for the contact
+        stage, ``d = B K⁺ f`` and the lining's vertical load F2.
+
+        Both stages release parts of one excavation load, so one solve serves both:
+        ``u1 = λd K⁻¹r`` and the contact stage's ``K⁻¹f = (1 - λd) K⁻¹r``.
+        """
         loads = self.stage_loads(spec)
-        ug_f = self.ground.solve(loads.ground)
+        if loads.release is not None:
+            ld = spec.excavation.deconfinement
+            v = self.ground.solve(loads.release)
+            u1, ug_f = ld * v, (1.0 - ld) * v
+        else:
+            u1, ug_f = np.zeros(self.ground.body.n), self.ground.solve(loads.ground)
         ul_f = self.lining.solve(loads.lining)
         d = self.ground.B @ ug_f + self.lining.B @ ul_f
-        return loads, ug_f, ul_f, d, float(self.rigid @ loads.lining)
+        return loads, u1, ug_f, ul_f, d, float(self.rigid @ loads.lining)
 
     def _dual(self, d: np.ndarray, F2: float, g0: float) -> DualProblem:
         m, iface = self.m, self.mesh.interface
@@ -318,7 +327,7 @@ class TunnelModel:
 
     def dual_problem(self, spec: CaseSpec) -> DualProblem:
         """The frictionless contact stage of ``spec`` in interface form (:class:`DualProblem`)."""
-        _, _, _, d, F2 = self._contact_stage(spec)
+        d, F2 = self._contact_stage(spec)[4:]
         return self._dual(d, F2, spec.geometry.gap)
 
     def _tie(self, d: np.ndarray, F2: float) -> tuple[np.ndarray, float]:
