@@ -12,17 +12,16 @@ import logging
 import math
 import os
 import re
-import threading
 from pathlib import Path
 from typing import Optional
 
-from workflows.store import case_path
+from workflows.store import case_path, netcdf_lock
 from workflows.summary import read_summary
 
 logger = logging.getLogger(__name__)
 
 _VERIFIED: dict[str, tuple[int, int]] = {}
-_LOCK = threading.Lock()  # netCDF/HDF5 reads one at a time
+_LOCK = netcdf_lock  # netCDF/HDF5 reads one at a time, with every other netCDF access
 
 
 class BrokenResult(Exception):

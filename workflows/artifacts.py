@@ -27,9 +27,8 @@ from typing import Sequence
 
 import xarray as xr
 
-from .combine import open_results
 from .plots import PLOTS, SWEEP_PLOT_NAMES, SWEEP_PLOTS, case_labels, plot_interaction
-from .store import OPEN_OPTIONS, ResultStore, StoreLike, as_store, write_atomically
+from .store import OPEN_OPTIONS, ResultStore, StoreLike, as_store, netcdf_lock, write_atomically
 
 logger = logging.getLogger(__name__)
 
@@ -86,7 +85,8 @@ def write_combined(root: StoreLike, sweep_id: str, case_ids: Sequence[str]) -> P
     with _BUILD_LOCK:
         if not target.is_file():
             combined = store.open_results(list(case_ids))
-            write_atomically(target, lambda tmp: combined.to_netcdf(tmp, engine="netcdf4"))
+            with netcdf_lock:
+                write_atomically(target, lambda tmp: combined.to_netcdf(tmp, engine="netcdf4"))
             logger.info("combined %d cases of sweep %s into %s", len(case_ids), sweep_id, target.name)
             for old in target.parent.glob(f"{sweep_id}-*.nc"):
                 if old != target and time.time() - old.stat().st_mtime > _STALE_AFTER:
@@ -131,6 +131,6 @@ def render_sweep_plot(root: StoreLike, sweep_id: str, case_ids: Sequence[str], n
 
 def _section_forces(store: ResultStore, case_id: str) -> xr.Dataset:
     """The lining forces and design envelope of a stored case, without its mesh and fields."""
-    with xr.open_dataset(store.case_path(case_id), **OPEN_OPTIONS) as ds:
+    with netcdf_lock, xr.open_dataset(store.case_path(case_id), **OPEN_OPTIONS) as ds:
         names = [v for v in ("thrust", "moment", "utilization", "capacity_thrust", "capacity_moment") if v in ds]
         return ds[names].load()

@@ -23,7 +23,7 @@ from solver import CaseSpec, SolverError
 from solver.errors import field_errors, format_errors
 
 from .parameters import flat_parameters, varying_parameters
-from .store import OPEN_OPTIONS, ResultStore, StoreLike, as_store, check_case_id
+from .store import OPEN_OPTIONS, ResultStore, StoreLike, as_store, check_case_id, netcdf_lock
 from .summary import summarize
 from .sweep import Sweep, SweepError, run_sweep
 
@@ -220,7 +220,7 @@ def case_row(results: StoreLike, case_id: str) -> dict[str, Any]:
     """``{"case_id", "status", "params", "summary", "error"}`` of a case in the store."""
     store = as_store(results)
     if store.is_stored(case_id):
-        with xr.open_dataset(store.case_path(case_id), **OPEN_OPTIONS) as ds:
+        with netcdf_lock, xr.open_dataset(store.case_path(case_id), **OPEN_OPTIONS) as ds:
             return {"case_id": case_id, "status": "done", "error": None,
                     "params": flat_parameters(ds.attrs["case_spec"]), "summary": summarize(ds)}
     error = store.read_error(case_id) or {}

@@ -44,7 +44,6 @@ import logging
 import math
 import os
 import struct
-import threading
 import zlib
 from collections import defaultdict
 from collections.abc import Iterator, Sequence
@@ -59,7 +58,7 @@ import xarray as xr
 from xarray.backends.netCDF4_ import NETCDF4_PYTHON_LOCK
 
 from .combine import label_cases, read_reduced, reduce_case, stack_cases
-from .store import OPEN_OPTIONS, FileKey, check_case_id, netcdf_encoding, write_atomically
+from .store import OPEN_OPTIONS, FileKey, check_case_id, netcdf_encoding, netcdf_lock, write_atomically
 
 if TYPE_CHECKING:
     from .store import ResultStore
@@ -76,7 +75,7 @@ _DECODE = {k: v for k, v in OPEN_OPTIONS.items() if k != "engine"}
 _NO_KEY: FileKey = (-1, -1, -1, -1)
 #: One index read or rewrite at a time in a process: netCDF-C/HDF5 are not thread-safe,
 #: and xarray does not lock the metadata reads of a file opened by handle.
-_THREAD_LOCK = threading.RLock()
+_THREAD_LOCK = netcdf_lock  # the process-wide netCDF lock (workflows.store)
 
 
 @dataclass
@@ -145,7 +144,8 @@ class ResultIndex:
             if not template.is_file():
                 plain = reduced.copy()
                 plain.attrs = {}
-                write_atomically(template, lambda tmp: _to_netcdf(plain, tmp))
+                with netcdf_lock:
+                    write_atomically(template, lambda tmp: _to_netcdf(plain, tmp))
             header = {"case_id": reduced.attrs["case_id"], "case_spec": reduced.attrs["case_spec"],
                       "software_version": reduced.attrs.get("software_version", ""),
                       "file_key": list(key), "schema": schema}
@@ -372,7 +372,7 @@ def _template(path: Path) -> xr.Dataset:
     """The schema file at ``path``, read once per process and version of the file."""
     key = (str(path), _key_of(path))
     if key not in _TEMPLATES:
-        with xr.open_dataset(path, **OPEN_OPTIONS) as ds:
+        with netcdf_lock, xr.open_dataset(path, **OPEN_OPTIONS) as ds:
             _TEMPLATES[key] = ds.load()
     return _TEMPLATES[key]
 

@@ -28,6 +28,7 @@ import os
 import re
 import shutil
 import tempfile
+import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -45,6 +46,11 @@ if TYPE_CHECKING:
     from .index import ResultIndex
 
 logger = logging.getLogger(__name__)
+
+#: Every netCDF read and write of this process goes through this lock: the netCDF-C and
+#: HDF5 libraries are not thread-safe (the API serves several plots at once from threads,
+#: and two concurrent reads crashed it in HDF5). Re-entrant, so nested helpers may take it.
+netcdf_lock = threading.RLock()
 
 _CASE_ID = re.compile(r"[0-9a-f]{16}")
 _TMP_SUFFIX = ".tmp"
@@ -167,14 +173,14 @@ class ResultStore:
         FileNotFoundError
             If the case is not stored.
         """
-        with xr.open_dataset(self.case_path(case_id), **OPEN_OPTIONS) as ds:
+        with netcdf_lock, xr.open_dataset(self.case_path(case_id), **OPEN_OPTIONS) as ds:
             return ds.load()
 
     def read_summary(self, case_id: str) -> dict[str, float]:
         """The scalars of a stored case (see :func:`workflows.summary.summarize`), reading only them."""
         from .summary import summarize
 
-        with xr.open_dataset(self.case_path(case_id), **OPEN_OPTIONS) as ds:
+        with netcdf_lock, xr.open_dataset(self.case_path(case_id), **OPEN_OPTIONS) as ds:
             return summarize(ds)
 
     def read_error(self, case_id: str) -> dict[str, Any] | None:
@@ -232,7 +238,8 @@ class ResultStore:
             # in-memory data to a private file: no dask, and no cluster-wide write lock
             # (xarray would take a distributed.Lock when called inside a dask worker)
             with dask.config.set(scheduler="synchronous"):
-                ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=netcdf_encoding(ds))
+                with netcdf_lock:
+                    ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=netcdf_encoding(ds))
 
         write_atomically(target, write)
         key = file_key(target.stat())

@@ -18,6 +18,7 @@ import pytest
 from service.comparison import SCALAR_ORDER
 from service.process import running_cluster, running_service
 from service_helpers import wait_until
+from workflows.plots import PLOTS
 from workflows.store import case_path
 
 selenium = pytest.importorskip("selenium", reason="selenium is in the 'test' extra")
@@ -186,7 +187,7 @@ def test_submit_a_sweep_watch_it_sort_it_open_a_case_download_the_csv(service, b
     case_id = first_case.text
     first_case.click()
     wait_until(lambda: browser.current_url.endswith(f"/ui/cases/{case_id}"), timeout=20, what="the case page")
-    wait_until(lambda: (w := images_loaded(browser, ".plots img")) and len(w) == 3 and all(w),
+    wait_until(lambda: (w := images_loaded(browser, ".plots img")) and len(w) == len(PLOTS) and all(w),
                timeout=60, what="the case plots to load")
     assert browser.find_element(By.ID, "summary").text.count("\n") >= 10
     assert browser.find_element(By.ID, "download-nc").get_attribute("href").endswith(f"/cases/{case_id}/result.nc")
@@ -269,7 +270,7 @@ def test_cancel_keeps_queued_cases_from_running_and_they_can_be_submitted_again(
     again = httpx.post(f"{url}/cases", json=httpx.get(f"{url}/cases/{ids[0]}").json()["spec"])
     assert again.status_code == 202 and again.json()["created"] and again.json()["status"] == "queued"
     wait_until(lambda: case_status_shown(browser) == "done", timeout=60, what="the case page to show done")
-    wait_until(lambda: (w := images_loaded(browser, ".plots img")) and len(w) == 3 and all(w),
+    wait_until(lambda: (w := images_loaded(browser, ".plots img")) and len(w) == len(PLOTS) and all(w),
                timeout=60, what="the case plots to load")
     assert browser.execute_script("return window.__marker") == "same page"
     browser.get(url + "/")  # the list follows too

@@ -167,3 +167,27 @@ def test_rewriting_a_case_drops_its_cached_plots(tmp_path, solved):
     write_case(tmp_path, solved)  # a new result (e.g. forced recompute): old figures must go
     assert not png.exists()
     assert render_plot(tmp_path, case_id, "contact_pressure").is_file()
+
+
+def test_threads_reading_and_writing_netcdf_at_once_do_not_crash(tmp_path, solved):
+    """netCDF-C/HDF5 are not thread-safe: the API serves several plots of a case at once
+    from threads, and before one process-wide lock guarded every access that crashed the
+    process in HDF5 (a segfault would end this test run)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from workflows.artifacts import render_plot
+    from workflows.plots import PLOTS
+    from workflows.store import ResultStore
+
+    store = ResultStore(tmp_path)
+    case_id = solved.attrs["case_id"]
+    store.write_case(solved)
+    other = solved.copy()
+    other.attrs = {**solved.attrs, "case_id": "0123456789abcdef"}  # written while the first is read
+    jobs = [lambda: store.open_case(case_id).sizes["node"], lambda: store.read_summary(case_id)["max_thrust"],
+            lambda: store.write_case(other).name, *[lambda n=n: render_plot(store, case_id, n).stat().st_size
+                                                    for n in PLOTS]] * 3
+    with ThreadPoolExecutor(8) as pool:
+        results = list(pool.map(lambda job: job(), jobs))
+    assert len(results) == len(jobs) and all(results)
+    xr.testing.assert_identical(store.open_case(case_id).drop_attrs(), solved.drop_attrs())
