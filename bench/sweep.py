@@ -46,12 +46,51 @@ def measure(n_workers: int, cases: int) -> dict:
             "cases_per_minute": 60.0 * cases / seconds, "mean_solve_seconds": float(np.nanmean(solve))}
 
 
+def reuse(cases_k0: int = 20, cases_ld: int = 10, mixed: int = 64, n_workers: int = 2) -> dict:
+    """Cases/minute with models shared per worker against every case built from nothing.
+
+    The K0 × deconfinement sweep on the default geometry (cases_k0 × cases_ld cases) and a
+    mixed sweep (thickness × ground stiffness × K0, ``mixed`` cases, every geometry/material
+    pair different four times over), each run with ``TUNNEL_CONTACT_SHARED_MODELS`` = 2 (the
+    default: reuse) and = 0 (the path before reuse), alternating, into fresh folders.
+    """
+    from workflows.sweep import Sweep, local_client, run_sweep
+
+    sweeps = {
+        "k0-deconfinement": Sweep(name="k0-ld", vary={
+            "loads.lateral_ratio": [round(float(k), 4) for k in np.linspace(0.4, 1.3, cases_k0)],
+            "excavation.deconfinement": [round(float(x), 4) for x in np.linspace(0.0, 0.6, cases_ld)]}),
+        "mixed": Sweep(name="mixed", vary={
+            "geometry.thickness": [0.25, 0.3, 0.35, 0.4], "ground.young": [2e7, 5e7, 1e8, 2e8],
+            "loads.lateral_ratio": [0.5, 0.7, 0.9, 1.1][: max(1, mixed // 16)]}),
+    }
+    out = {}
+    for name, sweep in sweeps.items():
+        for label, shared in (("shared", "2"), ("alone", "0")):
+            os.environ["TUNNEL_CONTACT_SHARED_MODELS"] = shared
+            with tempfile.TemporaryDirectory(prefix="bench-reuse-") as root, local_client(n_workers) as client:
+                client.run(_warm_up)
+                start = time.perf_counter()
+                ids = run_sweep(sweep, root, client=client)
+                seconds = time.perf_counter() - start
+            out[f"{name}_{label}"] = {"cases": len(ids), "seconds": seconds,
+                                      "cases_per_minute": 60.0 * len(ids) / seconds}
+        out[f"{name}_speedup"] = out[f"{name}_shared"]["cases_per_minute"] / out[f"{name}_alone"]["cases_per_minute"]
+    os.environ.pop("TUNNEL_CONTACT_SHARED_MODELS", None)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m bench.sweep", description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--cases", type=int, default=8, help="cases in the sweep (default 8)")
     parser.add_argument("--repeat", type=int, default=3, help="runs per configuration; the best counts")
+    parser.add_argument("--reuse", action="store_true",
+                        help="models shared per worker vs every case alone (200-case K0 x deconfinement, 64 mixed)")
     args = parser.parse_args(argv)
+    if args.reuse:
+        print(json.dumps(reuse(), indent=1))
+        return 0
     from workflows.commands import configure_logging
 
     configure_logging()

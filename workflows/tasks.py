@@ -59,15 +59,15 @@ def solve_and_store(spec_json: str, root: StoreLike, force: bool = False) -> dic
     store = as_store(root)
     spec = CaseSpec.model_validate_json(spec_json)
     case_id = spec.case_id
-    computed = force or not store.is_stored(case_id)
     start = time.perf_counter()
     try:
-        store.run_and_store(spec, force=force)
-    except Exception as exc:  # recorded in the store by run_and_store; the sweep goes on
+        summary = store.solve_and_store(spec, force=force)
+    except Exception as exc:  # recorded in the store by solve_and_store; the sweep goes on
         return {"case_id": case_id, "status": "failed", "error": f"{type(exc).__name__}: {exc}",
                 "summary": {}, "computed": True, "seconds": time.perf_counter() - start}
+    computed = summary is not None
     return {"case_id": case_id, "status": "done", "error": None,
-            "summary": store.read_summary(case_id), "computed": computed,
+            "summary": summary if computed else store.read_summary(case_id), "computed": computed,
             "seconds": time.perf_counter() - start}
 
 
