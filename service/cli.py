@@ -39,6 +39,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("sweep", help="solve every case of a sweep on dask, print a comparison table")
     p.add_argument("sweep", metavar="SWEEP.json", help="sweep file")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--retry-failed", action="store_true",
+                   help="recompute the cases that failed before (else their recorded failures are shown)")
     scheduler(p)
     results(p)
 
@@ -75,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
             return commands.run_command(args.case, args.results, force=args.force, retry_failed=args.retry_failed)
         if args.command == "sweep":
             return commands.sweep_command(args.sweep, args.results, scheduler=args.scheduler,
-                                          progress=not args.no_progress)
+                                          progress=not args.no_progress, retry_failed=args.retry_failed)
         return commands.show_command(args.case_id, args.results)
     except commands.InputError as exc:
         print(f"tunnel-contact: error: {exc}", file=sys.stderr)

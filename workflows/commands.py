@@ -126,10 +126,11 @@ def run_command(case_file: str | None, results: str, *, force: bool = False, ret
 
 
 def sweep_command(sweep_file: str, results: str, *, scheduler: str | None = None,
-                  progress: bool = True, out: TextIO = sys.stdout) -> int:
+                  progress: bool = True, retry_failed: bool = False, out: TextIO = sys.stdout) -> int:
     """Run a sweep on dask (``scheduler`` address or an embedded cluster); print a table.
 
-    Returns 1 if any case failed, else 0.
+    Cases that failed before keep their recorded failure unless ``retry_failed`` (as
+    ``run``). Returns 1 if any case failed, else 0.
     """
     sweep = load_sweep(sweep_file)
     client = None
@@ -138,7 +139,8 @@ def sweep_command(sweep_file: str, results: str, *, scheduler: str | None = None
 
         client = Client(scheduler, timeout="10s")
     try:
-        case_ids = run_sweep(sweep, ResultStore(results), client=client, progress=progress)
+        case_ids = run_sweep(sweep, ResultStore(results), client=client, progress=progress,
+                             retry_failed=retry_failed)
     except SweepError as exc:
         raise InputError(f"{sweep_file}: {exc}") from None
     finally:

@@ -161,7 +161,8 @@ def _messages(exc: ValidationError) -> list[tuple[str, str]]:
 
 
 def run_sweep(sweep: Sweep | dict[str, Any], root: StoreLike, client=None, *, progress: bool = False,
-              force: bool = False, on_result: Callable[[dict], None] | None = None) -> list[str]:
+              force: bool = False, on_result: Callable[[dict], None] | None = None,
+              retry_failed: bool = True) -> list[str]:
     """Solve every case of ``sweep`` on dask and store the results; return the case ids.
 
     The cases go to the scheduler through :func:`workflows.tasks.submit_cases` (one
@@ -177,6 +178,8 @@ def run_sweep(sweep: Sweep | dict[str, Any], root: StoreLike, client=None, *, pr
         (2 worker processes, 1 thread each) and closes it afterwards.
     progress : show a tqdm progress bar.
     force : recompute stored cases.
+    retry_failed : recompute cases whose earlier failure is recorded in the store (the
+        default); False leaves them failed (the command line's default, as for ``run``).
     on_result : called with each case's summary dict as it completes.
     """
     from distributed import as_completed
@@ -190,6 +193,8 @@ def run_sweep(sweep: Sweep | dict[str, Any], root: StoreLike, client=None, *, pr
     store.remove_stale_temporaries()
     ids = [s.case_id for s in specs]
     todo = [s for s in specs if force or not store.is_stored(s.case_id)]
+    if not retry_failed and not force:
+        todo = [s for s in todo if store.read_error(s.case_id) is None]
     logger.info("sweep %r: %d cases, %d to compute", sweep.name, len(ids), len(todo))
     if not todo:
         return ids

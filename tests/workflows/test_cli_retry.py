@@ -41,3 +41,19 @@ def test_truncated_result_is_recomputed(tmp_path):
     out = io.StringIO()
     assert run_command(str(tmp_path / "case.json"), results, out=out) == 0
     assert path.stat().st_size > good // 4 and "max_contact_pressure" in out.getvalue()
+
+
+def test_failed_sweep_cases_are_recomputed_only_when_asked(tmp_path):
+    sweep = {"name": "retry", "base": {**COARSE, "solver": {"inner": "uzawa"}},
+             "vary": {"solver.max_iterations": [1, 100000]}}
+    (tmp_path / "sweep.json").write_text(json.dumps(sweep))
+    results = str(tmp_path / "results")
+    args = ["sweep", str(tmp_path / "sweep.json"), "--results", results, "--no-progress"]
+    assert main(args) == 1  # the one-iteration case fails, the other is stored
+    failing = CaseSpec.model_validate({**sweep["base"], "solver": {"inner": "uzawa", "max_iterations": 1}})
+    record = error_path(results, failing.case_id)
+    first = record.stat().st_mtime_ns
+    assert main(args) == 1
+    assert record.stat().st_mtime_ns == first  # shown as failed, not solved again
+    assert main([*args, "--retry-failed"]) == 1
+    assert record.stat().st_mtime_ns != first  # solved (and failed) again
