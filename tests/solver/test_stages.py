@@ -61,23 +61,24 @@ def test_full_release_before_the_lining_is_kirsch_and_leaves_the_lining_its_weig
     """λd = 1: the ground wall converges as an unlined hole (Kirsch); the lining then
     carries only its own weight (the same pressures as with no in-situ stress at all).
 
-    The finite model (free surface 15 radii above, roller bottom 15 radii below) also
-    translates the hole vertically as a whole, by about 8 % of the crown convergence
-    (halving with each doubling of the domain), which the infinite plane cannot show: the
-    crown and invert are compared through their mean, which that rigid translation
-    cancels; the springline, which it does not touch, directly."""
+    The finite model (free surface above, roller bottom below) also translates the hole
+    vertically as a whole, which the infinite plane cannot show: +9 % / -8 % at crown /
+    invert on 15 radii, halving with each doubling of the domain; 60 radii (coarse far
+    field) bring it under 3 %, and the mean of crown and invert, which the translation
+    cancels, is within 0.5 %."""
     K = 0.6
-    spec = ring_in_medium_case(radii=15, K=K, loading="excavation", deconfinement=1.0)
+    spec = ring_in_medium_case(radii=60, K=K, loading="excavation", deconfinement=1.0, h=0.2)
+    spec = spec.model_copy(update={"mesh": spec.mesh.model_copy(update={"far_size": 24.0})})
     ds = run_case(spec)
     kkt(ds)
     iface = {th: int(np.argmin(np.abs(ds.theta.values - th))) for th in (0.0, 90.0, 180.0)}
     gn = ds.ground_node.values
     ux, uy = ds.displacement_x.values[gn], ds.displacement_y.values[gn]
     u_r = -(ux * ds.normal_x.values + uy * ds.normal_y.values)  # outward
+    for th, i in iface.items():
+        assert u_r[i] == pytest.approx(kirsch_wall_displacement(P, K, E, NU, B, th), rel=0.03), th
     crown_invert = 0.5 * (u_r[iface[0.0]] + u_r[iface[180.0]])
-    assert crown_invert == pytest.approx(kirsch_wall_displacement(P, K, E, NU, B, 0.0), rel=0.03)
-    assert kirsch_wall_displacement(P, K, E, NU, B, 0.0) == kirsch_wall_displacement(P, K, E, NU, B, 180.0)
-    assert u_r[iface[90.0]] == pytest.approx(kirsch_wall_displacement(P, K, E, NU, B, 90.0), rel=0.03)
+    assert crown_invert == pytest.approx(kirsch_wall_displacement(P, K, E, NU, B, 0.0), rel=0.005)
     unloaded = run_case(spec.model_copy(update={"loads": spec.loads.model_copy(update={"surface_load": 0.0})}))
     p = unloaded.contact_pressure.values
     np.testing.assert_allclose(ds.contact_pressure.values, p, rtol=0, atol=1e-8 * p.max())
