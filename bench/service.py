@@ -2,7 +2,8 @@
 
 Starts the deployment's topology on loopback (a ``dask scheduler``, two single-threaded
 ``dask worker`` processes and the API), keeps the workers busy with a backlog of
-cases, then has 20 concurrent clients (threads, one connection each) submit 200
+cases, then has 20 concurrent clients (processes, one connection each; ``--threads``: threads
+of this process, whose shared GIL adds their own overhead to every latency) submit 200
 distinct cases (``POST /cases``) and read each back (``GET /cases/{id}``). Reports p50/p99/max latency of both and
 the error count (any non-2xx answer or transport error). Target: p99 < 50 ms, no errors.
 
@@ -137,6 +138,46 @@ def load(url: str, clients: int, submissions: int) -> dict:
             "busy_before": busy_before, "busy_after": busy_after, "backlog": backlog_state}
 
 
+def _process_client(url: str, jobs: list[int], warm: int, start_at: float) -> tuple[list, list, list]:
+    """A client in its own process (no GIL shared with the others): warm up, wait for the
+    common start time, then run :func:`client_loop`."""
+    with httpx.Client(base_url=url, timeout=30) as http:
+        client_loop(http, [warm], [], [], [])
+        time.sleep(max(0.0, start_at - time.time()))
+        posts: list[float] = []
+        gets: list[float] = []
+        errors: list[str] = []
+        client_loop(http, jobs, posts, gets, errors)
+    return posts, gets, errors
+
+
+def load_processes(url: str, clients: int, submissions: int) -> dict:
+    """:func:`load` with each client in its own process: 20 client threads in one Python
+    process queue on its GIL, so their own overhead (about 2 ms a request) would show
+    as server latency."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ExitStack() as stack:
+        http = stack.enter_context(httpx.Client(base_url=url, timeout=30))
+        pool = stack.enter_context(ProcessPoolExecutor(clients))
+        backlog = http.post("/sweeps", json=BACKLOG).raise_for_status().json()
+        wait_busy(http, http.get("/health").json()["workers"])
+        list(pool.map(int, range(clients)))  # start the processes before the clock
+        busy_before = http.get("/health").json()
+        start_at = time.time() + 3.0
+        futures = [pool.submit(_process_client, url, list(range(k, submissions, clients)), submissions + k,
+                               start_at) for k in range(clients)]
+        results = [f.result() for f in futures]
+        wall = time.time() - start_at
+        busy_after = http.get("/health").json()
+        backlog_state = http.get(f"/sweeps/{backlog['id']}").json()["counts"]
+    posts = [x for r in results for x in r[0]]
+    gets = [x for r in results for x in r[1]]
+    errors = [x for r in results for x in r[2]]
+    return {"posts": posts, "gets": gets, "errors": errors, "wall": wall,
+            "busy_before": busy_before, "busy_after": busy_after, "backlog": backlog_state}
+
+
 def percentiles(samples: list[float]) -> dict:
     ms = np.asarray(samples) * 1e3
     return {"n": int(ms.size), "p50_ms": float(np.percentile(ms, 50)), "p99_ms": float(np.percentile(ms, 99)),
@@ -151,6 +192,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--scheduler", default=None, help="use this scheduler instead of starting one")
     parser.add_argument("--workers", type=int, default=2, help="worker processes to start")
     parser.add_argument("--nice", type=int, default=0, help="CPU niceness of the started workers")
+    parser.add_argument("--threads", action="store_true",
+                        help="clients as threads of this process (default: one process each)")
     parser.add_argument("--max-open", type=int, default=400,
                         help="TUNNEL_CONTACT_MAX_OPEN_CASES of the service (the 429 threshold)")
     args = parser.parse_args(argv)
@@ -161,7 +204,7 @@ def main(argv: list[str] | None = None) -> int:
         url = stack.enter_context(running_service(work / "results", scheduler=scheduler,
                                                   log=work / "api.log", workers=1,
                                                   env={"TUNNEL_CONTACT_MAX_OPEN_CASES": str(args.max_open)}))
-        raw = load(url, args.clients, args.submissions)
+        raw = (load if args.threads else load_processes)(url, args.clients, args.submissions)
         full = saturate(url, args.clients, offset=10 * args.submissions)
 
     report = {

@@ -244,5 +244,5 @@ def element_nodal_forces(body: Body, young: float, poisson: float, u_nodes: np.n
         phi = basis.basis[i][0]
         gi = phi.grad
         work = s[0] * gi[0, 0] + s[1] * gi[1, 1] + s[2] * (gi[0, 1] + gi[1, 0])
-        out[i] = np.sum((work + density * g * phi.value[1]) * dx, axis=1)
+        out[i] = np.sum((work + density * g * np.asarray(phi)[1]) * dx, axis=1)
     return out, basis.element_dofs

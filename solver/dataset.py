@@ -62,7 +62,7 @@ def _face_stress(model: TunnelModel, body: str, spec, u_nodes: np.ndarray) -> np
     basis = model.point_basis(body)
     s = stress_at(fb, mat.young, mat.poisson, u_nodes, basis)  # (4, E, 4)
     if body == "ground" and spec.excavation.method == "deconfinement":
-        y = basis.global_coordinates().value[1]
+        y = np.asarray(basis.global_coordinates())[1]
         L = spec.loads
         sxx, syy = geostatic_stress(y, q=L.surface_load, rho_g=spec.ground.density * L.gravity, k0=L.lateral_ratio)
         s = s + np.stack([sxx, syy, np.zeros_like(y), sxx])
