@@ -222,3 +222,19 @@ def test_section_errors_strengths_and_thickness():
     assert fields(section_errors(0.0, 1e-3, 0.05)) == ["geometry.thickness"]
     with pytest.raises(ValueError, match="design.concrete_strength"):
         envelope(0.3, 1e-3, fck=95e6)
+
+
+def test_case_utilization_is_proportional_to_the_load_factor():
+    """The ray definition: a case with γF = 1.35 has exactly 1.35 times the utilization of
+    the same case with γF = 1.0, station by station (one shared model, two solves)."""
+    from solver import CaseSpec, run_case
+    from solver.model import TunnelModel
+
+    base = CaseSpec(mesh=dict(interface_size=0.2, far_size=8.0))
+    model = TunnelModel(base)
+    eta = {}
+    for gamma in (1.0, 1.35):
+        spec = base.model_copy(update={"design": base.design.model_copy(update={"load_factor": gamma})})
+        eta[gamma] = run_case(spec, model=model).utilization.values
+    assert np.all(np.isfinite(eta[1.0])) and eta[1.0].max() > 0.1
+    np.testing.assert_allclose(eta[1.35], 1.35 * eta[1.0], rtol=1e-9, atol=0)
