@@ -38,7 +38,7 @@ SCALARS = {
     "iterations": ("1", "inner solver iterations over all bolt trials"),
     "converged": ("1", "1 if the contact solve converged to an admissible solution"),
     "kkt_residual": ("1", "relative residual of the discrete KKT conditions"),
-    "solve_seconds": ("s", "wall-clock seconds from case to dataset"),
+    "solve_seconds": ("s", "wall-clock seconds from case to dataset (building a shared model not included)"),
     "max_utilization": ("1", "largest EN 1992 utilization of the lining section (<= 1 passes)"),
     "max_surface_settlement": ("m", "largest settlement of the ground surface since excavation"),
     "volume_loss": ("1", "settlement trough area over excavated area (the trough: where the surface settles)"),
