@@ -42,6 +42,8 @@ import solver
 from solver.model import shared_model
 from solver.spec import CaseSpec
 
+from .summary import summarize
+
 if TYPE_CHECKING:
     from .index import ResultIndex
 
@@ -229,18 +231,7 @@ class ResultStore:
             self.write_error(spec, exc)
             raise
         self.write_case(ds)
-        from .summary import summarize
-
         return summarize(ds)
-        logger.info("solving case %s", case_id)
-        try:
-            # cases sharing geometry, mesh and materials reuse one factorized model per process
-            ds = solver.run_case(spec, model=shared_model(spec))
-        except Exception as exc:
-            self.write_error(spec, exc)
-            raise
-        self.write_case(ds)
-        return case_id
 
     def write_case(self, ds: xr.Dataset) -> Path:
         """Write a result Dataset atomically under its ``case_id`` attribute; return the path.

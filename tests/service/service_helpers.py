@@ -26,3 +26,11 @@ def wait_until(condition, *, timeout: float = 60.0, interval: float = 0.1, what:
             return value
         time.sleep(interval)
     pytest.fail(f"timed out after {timeout} s waiting for {what}")
+
+
+def finished(client, case_id: str) -> dict:
+    """The record of ``case_id`` once it is done or failed (``client``: an HTTP test client)."""
+    def check():
+        body = client.get(f"/cases/{case_id}").json()
+        return body if body["status"] in ("done", "failed") else None
+    return wait_until(check, what=f"case {case_id}")

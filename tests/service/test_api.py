@@ -10,7 +10,7 @@ import pytest
 import xarray as xr
 from fastapi.testclient import TestClient
 
-from service_helpers import COARSE, coarse_case, wait_until
+from service_helpers import COARSE, coarse_case, finished, wait_until
 from service.app import create_app
 from service.settings import Settings
 from solver.spec import CaseSpec
@@ -34,13 +34,6 @@ def app(tmp_path_factory):
 def client(app):
     with TestClient(app) as c:
         yield c
-
-
-def finished(client, case_id: str) -> dict:
-    def check():
-        body = client.get(f"/cases/{case_id}").json()
-        return body if body["status"] in ("done", "failed") else None
-    return wait_until(check, what=f"case {case_id}")
 
 
 @pytest.fixture(scope="module")
