@@ -3,10 +3,12 @@
 The cos 2θ moment of a ring in a 30-radii medium (external loading, full slip, K = 0.5)
 against the exact annulus, for a thick (t/a = 0.12) and a thin (t/a = 0.025) lining, at
 each solver's default interface_size and two refinements: DOF, seconds, moment error.
+First, each tree's default case (`run_case(CaseSpec())`, median of five after a warm-up),
+twice, alternating: the P1 commit's one-stage default against today's staged default.
 The P1 code is checked out of this repository's history into a temporary git worktree
 and run in a subprocess with the same Python environment.
 
-    python -m bench.p1_vs_p2 [--json] [--p1-commit a076fe8]
+    python -m bench.p1_vs_p2 [--json] [--p1-commit a076fe8] [--default-only]
 """
 from __future__ import annotations
 
@@ -39,12 +41,26 @@ for t, h in json.loads(sys.argv[1]):
 print(json.dumps(out))
 """
 
+_DEFAULT = r"""
+import json, logging, statistics, time
+logging.disable(logging.WARNING)
+from solver import CaseSpec, run_case
+run_case(CaseSpec())
+seconds = []
+for _ in range(5):
+    t0 = time.perf_counter()
+    ds = run_case(CaseSpec())
+    seconds.append(time.perf_counter() - t0)
+print(json.dumps({"median_s": statistics.median(seconds), "dof": 2 * ds.sizes["node"],
+                  "max_abs_moment": float(ds.max_abs_moment)}))
+"""
+
 GRID = {"P1": [0.05, 0.035, 0.025], "P2": [0.1, 0.05, 0.025]}
 THICKNESS = [0.3, 0.0625]
 
 
-def _run(tree: Path, cases) -> list[dict]:
-    done = subprocess.run([sys.executable, "-c", _PROBE, json.dumps(cases)], cwd=tree,
+def _run(tree: Path, cases, probe: str = _PROBE) -> list[dict] | dict:
+    done = subprocess.run([sys.executable, "-c", probe, json.dumps(cases)], cwd=tree,
                           capture_output=True, text=True, env={"PYTHONPATH": str(tree), "PATH": "/usr/bin:/bin"})
     if done.returncode:
         raise RuntimeError(f"{tree}: {done.stderr[-2000:]}")
@@ -55,6 +71,8 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--p1-commit", default=P1_COMMIT)
+    ap.add_argument("--default-only", action="store_true",
+                    help="only the default case's run_case time, each tree twice, alternating")
     args = ap.parse_args(argv)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -62,7 +80,10 @@ def main(argv=None) -> None:
         subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(old), args.p1_commit],
                        check=True, capture_output=True)
         try:
-            for label, tree in (("P1", old), ("P2", ROOT)):
+            for _ in range(2):  # alternating, so drift of the machine's speed hits both
+                for label, tree in (("P1 default case (one stage)", old), ("P2 default case (two stages)", ROOT)):
+                    rows.append({"elements": label, **_run(tree, [], _DEFAULT)})
+            for label, tree in (() if args.default_only else (("P1", old), ("P2", ROOT))):
                 cases = [(t, h) for t in THICKNESS for h in GRID[label]]
                 if label == "P1":  # the P1 element cap stops the thin lining's finest mesh
                     cases = [(t, h) for t, h in cases if not (t < 0.1 and h < 0.035)]
