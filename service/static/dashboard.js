@@ -99,7 +99,9 @@
         TC.getJSON("/sweeps?limit=20"), TC.getJSON("/cases?limit=20&newest_first=true")]);
       const now = sweeps.items.map((s) => s.id + ":" + signature(s.counts)).join(";") + "|" +
                   cases.items.map((c) => c.id + ":" + c.status).join(";");
-      if (last !== null && now !== last) await TC.swap([".strip", "#sweeps", "#cases"]);
+      // the first poll swaps too: what changed between the page's render and this poll
+      // (a short sweep may have finished by then) would otherwise never be shown
+      if (now !== last) await TC.swap([".strip", "#sweeps", "#cases"]);
       last = now;
       return 2000;
     }, 1000);
