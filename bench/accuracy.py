@@ -9,9 +9,9 @@ interface_size and two refinements, both loadings, with DOF and seconds.
 from __future__ import annotations
 
 import argparse
-import json
 import time
 
+from bench import print_rows
 from solver import run_case
 from solver.analytic import cos2_amplitude, exact_ring, ring_in_medium_case
 
@@ -32,11 +32,7 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     rows = [row(t, h, "external") for t in (0.0625, 0.25, 0.625) for h in (0.2, 0.1, 0.05)]
     rows += [row(0.3, 0.1, "excavation")]
-    if args.json:
-        print(json.dumps(rows, indent=2))
-        return
-    for r in rows:
-        print("  ".join(f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}" for k, v in r.items()))
+    print_rows(rows, as_json=args.json)
 
 
 if __name__ == "__main__":

@@ -32,7 +32,6 @@ import sys
 import tempfile
 import time
 
-
 SCALED = ("contact_pressure", "thrust", "max_contact_pressure", "max_thrust")
 
 

@@ -19,6 +19,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from bench import print_rows
 from solver.analytic import exact_ring
 
 P1_COMMIT = "a076fe8"  # last commit with linear triangles
@@ -94,11 +95,7 @@ def main(argv=None) -> None:
                                  "dof": r["dof"], "seconds": r["seconds"], "M2_error": r["M2"] / ex.M2 - 1})
         finally:
             subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(old)], capture_output=True)
-    if args.json:
-        print(json.dumps(rows, indent=2))
-        return
-    for r in rows:
-        print("  ".join(f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}" for k, v in r.items()))
+    print_rows(rows, as_json=args.json)
 
 
 if __name__ == "__main__":

@@ -72,7 +72,7 @@ def create_app(settings: Optional[Settings] = None) -> FastAPI:
     app.state.settings = settings or get_settings()
     app.add_middleware(BodyLimitMiddleware, max_bytes=app.state.settings.max_body_bytes)
     app.add_exception_handler(RequestValidationError, request_validation_handler)
-    for error in (sqlite3.Error, OSError):  # a full or read-only store: 503 with the reason
+    for error in (sqlite3.OperationalError, OSError):  # full, read-only, locked: 503
         app.add_exception_handler(error, store_error_handler)
     app.add_exception_handler(OverflowError, overflow_handler)
     app.add_exception_handler(StarletteHTTPException, http_error_handler)

@@ -9,7 +9,7 @@ from typing import Literal, Optional
 from fastapi import APIRouter, Depends, Query, Request, Response
 from fastapi.responses import FileResponse
 
-from solver.spec import CaseSpec
+from solver.spec import CaseSpec, content_id
 from workflows.plots import PLOTS
 from workflows.store import case_path
 
@@ -42,12 +42,16 @@ async def submit_case(spec: CaseSpec, request: Request, response: Response,
     (unless ``retry=failed`` and it failed)."""
     jobs = jobs_of(request)
     spec_json = spec.canonical_json()
-    known = jobs.store.get_case(spec.case_id)
+    case_id = content_id(spec_json)  # = spec.case_id, without building the JSON again
+    known = jobs.store.get_case(case_id)
     if known is None or known.status == "cancelled" or (retry and known.status == "failed"):
         check_capacity(request)
-    record, created = jobs.store.add_case(spec.case_id, spec_json)
-    if not created and jobs.store.requeue([record.id]):  # a cancelled case is submitted again
-        record, created = jobs.store.get_case(record.id), True
+    if known is None:
+        record, created = jobs.store.add_case(case_id, spec_json)
+    elif known.status == "cancelled" and jobs.store.requeue([case_id]):  # submitted again
+        record, created = jobs.store.get_case(case_id), True
+    else:
+        record, created = known, False
     if created:
         jobs.submit(record.id, spec_json)
     elif retry and await jobs.retry([record.id]):

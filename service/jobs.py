@@ -45,9 +45,9 @@ from pydantic import ValidationError
 from solver.errors import field_errors, format_errors
 from solver.spec import CaseSpec
 from workflows.store import remove_stale_temporaries, stored_case_ids
-from workflows.tasks import TASK_KEY_PREFIX as KEY_PREFIX, solve_and_store, task_key  # one key per case, CLI too
+from workflows.tasks import case_id_of_key, solve_and_store, task_key  # one key per case, CLI too
 
-from .results import BrokenResult, public_error, result_state, stored_summary
+from .results import BrokenResult, public_error, result_state, stored_summary, written
 from .store import UNREADABLE, JobStore
 
 logger = logging.getLogger(__name__)
@@ -240,6 +240,8 @@ class Dispatcher:
     async def _record(self, case_id: str, outcome: dict) -> None:
         seconds = outcome.get("seconds")
         if outcome.get("status") == "done":
+            if outcome.get("computed"):
+                written(self.root, case_id)
             await self._persist(self.store.finish, case_id, status="done", summary=outcome.get("summary"),
                                 seconds=seconds)
         else:
@@ -376,8 +378,7 @@ class Dispatcher:
         except Exception as exc:
             logger.debug("poll of executing tasks failed: %s", exc)
             return
-        started = [key[len(KEY_PREFIX):] for keys in executing.values() for key in keys
-                   if isinstance(key, str) and key.startswith(KEY_PREFIX)]
+        started = [c for keys in executing.values() for key in keys if (c := case_id_of_key(key))]
         if started:
             self.store.mark_running(started)
 

@@ -15,25 +15,22 @@ import re
 from pathlib import Path
 from typing import Optional
 
-from workflows.store import case_path, netcdf_lock
-from workflows.summary import read_summary
+from workflows.store import FileKey, ResultStore, case_path, file_key
 
 logger = logging.getLogger(__name__)
 
-_VERIFIED: dict[str, tuple[int, int]] = {}
-_LOCK = netcdf_lock  # netCDF/HDF5 reads one at a time, with every other netCDF access
+_VERIFIED: dict[str, FileKey] = {}
 
 
 class BrokenResult(Exception):
     """A result file exists but cannot be read."""
 
 
-def _version(path: Path) -> Optional[tuple[int, int]]:
+def _version(path: Path) -> Optional[FileKey]:
     try:
-        st = path.stat()
+        return file_key(path.stat())
     except FileNotFoundError:
         return None
-    return st.st_mtime_ns, st.st_size
 
 
 def stored_summary(root: Path, case_id: str) -> Optional[dict[str, float]]:
@@ -48,8 +45,7 @@ def stored_summary(root: Path, case_id: str) -> Optional[dict[str, float]]:
     if _version(path) is None:
         return None
     try:
-        with _LOCK:
-            summary = read_summary(root, case_id)
+        summary = ResultStore(root).read_summary(case_id)  # under the process's netCDF lock
     except FileNotFoundError:
         return None
     except Exception as exc:
@@ -58,6 +54,14 @@ def stored_summary(root: Path, case_id: str) -> Optional[dict[str, float]]:
     if version is not None:
         _VERIFIED[case_id] = version
     return summary
+
+
+def written(root: Path, case_id: str) -> None:
+    """Record the file a worker has just written whole (atomically, its summary taken from the
+    result in memory) as read: the first GET of a new result then does not open it."""
+    version = _version(case_path(root, case_id))
+    if version is not None:
+        _VERIFIED[case_id] = version
 
 
 def result_state(root: Path, case_id: str) -> str:

@@ -121,8 +121,8 @@ def assemble_body(mesh: BodyMesh, young: float, poisson: float, fixed: list[np.n
 
 def ground_constraints(basis: Basis, *, width: float, height: float, side: str, bottom: str) -> list[np.ndarray]:
     """Full DOFs held by the symmetry line, the bottom and the side (SPEC §1)."""
-    x, y = basis.doflocs[:, _dof_of_node(basis)[0]]
     dofs = _dof_of_node(basis)
+    x, y = basis.doflocs[:, dofs[0]]
     scale = max(width, height)
     fixed = [dofs[0, _near(x, 0.0, scale)]]
     low = _near(y, -height, scale)

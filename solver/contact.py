@@ -47,6 +47,12 @@ class NoAdmissibleBoltError(SolverError):
 log = logging.getLogger(__name__)
 
 
+def pressure_scale(F2: float, nu2: np.ndarray, w: np.ndarray) -> float:
+    """Mean pressure (Pa) that carries the lining's vertical load ``F2`` (N/m) over the lower
+    half of the interface (normals ``nu2``, weights ``w``): the scale of every KKT check."""
+    return abs(F2) / max(np.sum(np.abs(nu2) * w) / 2.0, 1e-300)
+
+
 @dataclass(frozen=True)
 class DualProblem:
     """The interface form of the contact problem (see the module docstring).
@@ -81,8 +87,7 @@ class DualProblem:
 
     @property
     def pressure_scale(self) -> float:
-        """Mean pressure that carries the lining weight over the lower half (Pa)."""
-        return abs(self.F2) / max(np.sum(np.abs(self.nu2) * self.w) / 2.0, 1e-300)
+        return pressure_scale(self.F2, self.nu2, self.w)
 
     def reduced(self, bolt: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Reduced Hessian H and linear term b after eliminating λ_A by the balance.
@@ -130,13 +135,6 @@ class ContactSolution:
     trials: list[BoltTrial] = field(default_factory=list)
     iterations: int = 0
     admissible: bool = True
-
-
-def natural_residual(lam, gap, scale_gap, bolt) -> float:
-    """max |min(λ, gap·scale_gap)| over the non-bolt nodes (Pa): 0 iff complementarity holds."""
-    r = np.abs(np.minimum(lam, gap * scale_gap))
-    r[bolt] = 0.0
-    return float(r.max(initial=0.0))
 
 
 def _curvature(dual: DualProblem, bolt: int) -> float:
@@ -283,8 +281,8 @@ def _nnls(dual: DualProblem, bolt: int, iterations: int) -> InnerResult:
 INNER = {"uzawa": uzawa, "active-set": active_set}
 
 
-def solve_contact(dual: DualProblem, theta: np.ndarray, *, inner: str, tol: float,
-                  max_iterations: int, bolt: float | str = "auto") -> ContactSolution:
+def search_bolt(theta: np.ndarray, nu2: np.ndarray, solve_at, *, tol: float, p_ref: float,
+                bolt: float | str = "auto", model: str = "frictionless"):
     """The paper's global strategy: guess a bolt A, solve (3.1), accept when λ_A >= 0.
 
     Candidates are the nodes with ν2 != 0 (the set N0). The first guess is the
@@ -293,42 +291,59 @@ def solve_contact(dual: DualProblem, theta: np.ndarray, *, inner: str, tol: floa
     rejected auxiliary solution (where the bolted lining presses hardest), ties
     broken towards the invert. Every trial is recorded.
 
+    ``solve_at(A)`` solves the auxiliary problem with the bolt at node A and returns
+    ``(lam, iterations, result)``: the (m,) pressures, the inner iterations and whatever
+    the caller needs back. Returns ``(A, result, trials, iterations, admissible)``.
+
     With ``bolt`` a theta in degrees, the nearest node of N0 is the only bolt;
     a negative bolt reaction is then reported (``admissible=False``), not hidden.
     """
-    solver = INNER[inner]
-    candidates = np.flatnonzero(np.abs(dual.nu2) > 1e-12)
-    p_ref = dual.pressure_scale
+    candidates = np.flatnonzero(np.abs(nu2) > 1e-12)
     if bolt != "auto":
         order = [int(candidates[np.argmin(np.abs(theta[candidates] - float(bolt)))])]
     else:
         order = [int(candidates[np.argmax(theta[candidates])])]
     tried: set[int] = set()
     trials: list[BoltTrial] = []
-    lam = np.zeros(dual.m)
     total = 0
     while order:
         A = order.pop(0)
         tried.add(A)
-        res = solver(dual, A, lam, tol=tol, max_iter=max_iterations)
-        total += res.iterations
-        if not res.converged:
-            raise NotConvergedError(
-                f"solver.inner={inner!r} did not converge in {max_iterations} iterations "
-                f"(bolt at theta={theta[A]:.2f} deg); raise solver.max_iterations or use 'active-set'")
-        lam = res.lam
+        lam, iterations, result = solve_at(A)
+        total += iterations
         lam_A = float(lam[A])
         ok = lam_A >= -tol * max(p_ref, float(np.max(np.abs(lam))))
-        trials.append(BoltTrial(A, float(theta[A]), lam_A, res.iterations, bool(ok)))
-        log.debug("bolt trial at theta=%.2f: lambda_A=%.4g Pa (%s)", theta[A], lam_A, ok)
+        trials.append(BoltTrial(A, float(theta[A]), lam_A, iterations, bool(ok)))
+        log.debug("%s bolt trial at theta=%.2f: lambda_A=%.4g Pa (%s)", model, theta[A], lam_A, ok)
         if ok or bolt != "auto":
-            gap, a = dual.gap(lam, A)
-            return ContactSolution(lam=lam, gap=gap, a=a, bolt=A, trials=trials, iterations=total,
-                                   admissible=bool(ok))
+            return A, result, trials, total, bool(ok)
         rest = np.array([i for i in candidates if i not in tried], dtype=np.int64)
         if rest.size:
             score = np.lexsort((theta[rest], lam[rest]))  # largest λ, then nearest the invert
             order = [int(rest[score[-1]])]
     raise NoAdmissibleBoltError(
-        f"no admissible bolt among {len(tried)} candidates (every bolt reaction was negative); "
-        "check the loads and solver.tolerance")
+        f"interface.model={model!r}: no admissible bolt among {len(tried)} candidates (every bolt "
+        "reaction was negative); check the loads and solver.tolerance")
+
+
+def solve_contact(dual: DualProblem, theta: np.ndarray, *, inner: str, tol: float,
+                  max_iterations: int, bolt: float | str = "auto") -> ContactSolution:
+    """Frictionless contact: :func:`search_bolt` around the inner solver ``inner``, each
+    trial starting from the previous trial's pressures."""
+    solver = INNER[inner]
+    lam = np.zeros(dual.m)
+
+    def solve_at(A: int):
+        nonlocal lam
+        res = solver(dual, A, lam, tol=tol, max_iter=max_iterations)
+        if not res.converged:
+            raise NotConvergedError(
+                f"solver.inner={inner!r} did not converge in {max_iterations} iterations "
+                f"(bolt at theta={theta[A]:.2f} deg); raise solver.max_iterations or use 'active-set'")
+        lam = res.lam
+        return lam, res.iterations, lam
+
+    A, lam, trials, total, ok = search_bolt(theta, dual.nu2, solve_at, tol=tol, p_ref=dual.pressure_scale,
+                                            bolt=bolt)
+    gap, a = dual.gap(lam, A)
+    return ContactSolution(lam=lam, gap=gap, a=a, bolt=A, trials=trials, iterations=total, admissible=ok)

@@ -18,7 +18,7 @@ import xarray as xr
 
 from .assembly import SUBTRIANGLES, geostatic_stress, stress_at
 from .design import design_utilization
-from .model import CONTACT_GAP_TOL, Solution, TunnelModel
+from .model import Solution, TunnelModel
 from .post import contact_extent, lining_forces, surface_trough
 
 log = logging.getLogger(__name__)
@@ -112,11 +112,7 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
     forces = lining_forces(spec, model.lining.body, iface, mesh.center, sol.u_lining, sol.lam, sol.shear)
     eta, env_n, env_m = design_utilization(forces.thrust, forces.moment, g.thickness, spec.design)
     surf_x, settlement = surface_trough(mg.p, sol.u_ground, scale=max(g.width, g.height))
-    gap = sol.gap
-    u_ref = max(float(np.max(np.abs(u))), g.gap, 1e-300)
-    in_contact = gap <= CONTACT_GAP_TOL * u_ref
-    if spec.interface.model == "bonded":
-        in_contact = np.ones_like(in_contact)
+    gap, in_contact = sol.gap, sol.in_contact
     crown = iface.lining_node[0]
     max_eta = float(np.max(eta))
     scalars = {

@@ -51,7 +51,7 @@ import numpy as np
 import scipy.linalg as la
 from scipy.optimize import lsq_linear
 
-from .contact import BoltTrial, NoAdmissibleBoltError, NotConvergedError
+from .contact import BoltTrial, NotConvergedError, pressure_scale, search_bolt
 
 log = logging.getLogger(__name__)
 
@@ -77,9 +77,7 @@ class FrictionProblem:
 
     @property
     def pressure_scale(self) -> float:
-        """Mean pressure that carries the lining weight over the lower half (Pa)."""
-        m = self.m
-        return abs(self.F2) / max(np.sum(np.abs(self.r[:m]) * self.w[:m]) / 2.0, 1e-300)
+        return pressure_scale(self.F2, self.r[:self.m], self.w[:self.m])
 
     def jumps(self, t: np.ndarray, bolt: int) -> tuple[np.ndarray, float]:
         """Jumps J (R,) m and the translation a (m) that closes the bolt (gap_A = 0)."""
@@ -299,39 +297,17 @@ def solve_bolted(fp: FrictionProblem, bolt: int, sets: _Sets, *, tol: float, max
 
 def solve_coulomb(fp: FrictionProblem, theta: np.ndarray, *, tol: float, max_iterations: int,
                   bolt: float | str = "auto") -> CoulombSolution:
-    """Bolt search (as :func:`solver.contact.solve_contact`) around :func:`solve_bolted`.
-
-    Candidates are the nodes with ν2 ≠ 0; the first is the invert, after a rejection the
-    untried node with the largest pressure (ties towards the invert). The next trial starts
-    from the previous one's sets. With ``bolt`` a theta (deg) the nearest candidate is the
-    only bolt and a negative bolt reaction is reported (``admissible=False``).
-    """
+    """:func:`solver.contact.search_bolt` around :func:`solve_bolted`; each trial starts from
+    the previous trial's sets (the first from all nodes stuck)."""
     m = fp.m
-    candidates = np.flatnonzero(np.abs(fp.r[:m]) > 1e-12)
-    if bolt != "auto":
-        order = [int(candidates[np.argmin(np.abs(theta[candidates] - float(bolt)))])]
-    else:
-        order = [int(candidates[np.argmax(theta[candidates])])]
-    tried: set[int] = set()
-    trials: list[BoltTrial] = []
-    sets, total = _bonded_sets(m), 0
-    while order:
-        A = order.pop(0)
-        tried.add(A)
+    sets = _bonded_sets(m)
+
+    def solve_at(A: int):
+        nonlocal sets
         t, sets, its = solve_bolted(fp, A, sets, tol=tol, max_iter=max_iterations)
-        total += its
-        lam = t[:m]
-        lam_A = float(lam[A])
-        ok = lam_A >= -tol * max(fp.pressure_scale, float(np.max(np.abs(lam))))
-        trials.append(BoltTrial(A, float(theta[A]), lam_A, its, bool(ok)))
-        log.debug("coulomb bolt trial at theta=%.2f: lambda_A=%.4g Pa (%s)", theta[A], lam_A, ok)
-        if ok or bolt != "auto":
-            _, a = fp.jumps(t, A)
-            return CoulombSolution(t=t, a=a, bolt=A, trials=trials, iterations=total, admissible=bool(ok))
-        rest = np.array([i for i in candidates if i not in tried], dtype=np.int64)
-        if rest.size:
-            score = np.lexsort((theta[rest], lam[rest]))
-            order = [int(rest[score[-1]])]
-    raise NoAdmissibleBoltError(
-        f"interface.model='coulomb': no admissible bolt among {len(tried)} candidates "
-        "(every bolt reaction was negative); check the loads and solver.tolerance")
+        return t[:m], its, t
+
+    A, t, trials, total, ok = search_bolt(theta, fp.r[:m], solve_at, tol=tol, p_ref=fp.pressure_scale,
+                                          bolt=bolt, model="coulomb")
+    _, a = fp.jumps(t, A)
+    return CoulombSolution(t=t, a=a, bolt=A, trials=trials, iterations=total, admissible=ok)

@@ -42,7 +42,7 @@ from .assembly import (
     surface_load,
     vector_basis,
 )
-from .contact import BoltTrial, DualProblem, SolverError, solve_contact
+from .contact import BoltTrial, DualProblem, SolverError, pressure_scale, solve_contact
 from .flexibility import (
     FactoredBody,
     factor_body,
@@ -80,10 +80,10 @@ def model_key(spec: CaseSpec) -> str:
 
 @dataclass(frozen=True)
 class StageLoads:
-    """Free-DOF loads (N/m) of one case: stage-1 ground load (None if no stage 1), the
-    contact stage's ground and lining loads, and the full excavation load ``release``."""
+    """Free-DOF loads (N/m) of one case: the contact stage's ground and lining loads, and
+    the full excavation load ``release`` (None for ``wished-in-place``; stage 1 releases
+    λd of it, the contact stage the rest)."""
 
-    stage1: np.ndarray | None
     ground: np.ndarray
     lining: np.ndarray
     release: np.ndarray | None
@@ -98,6 +98,8 @@ class Solution:
     u_lining : (2, Nl) m, lining displacement since placement.
     lam, shear : (m,) Pa, contact pressure and shear traction on the lining.
     normal_jump, tangential_jump : (m,) m, [u]ν and [u]τ of the contact stage.
+    in_contact, slipping : (m,) bool, closed nodes (all of them for ``bonded``) and those of
+        them that slip (a tangential jump, which the bond forbids).
     """
 
     spec: CaseSpec
@@ -108,6 +110,7 @@ class Solution:
     shear: np.ndarray
     normal_jump: np.ndarray
     tangential_jump: np.ndarray
+    in_contact: np.ndarray
     slipping: np.ndarray
     a: float
     bolt: int | None
@@ -240,10 +243,9 @@ class TunnelModel:
         f_l = lining.restrict(spec.lining.density * spec.loads.gravity
                               * self._unit("lining_gravity", lambda: gravity_load(lining.basis, 1.0, 1.0)))
         if spec.excavation.method == "wished-in-place":
-            return StageLoads(None, ground.restrict(self.ground_loads(spec)), f_l, None)
+            return StageLoads(ground.restrict(self.ground_loads(spec)), f_l, None)
         release = ground.restrict(self.excavation_load(spec))
-        ld = spec.excavation.deconfinement
-        return StageLoads(ld * release, (1.0 - ld) * release, f_l, release)
+        return StageLoads((1.0 - spec.excavation.deconfinement) * release, f_l, release)
 
     # -- solve -------------------------------------------------------------------------
     def solve(self, spec: CaseSpec) -> Solution:
@@ -282,22 +284,21 @@ class TunnelModel:
         shear[self.tangential] = t[m:]
         jt = np.zeros(m)
         jt[self.tangential] = J[m:]
-        u_ground = ground.body.expand(u_g + u1)
         u_lining = lining.body.expand(u_l)
-        u_ref = max(float(np.max(np.abs(np.concatenate([ground.body.expand(u_g), u_lining], axis=1)))), g0, 1e-300)
-        p_ref = max(float(np.max(np.abs(t))), abs(F2) / max(np.sum(np.abs(iface.normal[1]) * iface.weight) / 2, 1e-300))
-        slip_tol = CONTACT_GAP_TOL * u_ref
-        slipping = (np.abs(jt) > slip_tol) & (lam > 0) if model == "coulomb" else np.zeros(m, bool)
-        if model == "frictionless":
-            slipping = (g0 - J[:m] <= slip_tol) & (np.abs(jt) > slip_tol)
+        # scales of the contact stage (the increment contact acts on)
+        u_ref = max(float(np.max(np.abs(u_g))), float(np.max(np.abs(u_l))), g0, 1e-300)
+        p_ref = max(float(np.max(np.abs(t))), pressure_scale(F2, iface.normal[1], iface.weight))
+        closed = (g0 - J[:m] <= CONTACT_GAP_TOL * u_ref) | (model == "bonded")
+        slipping = closed & (np.abs(jt) > CONTACT_GAP_TOL * u_ref)
         residuals = [(fb.body.K @ u + fb.B.T @ Wt - f, np.abs(f) + np.abs(fb.B.T @ Wt))
                      for fb, u, f in ((ground, u_g, loads.ground), (lining, u_l, loads.lining))]
         balance = F2 + float(np.sum(self.r * Wt))
-        kkt = kkt_residual(K_u_minus_f=residuals, balance=balance, F2=F2, lam=lam, gap=g0 - J[:m],
+        kkt = kkt_residual(K_u_minus_f=residuals, balance=balance, F2=F2, lam=lam, normal_jump=J[:m], g0=g0,
                            p_ref=p_ref, u_ref=u_ref, model=model, shear=shear, tangential_jump=jt,
-                           mu=spec.interface.friction, g0=g0)
-        return Solution(spec=spec, u_ground=u_ground, u_stage1=ground.body.expand(u1), u_lining=u_lining,
-                        lam=lam, shear=shear, normal_jump=J[:m], tangential_jump=jt, slipping=slipping, a=float(a),
+                           mu=spec.interface.friction)
+        return Solution(spec=spec, u_ground=ground.body.expand(u_g + u1), u_stage1=ground.body.expand(u1),
+                        u_lining=u_lining, lam=lam, shear=shear, normal_jump=J[:m], tangential_jump=jt,
+                        in_contact=closed, slipping=slipping, a=float(a),
                         bolt=bolt, trials=trials, iterations=int(iterations), admissible=bool(admissible), F2=F2,
                         kkt_residual=kkt,
                         timings={"contact": t_solve - t0, "recovery": time.perf_counter() - t_solve})

@@ -119,14 +119,15 @@ def surface_trough(ground_p: np.ndarray, u_ground: np.ndarray, *, scale: float) 
 
 
 def kkt_residual(*, K_u_minus_f: list[tuple[np.ndarray, np.ndarray]], balance: float, F2: float,
-                 lam: np.ndarray, gap: np.ndarray, p_ref: float, u_ref: float, model: str = "frictionless",
-                 shear: np.ndarray | None = None, tangential_jump: np.ndarray | None = None,
-                 mu: float = 0.0, g0: float = 0.0) -> float:
+                 lam: np.ndarray, normal_jump: np.ndarray, g0: float, p_ref: float, u_ref: float,
+                 model: str = "frictionless", shear: np.ndarray | None = None,
+                 tangential_jump: np.ndarray | None = None, mu: float = 0.0) -> float:
     """Largest relative violation of the discrete KKT conditions (dimensionless).
 
     ``K_u_minus_f`` holds per body the residual ``K u + Bᵀ W t - f`` and the size of the
-    forces it balances; ``balance`` is ``F2 + I(λ ν2 + s τ2)`` (N/m). Pressures are
-    scaled by ``p_ref`` (Pa), jumps and gaps by ``u_ref`` (m). By model:
+    forces it balances; ``balance`` is ``F2 + I(λ ν2 + s τ2)`` (N/m); the gap is
+    ``g0 - normal_jump``. Pressures are scaled by ``p_ref`` (Pa), jumps and gaps by
+    ``u_ref`` (m). By model:
 
     - frictionless / coulomb: λ ≥ 0, gap ≥ 0, λ·gap = 0;
     - coulomb adds the friction law through its natural map,
@@ -139,9 +140,10 @@ def kkt_residual(*, K_u_minus_f: list[tuple[np.ndarray, np.ndarray]], balance: f
     parts = [np.max(np.abs(r)) / max(np.max(np.abs(f)), 1e-300) for r, f in K_u_minus_f]
     parts.append(abs(balance) / abs(F2))
     if model == "bonded":
-        parts.append(float(np.max(np.abs(g0 - gap))) / u_ref)
+        parts.append(float(np.max(np.abs(normal_jump))) / u_ref)
         parts.append(float(np.max(np.abs(tangential_jump))) / u_ref)
         return float(max(parts))
+    gap = g0 - normal_jump
     parts.append(max(0.0, -float(lam.min())) / p_ref)
     parts.append(max(0.0, -float(gap.min())) / u_ref)
     parts.append(float(np.max(np.abs(lam * gap))) / (p_ref * u_ref))

@@ -13,6 +13,7 @@ from typing import Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from .design import section_errors
 from .sizing import MAX_ELEMENTS, estimated_elements
 
 __all__ = ["CaseSpec", "MAX_ELEMENTS", "canonical_json", "content_id"]
@@ -145,6 +146,15 @@ class Interface(_Frozen):
     model: Literal["frictionless", "coulomb", "bonded"] = "frictionless"
     friction: float = Field(0.0, ge=0, le=10.0, description="Coulomb coefficient mu (required > 0 for 'coulomb')")
 
+    @model_validator(mode="before")
+    @classmethod
+    def _friction_only_for_coulomb(cls, data):
+        # friction is ignored by the other models (SPEC §2): dropping it keeps one id per
+        # physical case (a bonded case with friction 0.3 is the bonded case)
+        if isinstance(data, dict) and data.get("model", "frictionless") != "coulomb" and "friction" in data:
+            data = {**data, "friction": 0.0}
+        return data
+
     @model_validator(mode="after")
     def _friction_needed(self) -> "Interface":
         if self.model == "coulomb" and self.friction <= 0:
@@ -210,15 +220,11 @@ class CaseSpec(_Frozen):
             raise ValueError(
                 f"lining.young: lining / ground stiffness ratio {ratio:.3g} is outside "
                 f"[{1 / MAX_STIFFNESS_RATIO:g}, {MAX_STIFFNESS_RATIO:g}]")
-        d, t = self.design, self.geometry.thickness
-        if d.reinforcement_area > 0 and d.axis_distance >= 0.5 * t:
-            raise ValueError(
-                f"design.axis_distance: {d.axis_distance} m puts the reinforcement outside the "
-                f"section's half depth ({0.5 * t:.4g} m)")
-        if 2 * d.reinforcement_area > 0.04 * t:
-            raise ValueError(
-                f"design.reinforcement_area: 2 x {d.reinforcement_area} m^2/m exceeds As,max = 0.04 Ac "
-                f"= {0.04 * t:.4g} m^2/m (EN 1992-1-1 9.2.1.1(3))")
+        d = self.design  # the section's own rules live with the design check
+        errors = section_errors(self.geometry.thickness, d.reinforcement_area, d.axis_distance)
+        if errors:
+            field, reason = errors[0]
+            raise ValueError(f"{field}: {reason}")
         return self._mesh_fits()
 
     def _mesh_fits(self) -> "CaseSpec":

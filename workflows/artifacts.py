@@ -28,7 +28,7 @@ from typing import Sequence
 import xarray as xr
 
 from .plots import PLOTS, SWEEP_PLOT_NAMES, SWEEP_PLOTS, case_labels, plot_interaction
-from .store import OPEN_OPTIONS, ResultStore, StoreLike, as_store, netcdf_lock, write_atomically
+from .store import ResultStore, StoreLike, as_store, netcdf_lock, write_atomically
 
 logger = logging.getLogger(__name__)
 
@@ -131,6 +131,6 @@ def render_sweep_plot(root: StoreLike, sweep_id: str, case_ids: Sequence[str], n
 
 def _section_forces(store: ResultStore, case_id: str) -> xr.Dataset:
     """The lining forces and design envelope of a stored case, without its mesh and fields."""
-    with netcdf_lock, xr.open_dataset(store.case_path(case_id), **OPEN_OPTIONS) as ds:
+    with store.opened(case_id) as ds:
         names = [v for v in ("thrust", "moment", "utilization", "capacity_thrust", "capacity_moment") if v in ds]
         return ds[names].load()

@@ -17,7 +17,7 @@ import numpy as np
 import xarray as xr
 
 from .parameters import flat_parameters, varying_parameters
-from .store import OPEN_OPTIONS, ResultStore, StoreLike, as_store, check_case_id, netcdf_lock
+from .store import ResultStore, StoreLike, as_store, check_case_id
 
 logger = logging.getLogger(__name__)
 
@@ -106,7 +106,7 @@ def requested_ids(store: ResultStore, case_ids: Sequence[str] | None) -> list[st
 
 def read_reduced(store: ResultStore, case_id: str) -> xr.Dataset:
     """:func:`reduce_case` of a stored case file."""
-    with netcdf_lock, xr.open_dataset(store.case_path(case_id), **OPEN_OPTIONS) as ds:
+    with store.opened(case_id) as ds:
         return reduce_case(ds)
 
 

@@ -23,7 +23,7 @@ from solver import CaseSpec, SolverError
 from solver.errors import field_errors, format_errors
 
 from .parameters import flat_parameters, varying_parameters
-from .store import OPEN_OPTIONS, ResultStore, StoreLike, as_store, check_case_id, netcdf_lock
+from .store import ResultStore, StoreLike, as_store, check_case_id
 from .summary import summarize
 from .sweep import Sweep, SweepError, run_sweep
 
@@ -104,24 +104,25 @@ def run_command(case_file: str | None, results: str, *, force: bool = False, ret
     """
     spec = load_case(case_file)
     store = ResultStore(results)
+    summary = None
     if not force and store.is_stored(spec.case_id):
         try:
-            store.read_summary(spec.case_id)
+            summary = store.read_summary(spec.case_id)
         except Exception as exc:  # truncated or corrupted: never shown, computed again
             logger.warning("stored result of case %s is unreadable (%s); recomputing", spec.case_id, exc)
-            force = True
     elif not force and not retry_failed:
         error = store.read_error(spec.case_id)
         if error is not None:
             print(f"case {spec.case_id} failed before: {error['error']} (--retry-failed recomputes it)", file=out)
             return 1
-    try:
-        case_id = store.run_and_store(spec, force=force)
-    except SolverError as exc:
-        print(f"case {spec.case_id} failed: {exc}", file=out)
-        return 1
-    print(f"case {case_id} stored in {store.case_path(case_id)}", file=out)
-    print(format_summary(store.read_summary(case_id)), file=out)
+    if summary is None:
+        try:  # the summary of the new result, from memory
+            summary = store.solve_and_store(spec, force=True)
+        except SolverError as exc:
+            print(f"case {spec.case_id} failed: {exc}", file=out)
+            return 1
+    print(f"case {spec.case_id} stored in {store.case_path(spec.case_id)}", file=out)
+    print(format_summary(summary), file=out)
     return 0
 
 
@@ -222,7 +223,7 @@ def case_row(results: StoreLike, case_id: str) -> dict[str, Any]:
     """``{"case_id", "status", "params", "summary", "error"}`` of a case in the store."""
     store = as_store(results)
     if store.is_stored(case_id):
-        with netcdf_lock, xr.open_dataset(store.case_path(case_id), **OPEN_OPTIONS) as ds:
+        with store.opened(case_id) as ds:
             return {"case_id": case_id, "status": "done", "error": None,
                     "params": flat_parameters(ds.attrs["case_spec"]), "summary": summarize(ds)}
     error = store.read_error(case_id) or {}
@@ -234,7 +235,8 @@ def case_row(results: StoreLike, case_id: str) -> dict[str, Any]:
 def case_rows(results: StoreLike, case_ids: list[str]) -> list[dict[str, Any]]:
     """:func:`case_row` of each case; the stored ones come from the index in one read."""
     store = as_store(results)
-    done = [c for c in case_ids if store.is_stored(c)]
+    stored = store.file_keys()  # one directory scan, not a stat per case
+    done = [c for c in case_ids if c in stored]
     rows: dict[str, dict[str, Any]] = {}
     try:
         combined = store.open_results(done) if done else None

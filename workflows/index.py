@@ -58,7 +58,7 @@ import xarray as xr
 from xarray.backends.netCDF4_ import NETCDF4_PYTHON_LOCK
 
 from .combine import label_cases, read_reduced, reduce_case, stack_cases
-from .store import OPEN_OPTIONS, FileKey, check_case_id, netcdf_encoding, netcdf_lock, write_atomically
+from .store import OPEN_OPTIONS, FileKey, check_case_id, file_key, netcdf_encoding, netcdf_lock, write_atomically
 
 if TYPE_CHECKING:
     from .store import ResultStore
@@ -370,16 +370,11 @@ _TEMPLATES: dict[tuple[str, FileKey], xr.Dataset] = {}
 
 def _template(path: Path) -> xr.Dataset:
     """The schema file at ``path``, read once per process and version of the file."""
-    key = (str(path), _key_of(path))
+    key = (str(path), file_key(path.stat()))
     if key not in _TEMPLATES:
         with netcdf_lock, xr.open_dataset(path, **OPEN_OPTIONS) as ds:
             _TEMPLATES[key] = ds.load()
     return _TEMPLATES[key]
-
-
-def _key_of(path: Path) -> FileKey:
-    s = path.stat()
-    return (s.st_ino, s.st_size, s.st_mtime_ns, s.st_ctime_ns)
 
 
 def _stat(path: Path) -> tuple[int, int] | None:

@@ -30,7 +30,8 @@ import shutil
 import tempfile
 import threading
 import time
-from collections.abc import Callable, Sequence
+from contextlib import contextmanager
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Union
@@ -167,6 +168,13 @@ class ResultStore:
                         pass
         return keys
 
+    @contextmanager
+    def opened(self, case_id: str) -> Iterator[xr.Dataset]:
+        """The stored file of ``case_id``, lazily opened under :data:`netcdf_lock` (every
+        netCDF access of this process goes through it), closed on exit."""
+        with netcdf_lock, xr.open_dataset(self.case_path(case_id), **OPEN_OPTIONS) as ds:
+            yield ds
+
     def open_case(self, case_id: str) -> xr.Dataset:
         """Read the stored result of ``case_id`` fully into memory (the file is closed).
 
@@ -175,14 +183,12 @@ class ResultStore:
         FileNotFoundError
             If the case is not stored.
         """
-        with netcdf_lock, xr.open_dataset(self.case_path(case_id), **OPEN_OPTIONS) as ds:
+        with self.opened(case_id) as ds:
             return ds.load()
 
     def read_summary(self, case_id: str) -> dict[str, float]:
         """The scalars of a stored case (see :func:`workflows.summary.summarize`), reading only them."""
-        from .summary import summarize
-
-        with netcdf_lock, xr.open_dataset(self.case_path(case_id), **OPEN_OPTIONS) as ds:
+        with self.opened(case_id) as ds:
             return summarize(ds)
 
     def read_error(self, case_id: str) -> dict[str, Any] | None:
@@ -285,7 +291,7 @@ class ResultStore:
         processes that died mid-write (e.g. a killed worker).
         """
         removed = 0
-        for folder in (self.cases_dir, self.index_dir, self.index_dir / "pending", self.index_dir / "schemas"):
+        for folder in (self.cases_dir, self.index_dir, self.index.pending_dir, self.index.schemas_dir):
             for tmp in folder.glob(f"*{_TMP_SUFFIX}") if folder.is_dir() else ():
                 try:
                     if time.time() - tmp.stat().st_mtime > older_than:
@@ -383,10 +389,6 @@ def error_path(root: StoreLike, case_id: str) -> Path:
     return as_store(root).error_path(case_id)
 
 
-def plot_dir(root: StoreLike, case_id: str) -> Path:
-    return as_store(root).plot_dir(case_id)
-
-
 def is_stored(root: StoreLike, case_id: str) -> bool:
     return as_store(root).is_stored(case_id)
 
@@ -397,10 +399,6 @@ def stored_case_ids(root: StoreLike) -> list[str]:
 
 def write_case(root: StoreLike, ds: xr.Dataset) -> Path:
     return as_store(root).write_case(ds)
-
-
-def write_error(root: StoreLike, spec: CaseSpec, exc: BaseException) -> Path:
-    return as_store(root).write_error(spec, exc)
 
 
 def read_error(root: StoreLike, case_id: str) -> dict[str, Any] | None:

@@ -185,7 +185,7 @@ def run_sweep(sweep: Sweep | dict[str, Any], root: StoreLike, client=None, *, pr
     from distributed import as_completed
     from tqdm import tqdm
 
-    from .tasks import outcomes, submit_cases
+    from .tasks import outcome, submit_cases
 
     store = as_store(root)
     sweep = Sweep.model_validate(sweep)
@@ -204,12 +204,12 @@ def run_sweep(sweep: Sweep | dict[str, Any], root: StoreLike, client=None, *, pr
         bar = tqdm(total=len(todo), desc=f"sweep {sweep.name}", unit="case") if progress else None
         try:
             for future in as_completed(submitted):
-                for result in outcomes(future, submitted[future]):
-                    logger.info("case %s %s", result["case_id"], result["status"])
-                    if on_result is not None:
-                        on_result(result)
-                    if bar is not None:
-                        bar.update(1)
+                result = outcome(future, submitted[future])
+                logger.info("case %s %s", result["case_id"], result["status"])
+                if on_result is not None:
+                    on_result(result)
+                if bar is not None:
+                    bar.update(1)
         finally:
             if bar is not None:
                 bar.close()

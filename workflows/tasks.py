@@ -72,29 +72,22 @@ def solve_and_store(spec_json: str, root: StoreLike, force: bool = False) -> dic
 
 
 def submit_cases(client, specs: Sequence[CaseSpec], root: StoreLike, *, force: bool = False) -> dict:
-    """Submit the cases ``specs`` to dask; return ``{future: [case ids it computes]}``.
+    """Submit the cases ``specs`` to dask, one :func:`solve_and_store` task each under
+    :func:`task_key` (the service's key too); return ``{future: case id}``.
 
-    Today one task per case (:func:`solve_and_store` under :func:`task_key`). This is
-    where cases that share a mesh and materials will be grouped onto one task that
-    builds the shared solver object once; a future may then stand for several cases,
-    which is why the mapping lists the case ids of each future (read the outcomes
-    with :func:`outcomes`).
+    Cases that share a mesh and materials share the solver model built on each worker
+    (:func:`solver.model.shared_model`), so no grouping of tasks is needed for that.
     """
     root = str(as_store(root).root)
     futures = client.map(solve_and_store, [s.canonical_json() for s in specs], [root] * len(specs),
                          [force] * len(specs), key=[task_key(s.case_id) for s in specs], pure=False)
-    return {future: [spec.case_id] for future, spec in zip(futures, specs)}
+    return {future: spec.case_id for future, spec in zip(futures, specs)}
 
 
-def outcomes(future, case_ids: Sequence[str]) -> list[dict]:
-    """The summary dicts of a finished future of :func:`submit_cases`, one per case.
-
-    A task that raised (e.g. ``KilledWorker`` after repeated worker deaths) counts
-    as failed for each of its cases.
-    """
+def outcome(future, case_id: str) -> dict:
+    """The summary dict of a finished future of :func:`submit_cases`; a task that raised
+    (e.g. ``KilledWorker`` after repeated worker deaths) counts as the case failing."""
     try:
-        result = future.result()
+        return future.result()
     except Exception as exc:
-        return [{"case_id": c, "status": "failed", "error": f"{type(exc).__name__}: {exc}", "summary": {}}
-                for c in case_ids]
-    return result if isinstance(result, list) else [result]
+        return {"case_id": case_id, "status": "failed", "error": f"{type(exc).__name__}: {exc}", "summary": {}}

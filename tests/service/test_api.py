@@ -8,7 +8,6 @@ import json
 
 import pytest
 import xarray as xr
-from fastapi.testclient import TestClient
 
 from service_helpers import COARSE, coarse_case, finished, wait_until
 from service.app import create_app
@@ -28,12 +27,6 @@ def app(tmp_path_factory):
     settings = Settings(results=tmp_path_factory.mktemp("results"), local_workers=2,
                         max_sweep_cases=50, poll_interval=0.1, reconcile_interval=3600)
     return create_app(settings)
-
-
-@pytest.fixture(scope="module")
-def client(app):
-    with TestClient(app) as c:
-        yield c
 
 
 @pytest.fixture(scope="module")

@@ -34,7 +34,7 @@ def test_default_case_and_stable_id():
     ({"interface": {"model": "coulomb"}}, "interface", "friction: interface.model 'coulomb' needs"),
     ({"excavation": {"deconfinement": 1.5}}, "excavation.deconfinement", "less than or equal to 1"),
     ({"excavation": {"method": "cut-and-cover"}}, "excavation.method", "'deconfinement' or 'wished-in-place'"),
-    ({"design": {"reinforcement_area": 0.01, "axis_distance": 0.2}}, "", "design.axis_distance"),
+    ({"design": {"reinforcement_area": 0.001, "axis_distance": 0.2}}, "", "design.axis_distance"),
     ({"design": {"reinforcement_area": 0.01}}, "", "design.reinforcement_area"),
     ({"ground": {"young": 1e5}, "lining": {"young": 1e12}}, "", "lining.young: lining / ground stiffness ratio"),
     ({"lining": {"poisson": -0.1}}, "lining.poisson", "greater than or equal to 0"),
@@ -104,3 +104,11 @@ def test_mesh_contract(gap):
     # interface element size near the requested one
     seg = np.diff(np.radians(iface.theta[iface.vertex])) * spec.geometry.hole_radius
     assert seg.max() <= spec.mesh.interface_size * 1.0001
+
+
+def test_friction_is_ignored_outside_coulomb_so_one_physical_case_has_one_id():
+    bonded = CaseSpec.model_validate({"interface": {"model": "bonded"}})
+    assert CaseSpec.model_validate({"interface": {"model": "bonded", "friction": 0.3}}).case_id == bonded.case_id
+    assert CaseSpec.model_validate({"interface": {"friction": 0.3}}) == CaseSpec()
+    coulomb = CaseSpec.model_validate({"interface": {"model": "coulomb", "friction": 0.3}})
+    assert coulomb.interface.friction == 0.3 and coulomb.case_id != bonded.case_id
