@@ -2,8 +2,8 @@
 
 Starts the deployment's topology on loopback (a ``dask scheduler``, two single-threaded
 ``dask worker`` processes and the API), keeps the workers busy with a backlog of
-cases, then has 20 concurrent clients (processes, one connection each; ``--threads``: threads
-of this process, whose shared GIL adds their own overhead to every latency) submit 200
+cases, then has 20 concurrent clients (processes, one keep-alive ``http.client``
+connection each: light, so the clients' own CPU does not show as server latency) submit 200
 distinct cases (``POST /cases``) and read each back (``GET /cases/{id}``). Reports p50/p99/max latency of both and
 the error count (any non-2xx answer or transport error). Target: p99 < 50 ms, no errors.
 
@@ -12,7 +12,7 @@ and the same clients keep submitting new cases until they are refused; reported 
 cases were open at the first 429, how many submissions were accepted per second up to it, and
 the latency of the 429 answers.
 
-    python -m bench.service [--json] [--clients 20] [--submissions 200] [--max-open 400] [--scheduler ADDR]
+    python -m bench.service [--json] [--clients 20] [--submissions 200] [--max-open 400] [--nice N] [--scheduler ADDR]
 """
 from __future__ import annotations
 
@@ -23,6 +23,10 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack
 from pathlib import Path
+
+import http.client
+from typing import Optional
+from urllib.parse import urlsplit
 
 import httpx
 import numpy as np
@@ -40,22 +44,46 @@ def submission(i: int) -> dict:
             "loads": {"surface_load": 1.0e5 + 10.0 * i, "lateral_ratio": 0.45}}
 
 
-def client_loop(http: httpx.Client, jobs: list[int], posts: list, gets: list, errors: list) -> None:
+class LightClient:
+    """A keep-alive HTTP/1.1 connection from the standard library, for the load clients.
+
+    httpx spends about 1 ms of CPU on each request; 20 clients on this machine's two cores
+    then add their own CPU to every latency measured. ``http.client`` costs a fraction.
+    """
+
+    def __init__(self, url: str, timeout: float = 30.0):
+        parts = urlsplit(url)
+        self._conn = http.client.HTTPConnection(parts.hostname, parts.port, timeout=timeout)
+
+    def request(self, method: str, path: str, body: Optional[dict] = None) -> tuple[int, dict, bytes]:
+        """Send one request; return status, lower-cased headers and body."""
+        data = None if body is None else json.dumps(body).encode()
+        self._conn.request(method, path, body=data,
+                           headers={"content-type": "application/json"} if data is not None else {})
+        response = self._conn.getresponse()
+        payload = response.read()
+        return response.status, {k.lower(): v for k, v in response.getheaders()}, payload
+
+    def close(self) -> None:
+        self._conn.close()
+
+
+def client_loop(client: LightClient, jobs: list[int], posts: list, gets: list, errors: list) -> None:
     """One client: submit its cases one after the other, reading each back."""
     for i in jobs:
         try:
             start = time.perf_counter()
-            response = http.post("/cases", json=submission(i))
+            status, headers, _ = client.request("POST", "/cases", submission(i))
             posts.append(time.perf_counter() - start)
-            if response.status_code != 202:
-                errors.append(f"POST {response.status_code}")
+            if status != 202:
+                errors.append(f"POST {status}")
                 continue
             start = time.perf_counter()
-            check = http.get(response.headers["location"])
+            status, _, _ = client.request("GET", headers["location"])
             gets.append(time.perf_counter() - start)
-            if check.status_code != 200:
-                errors.append(f"GET {check.status_code}")
-        except httpx.HTTPError as exc:
+            if status != 200:
+                errors.append(f"GET {status}")
+        except (OSError, http.client.HTTPException) as exc:
             errors.append(f"{type(exc).__name__}: {exc}")
 
 
@@ -114,47 +142,26 @@ def saturate(url: str, clients: int, offset: int) -> dict:
             "refused": [e for _, e in refused], "errors": errors}
 
 
-def load(url: str, clients: int, submissions: int) -> dict:
-    """Keep the workers busy, then run the load from ``clients`` threads; return latencies (s) and errors."""
-    posts: list[float] = []
-    gets: list[float] = []
-    errors: list[str] = []
-    with ExitStack() as stack:
-        http = stack.enter_context(httpx.Client(base_url=url, timeout=30))
-        pool = stack.enter_context(ThreadPoolExecutor(clients))
-        each = [stack.enter_context(httpx.Client(base_url=url, timeout=30)) for _ in range(clients)]
-        backlog = http.post("/sweeps", json=BACKLOG).raise_for_status().json()
-        wait_busy(http, http.get("/health").json()["workers"])
-        # warm-up, not measured: open each client's connection, every route once
-        list(pool.map(lambda k: client_loop(each[k], [submissions + k], [], [], []), range(clients)))
-        busy_before = http.get("/health").json()
-        start = time.perf_counter()
-        list(pool.map(lambda k: client_loop(each[k], list(range(k, submissions, clients)), posts, gets, errors),
-                      range(clients)))
-        wall = time.perf_counter() - start
-        busy_after = http.get("/health").json()
-        backlog_state = http.get(f"/sweeps/{backlog['id']}").json()["counts"]
-    return {"posts": posts, "gets": gets, "errors": errors, "wall": wall,
-            "busy_before": busy_before, "busy_after": busy_after, "backlog": backlog_state}
-
-
 def _process_client(url: str, jobs: list[int], warm: int, start_at: float) -> tuple[list, list, list]:
     """A client in its own process (no GIL shared with the others): warm up, wait for the
     common start time, then run :func:`client_loop`."""
-    with httpx.Client(base_url=url, timeout=30) as http:
-        client_loop(http, [warm], [], [], [])
+    client = LightClient(url)
+    try:
+        client_loop(client, [warm], [], [], [])
         time.sleep(max(0.0, start_at - time.time()))
         posts: list[float] = []
         gets: list[float] = []
         errors: list[str] = []
-        client_loop(http, jobs, posts, gets, errors)
+        client_loop(client, jobs, posts, gets, errors)
+    finally:
+        client.close()
     return posts, gets, errors
 
 
-def load_processes(url: str, clients: int, submissions: int) -> dict:
-    """:func:`load` with each client in its own process: 20 client threads in one Python
-    process queue on its GIL, so their own overhead (about 2 ms a request) would show
-    as server latency."""
+def load(url: str, clients: int, submissions: int) -> dict:
+    """Keep the workers busy, then run the load from ``clients`` processes (threads of one
+    process would queue on its GIL, and their overhead would show as server latency);
+    return latencies (s) and errors."""
     from concurrent.futures import ProcessPoolExecutor
 
     with ExitStack() as stack:
@@ -192,8 +199,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--scheduler", default=None, help="use this scheduler instead of starting one")
     parser.add_argument("--workers", type=int, default=2, help="worker processes to start")
     parser.add_argument("--nice", type=int, default=0, help="CPU niceness of the started workers")
-    parser.add_argument("--threads", action="store_true",
-                        help="clients as threads of this process (default: one process each)")
     parser.add_argument("--max-open", type=int, default=400,
                         help="TUNNEL_CONTACT_MAX_OPEN_CASES of the service (the 429 threshold)")
     args = parser.parse_args(argv)
@@ -204,7 +209,7 @@ def main(argv: list[str] | None = None) -> int:
         url = stack.enter_context(running_service(work / "results", scheduler=scheduler,
                                                   log=work / "api.log", workers=1,
                                                   env={"TUNNEL_CONTACT_MAX_OPEN_CASES": str(args.max_open)}))
-        raw = (load if args.threads else load_processes)(url, args.clients, args.submissions)
+        raw = load(url, args.clients, args.submissions)
         full = saturate(url, args.clients, offset=10 * args.submissions)
 
     report = {
