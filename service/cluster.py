@@ -7,6 +7,8 @@ from typing import AsyncIterator, Awaitable, Callable
 
 from distributed import Client, LocalCluster
 
+from workflows.workers import worker_config
+
 from .settings import Settings
 
 logger = logging.getLogger(__name__)
@@ -32,8 +34,9 @@ async def cluster_connection(settings: Settings) -> AsyncIterator[Callable[[], A
         yield connect
         return
 
-    cluster = await LocalCluster(n_workers=settings.local_workers, processes=True,
-                                 threads_per_worker=1, dashboard_address=None, asynchronous=True)
+    with worker_config():
+        cluster = await LocalCluster(n_workers=settings.local_workers, processes=True,
+                                     threads_per_worker=1, dashboard_address=None, asynchronous=True)
     logger.info("embedded dask cluster at %s with %d workers",
                 cluster.scheduler_address, len(cluster.workers))
 

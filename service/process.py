@@ -18,6 +18,8 @@ from typing import IO, Iterator, Optional, Sequence
 
 import httpx
 
+from workflows.workers import worker_process_env
+
 logger = logging.getLogger(__name__)
 
 
@@ -127,7 +129,7 @@ def running_cluster(n_workers: int = 2, *, logs: Optional[Path] = None, nice: in
         for i in range(n_workers):
             niced = ["nice", "-n", str(nice)] if nice else []
             processes.append(start(niced + worker_command(address, f"worker-{i}"), log=log(f"worker-{i}"),
-                                   env=env))
+                                   env={**worker_process_env(), **(env or {})}))
         yield address
     finally:
         for process in reversed(processes):

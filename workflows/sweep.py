@@ -221,8 +221,10 @@ def local_client(n_workers: int = 2) -> Iterator:
     """An embedded LocalCluster client (worker processes, one thread each), closed on exit."""
     from distributed import Client, LocalCluster
 
-    with LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                      dashboard_address=":0") as cluster, Client(cluster) as client:
+    from .workers import worker_config
+
+    with worker_config(), LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                                       dashboard_address=":0") as cluster, Client(cluster) as client:
         yield client
 
 

@@ -1,0 +1,92 @@
+"""Worker processes get the malloc settings of :mod:`workflows.workers`, however they are
+started, and those settings do what they are for: a freed array's pages are reused."""
+from __future__ import annotations
+
+import os
+import sys
+import resource
+from pathlib import Path
+
+import cloudpickle
+import dask.config
+import pytest
+import yaml
+from distributed import Client
+
+from service.process import running_cluster
+from workflows.sweep import local_client
+from workflows.workers import WORKER_ENVIRON, worker_process_env
+
+ROOT = Path(__file__).resolve().parents[2]
+
+# the probes below run on workers that cannot import this test module
+cloudpickle.register_pickle_by_value(sys.modules[__name__])
+
+
+def malloc_environ() -> dict[str, str]:
+    return {k: os.environ.get(k) for k in WORKER_ENVIRON}
+
+
+def page_faults_of_reused_arrays(n: int = 40, size: int = 4 * 2**20) -> int:
+    """Minor page faults while allocating, touching and freeing a ``size``-byte array
+    ``n`` times: about ``n * size / 4096`` if every array is a fresh mmap, few if the
+    heap reuses the first one's pages."""
+    import numpy as np
+
+    np.ones(size // 8).sum()  # the first one may fault in
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+    for _ in range(n):
+        np.ones(size // 8).sum()
+    return resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before
+
+
+@pytest.fixture(autouse=True)
+def parent_without_malloc_settings(monkeypatch):
+    """A nanny copies its pre-spawn environment into its own process (distributed's
+    ``os.environ.update``), and a variable set there overrides the configuration for the
+    next nanny: start each test from a process without them."""
+    for name in WORKER_ENVIRON:
+        monkeypatch.delenv(name, raising=False)
+
+
+def expected() -> dict[str, str]:
+    return {k: str(v) for k, v in WORKER_ENVIRON.items()}
+
+
+def test_local_cluster_workers():
+    with local_client(1) as client:
+        (environ,) = client.run(malloc_environ).values()
+        (faults,) = client.run(page_faults_of_reused_arrays).values()
+    assert environ == expected()
+    assert faults < 40 * 1024 / 10, f"{faults} page faults: freed arrays are not reused"
+
+
+def test_dask_worker_processes(tmp_path):
+    """The ``dask worker`` command line of the deployment (service.process)."""
+    with running_cluster(1, logs=tmp_path) as address, Client(address, timeout=30) as client:
+        client.wait_for_workers(1, timeout=60)
+        (environ,) = client.run(malloc_environ).values()
+    assert environ == expected()
+
+
+def test_without_the_settings_a_worker_faults_every_array():
+    """What the settings fix: dask's own default (MALLOC_TRIM_THRESHOLD_ alone) maps a
+    fresh array every time. (Guards the test above against passing for another reason.)"""
+    with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": 65536}):
+        from distributed import LocalCluster
+
+        with LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=None) as cluster, \
+                Client(cluster) as client:
+            (environ,) = client.run(malloc_environ).values()
+            (faults,) = client.run(page_faults_of_reused_arrays).values()
+    assert environ == {"MALLOC_TRIM_THRESHOLD_": "65536", "MALLOC_MMAP_THRESHOLD_": None}
+    assert faults > 40 * 1024 / 2
+
+
+def test_compose_workers_get_the_same_environment():
+    compose = yaml.safe_load((ROOT / "docker-compose.yml").read_text())
+    environment = compose["services"]["worker"]["environment"]
+    assert environment == worker_process_env()
+    # and dask reads it as the same mapping
+    parsed = dask.config.collect_env(environment)
+    assert dask.config.get("distributed.nanny.pre-spawn-environ", config=parsed) == WORKER_ENVIRON
