@@ -15,7 +15,7 @@ the jumps of a unit rigid upward translation ``a`` of the lining.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 import scipy.sparse as sp
@@ -47,40 +47,113 @@ def interface_operator(body: Body, nodes: np.ndarray, directions: np.ndarray, si
                          shape=(nodes.size, body.n))
 
 
-@dataclass
+#: Which interface rows a factorization serves with its trailing block: ``"normal"``
+#: (frictionless contact needs only ``S_νν``) or ``"all"`` (Coulomb, bonded).
+Rows = Literal["normal", "all"]
+
+
+def rows_of_model(interface_model: str) -> Rows:
+    """The rows an interface model's contact problem needs."""
+    return "normal" if interface_model == "frictionless" else "all"
+
+
 class FactoredBody:
-    """A body's factorization and its interface operator ``B`` (R, n)."""
+    """A body, its interface operator ``B`` (R, n) and its factorizations, built on first use.
 
-    body: Body
-    B: sp.csr_matrix
-    factor: InterfaceFactor
-    pin: int | None = None  # generalized-inverse pin (lining only)
+    Two factorizations can serve the interface. ``"all"`` orders both DOFs of every
+    interface node last. ``"normal"`` first turns each interface node's DOFs into normal
+    and tangential components (an orthogonal ``T``, :func:`normal_rotation`) and orders
+    only the normal ones last: half the trailing block, and at the default case's mesh
+    the lining factorizes in about half the time (the ground: a quarter less at 166k DOF).
+    A result is always computed with the factorization its interface model needs, so it
+    never depends on which the model built before.
 
-    def solve(self, rhs: np.ndarray) -> np.ndarray:
+    Parameters
+    ----------
+    body : the assembled body.
+    B : its interface rows: m normal rows first, then tangential ones.
+    m : number of normal rows.
+    pin : generalized-inverse pin (lining only): that DOF is held at zero.
+    """
+
+    def __init__(self, body: Body, B: sp.csr_matrix, m: int, pin: int | None = None):
+        self.body, self.B, self.m, self.pin = body, B, m, pin
+        self._factors: dict[str, tuple[InterfaceFactor, sp.csr_matrix]] = {}
+        n = body.n
+        self._keep = np.flatnonzero(np.arange(n) != pin) if pin is not None else None
+
+    def _restrict(self, A: sp.spmatrix) -> sp.spmatrix:
+        return A if self._keep is None else A[self._keep][:, self._keep]
+
+    def factor(self, rows: Rows) -> tuple[InterfaceFactor, sp.csr_matrix]:
+        """The factorization serving ``rows`` and those rows of ``B`` in its unknowns (built
+        on first use)."""
+        if rows not in self._factors:
+            K, groups = self._restrict(self.body.K), self.body.node_of_dof()
+            groups = groups if self._keep is None else groups[self._keep]
+            if rows == "normal":
+                T = self._restrict(normal_rotation(self.body, self.B[: self.m]))
+                B = (self._columns(self.B[: self.m]) @ T).tocsr()
+                # a normal row on its node's tangential component is zero up to rounding
+                B.data[np.abs(B.data) < 1e-12 * np.abs(B.data).max()] = 0.0
+                B.eliminate_zeros()
+                last = np.unique(B.indices)
+                factor = InterfaceFactor(K, last, groups, rotation=T)
+            else:
+                B = self._columns(self.B)
+                factor = InterfaceFactor(K, np.unique(B.indices), groups)
+            self._factors[rows] = (factor, B)
+        return self._factors[rows]
+
+    def _columns(self, B: sp.csr_matrix) -> sp.csr_matrix:
+        return B if self._keep is None else B[:, self._keep].tocsr()
+
+    def solve(self, rhs: np.ndarray, rows: Rows = "normal") -> np.ndarray:
         """``K⁺ rhs`` on the free DOFs (the pinned DOF, if any, is zero)."""
-        if self.pin is None:
-            return self.factor.solve(rhs)
-        keep = np.arange(rhs.shape[0]) != self.pin
+        factor, _ = self.factor(rows)
+        if self._keep is None:
+            return factor.solve(rhs)
         x = np.zeros_like(rhs)
-        x[keep] = self.factor.solve(rhs[keep])
+        x[self._keep] = factor.solve(rhs[self._keep])
         return x
 
-    def flexibility(self, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
-        """Dense ``B K⁺ Bᵀ`` restricted to ``rows`` by one triangular solve on the trailing factor block."""
-        dofs = np.unique(self.B.indices)  # the factor's trailing block, in this order
-        return self.factor.flexibility(self.B[rows][:, dofs].toarray())
+    def flexibility(self, rows: Rows) -> np.ndarray:
+        """Dense ``B K⁺ Bᵀ`` of the normal rows or of all rows, by one triangular solve on the
+        trailing factor block."""
+        factor, B = self.factor(rows)
+        last = factor.perm[factor.n - factor.k:]
+        on_last = B[:, last]
+        if on_last.nnz != B.nnz:
+            raise AssertionError("interface rows reach beyond the trailing block")
+        return factor.flexibility(on_last.toarray())
 
 
-def factor_body(body: Body, B: sp.csr_matrix, pin: int | None = None) -> FactoredBody:
-    """Factorize ``body.K`` with the DOFs ``B`` touches ordered last (minus ``pin``)."""
-    dofs = np.unique(B.indices)
-    K, groups = body.K, body.node_of_dof()
-    if pin is not None:
-        keep = np.flatnonzero(np.arange(body.n) != pin)
-        factor = InterfaceFactor(K[keep][:, keep], dofs - (dofs > pin), groups[keep])
-    else:
-        factor = InterfaceFactor(K, dofs, groups)
-    return FactoredBody(body=body, B=B, factor=factor, pin=pin)
+def normal_rotation(body: Body, B_normal: sp.csr_matrix) -> sp.csr_matrix:
+    """Orthogonal ``T`` (n, n): at each interface node with both DOFs free, its x and y
+    DOFs become the components along the unit normal and tangent of its normal row
+    (``u = T u'``); the identity elsewhere (a node on the symmetry line keeps its one free
+    DOF, which its normal row already is)."""
+    n = body.n
+    node_of_dof = body.node_of_dof()
+    diag = np.ones(n)
+    rows, cols, vals = [np.arange(n)], [np.arange(n)], [diag]
+    for i in range(B_normal.shape[0]):
+        span = slice(B_normal.indptr[i], B_normal.indptr[i + 1])
+        dofs, coefficients = B_normal.indices[span], B_normal.data[span]
+        if dofs.size == 0:
+            continue
+        dx, dy = body.free_of[:, node_of_dof[dofs[0]]]
+        if dx < 0 or dy < 0:
+            continue
+        c = np.zeros(2)
+        c[(dofs == dy).astype(int)] = coefficients
+        nx, ny = c / np.hypot(*c)
+        # columns: T[:, dx] = (nx, ny) (normal), T[:, dy] = (-ny, nx) (tangent)
+        diag[dx] = diag[dy] = nx
+        rows.append(np.array([dy, dx]))
+        cols.append(np.array([dx, dy]))
+        vals.append(np.array([ny, -ny]))
+    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
 
 
 def lining_pin(body: Body, interface_nodes: np.ndarray) -> int:

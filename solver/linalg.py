@@ -53,15 +53,28 @@ class InterfaceFactor:
     K : (n, n) sparse SPD matrix.
     last : (k,) indices of the interface unknowns.
     groups : (n,) optional mesh node of each unknown (see :func:`nested_dissection`).
+    rotation : (n, n) optional sparse orthogonal ``T``: the factor is of ``Tᵀ K T`` (the
+        unknowns ``T⁻¹ u``, e.g. normal and tangential components at interface nodes) and
+        ``last`` counts in that basis; :meth:`solve` still answers ``K⁻¹ b``. ``T`` must
+        mix unknowns of one group only, so the ordering stays that of ``K``.
+
+    The order is the nested dissection of the whole of ``K`` with ``last`` moved to the
+    end: the fill equals that of dissecting the rest alone (measured at 166k unknowns:
+    14.59M against 14.49M entries in L) without slicing the matrix for it.
     """
 
-    def __init__(self, K: sp.spmatrix, last: np.ndarray, groups: np.ndarray | None = None):
+    def __init__(self, K: sp.spmatrix, last: np.ndarray, groups: np.ndarray | None = None,
+                 rotation: sp.spmatrix | None = None):
         K = sp.csr_matrix(K)
         n = K.shape[0]
         last = np.asarray(last, dtype=np.int64)
-        rest = np.setdiff1d(np.arange(n), last)
-        inner = rest[nested_dissection(K[rest][:, rest], None if groups is None else groups[rest])]
-        self.perm = np.concatenate([inner, last])
+        order = nested_dissection(K, groups)
+        at_end = np.zeros(n, dtype=bool)
+        at_end[last] = True
+        self.perm = np.concatenate([order[~at_end[order]], last])
+        self.rotation = None if rotation is None else sp.csr_matrix(rotation)
+        if self.rotation is not None:
+            K = (self.rotation.T @ K @ self.rotation).tocsr()
         Kp = sp.csc_matrix(K[self.perm][:, self.perm])
         # Symmetric pivoting keeps the ordering (K is SPD): U = D L^T.
         self._lu = spla.splu(Kp, permc_spec="NATURAL", diag_pivot_thresh=0.0,
@@ -69,7 +82,8 @@ class InterfaceFactor:
         self.n, self.k = n, last.size
 
     def flexibility(self, Bd: np.ndarray) -> np.ndarray:
-        """``Bd (K^-1)[last, last] Bd^T`` for a dense (m, k) ``Bd`` acting on ``last``.
+        """``Bd (K^-1)[last, last] Bd^T`` for a dense (m, k) ``Bd`` acting on ``last``
+        (with a ``rotation``: ``K`` is ``Tᵀ K T`` here and ``Bd`` acts in its basis).
 
         With the interface block trailing, ``(K^-1)[last, last] = S_Γ^-1`` where
         ``S_Γ = U_tt^T D^-1 U_tt`` is the trailing block of the factors, so the
@@ -97,6 +111,9 @@ class InterfaceFactor:
     def solve(self, b: np.ndarray) -> np.ndarray:
         """``K^-1 b`` for a vector or an (n, j) block."""
         b = np.asarray(b, dtype=float)
+        T = self.rotation
+        if T is not None:
+            b = T.T @ b
         x = np.empty_like(b)
         x[self.perm] = self._lu.solve(np.ascontiguousarray(b[self.perm]))
-        return x
+        return x if T is None else T @ x

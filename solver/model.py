@@ -45,10 +45,11 @@ from .assembly import (
 from .contact import BoltTrial, DualProblem, SolverError, pressure_scale, solve_contact
 from .flexibility import (
     FactoredBody,
-    factor_body,
+    Rows,
     interface_operator,
     interface_rows,
     lining_pin,
+    rows_of_model,
 )
 from .mesh import TunnelMesh, build_mesh
 from .post import kkt_residual
@@ -156,14 +157,15 @@ class TunnelModel:
         nodes, directions, self.tangential = interface_rows(iface)
         Bg = interface_operator(ground, iface.ground_node[nodes], directions, +1.0)
         Bl = interface_operator(lining, iface.lining_node[nodes], directions, -1.0)
-        self.ground: FactoredBody = factor_body(ground, Bg)
-        self.lining: FactoredBody = factor_body(lining, Bl, lining_pin(lining, iface.lining_node))
-        self._S: np.ndarray | None = None
-        self._S_normal: np.ndarray | None = None
+        m = iface.size
+        self.ground = FactoredBody(ground, Bg, m)
+        self.lining = FactoredBody(lining, Bl, m, lining_pin(lining, iface.lining_node))
+        self._S: dict[str, np.ndarray] = {}
         self.r = np.r_[iface.normal[1], iface.tangent[1, self.tangential]]
         self.w = np.r_[iface.weight, iface.weight[self.tangential]]
         self.rigid = lining.rigid_vertical()
-        self.timings = {"mesh": t1 - t0, "assembly": t2 - t1, "factorization": time.perf_counter() - t2}
+        self.timings = {"mesh": t1 - t0, "assembly": t2 - t1, "factorization": 0.0}
+        self._factorize(rows_of_model(spec.interface.model))
         self._units: dict[str, np.ndarray] = {}
         self._point_bases: dict = {}
 
@@ -177,27 +179,33 @@ class TunnelModel:
             self._point_bases[body] = point_basis(getattr(self, body).body)
         return self._point_bases[body]
 
-    def _flexibility(self, rows) -> np.ndarray:
+    def _factorize(self, rows: Rows) -> None:
+        """Both bodies' factorizations serving ``rows`` (built once; timed)."""
         t0 = time.perf_counter()
-        S = self.ground.flexibility(rows) + self.lining.flexibility(rows)
-        self.timings["flexibility"] = self.timings.get("flexibility", 0.0) + time.perf_counter() - t0
-        return 0.5 * (S + S.T)
+        self.ground.factor(rows)
+        self.lining.factor(rows)
+        self.timings["factorization"] += time.perf_counter() - t0
+
+    def _flexibility(self, rows: Rows) -> np.ndarray:
+        if rows not in self._S:
+            self._factorize(rows)
+            t0 = time.perf_counter()
+            S = self.ground.flexibility(rows) + self.lining.flexibility(rows)
+            self.timings["flexibility"] = self.timings.get("flexibility", 0.0) + time.perf_counter() - t0
+            self._S[rows] = 0.5 * (S + S.T)
+        return self._S[rows]
 
     @property
     def S(self) -> np.ndarray:
         """(R, R) interface flexibility of the normal and tangential rows (built on first use)."""
-        if self._S is None:
-            self._S = self._flexibility(slice(None))
-        return self._S
+        return self._flexibility("all")
 
     @property
     def S_normal(self) -> np.ndarray:
-        """(m, m) normal block of :attr:`S`: all that frictionless contact needs (built on first
-        use, always from the normal rows alone, so a result never depends on what the model
+        """(m, m) normal block of the flexibility: all that frictionless contact needs (built
+        on first use from its own factorization, so a result never depends on what the model
         solved before)."""
-        if self._S_normal is None:
-            self._S_normal = self._flexibility(slice(0, self.m))
-        return self._S_normal
+        return self._flexibility("normal")
 
     def accepts(self, spec: CaseSpec) -> bool:
         return model_key(spec) == self.key
@@ -253,7 +261,9 @@ class TunnelModel:
         if not self.accepts(spec):
             raise ValueError("the case does not share this model's geometry, mesh, boundaries and materials")
         t0 = time.perf_counter()
-        loads, u1, ug_f, ul_f, d, F2 = self._contact_stage(spec)
+        rows = rows_of_model(spec.interface.model)
+        self._factorize(rows)
+        loads, u1, ug_f, ul_f, d, F2 = self._contact_stage(spec, rows)
         ground, lining = self.ground, self.lining
         iface = self.mesh.interface
         m, g0, sv = self.m, spec.geometry.gap, spec.solver
@@ -276,8 +286,8 @@ class TunnelModel:
             t, a, bolt, trials, iterations, admissible = sol.t, sol.a, sol.bolt, sol.trials, sol.iterations, sol.admissible
         t_solve = time.perf_counter()
         Wt = self.w * t
-        u_g = ug_f - ground.solve(ground.B.T @ Wt)
-        u_l = ul_f - lining.solve(lining.B.T @ Wt) + a * self.rigid
+        u_g = ug_f - ground.solve(ground.B.T @ Wt, rows)
+        u_l = ul_f - lining.solve(lining.B.T @ Wt, rows) + a * self.rigid
         J = ground.B @ u_g + lining.B @ u_l
         lam = t[:m]
         shear = np.zeros(m)
@@ -303,21 +313,22 @@ class TunnelModel:
                         kkt_residual=kkt,
                         timings={"contact": t_solve - t0, "recovery": time.perf_counter() - t_solve})
 
-    def _contact_stage(self, spec: CaseSpec):
+    def _contact_stage(self, spec: CaseSpec, rows: Rows | None = None):
         """Loads, the stage-1 ground displacement, ``K⁺f`` of both bodies for the contact
         stage, ``d = B K⁺ f`` and the lining's vertical load F2.
 
         Both stages release parts of one excavation load, so one solve serves both:
         ``u1 = λd K⁻¹r`` and the contact stage's ``K⁻¹f = (1 - λd) K⁻¹r``.
         """
+        rows = rows or rows_of_model(spec.interface.model)
         loads = self.stage_loads(spec)
         if loads.release is not None:
             ld = spec.excavation.deconfinement
-            v = self.ground.solve(loads.release)
+            v = self.ground.solve(loads.release, rows)
             u1, ug_f = ld * v, (1.0 - ld) * v
         else:
-            u1, ug_f = np.zeros(self.ground.body.n), self.ground.solve(loads.ground)
-        ul_f = self.lining.solve(loads.lining)
+            u1, ug_f = np.zeros(self.ground.body.n), self.ground.solve(loads.ground, rows)
+        ul_f = self.lining.solve(loads.lining, rows)
         d = self.ground.B @ ug_f + self.lining.B @ ul_f
         return loads, u1, ug_f, ul_f, d, float(self.rigid @ loads.lining)
 
@@ -328,7 +339,7 @@ class TunnelModel:
 
     def dual_problem(self, spec: CaseSpec) -> DualProblem:
         """The frictionless contact stage of ``spec`` in interface form (:class:`DualProblem`)."""
-        d, F2 = self._contact_stage(spec)[4:]
+        d, F2 = self._contact_stage(spec, "normal")[4:]
         return self._dual(d, F2, spec.geometry.gap)
 
     def _tie(self, d: np.ndarray, F2: float) -> tuple[np.ndarray, float]:
