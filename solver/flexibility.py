@@ -8,8 +8,9 @@ both bodies hold, so s = 0 there by symmetry). The force on the lining at node i
 
 ``B`` maps a body's free DOFs to ``sign · [ν·u; τ·u]`` at the interface rows (sign +1
 ground, -1 lining), so the jumps ``J = [[u]ν; [u]τ] = B' u' + B'' u''``. Each body is
-factorized once with its interface DOFs ordered last (:mod:`solver.linalg`); the
-dense flexibility ``S = B K⁺ Bᵀ`` then costs one triangular solve, and for loads
+factorized once with the interface unknowns its contact model needs ordered last
+(:class:`FactoredBody`, :mod:`solver.linalg`); the dense flexibility ``S = B K⁺ Bᵀ``
+then costs one triangular solve, and for loads
 ``f`` the jumps are ``J = d - S W t - a r`` with ``d = B K⁺ f`` and ``r = [ν2; τ2]``
 the jumps of a unit rigid upward translation ``a`` of the lining.
 """
