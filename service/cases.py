@@ -16,13 +16,10 @@ from workflows.store import case_path
 from workflows.artifacts import render_plot
 from .errors import responses
 from .guards import check_capacity, require_token
-from .params import NETCDF, CaseId, jobs_of, not_found, not_ready
+from .params import NETCDF, CaseId, Offset, jobs_of, not_found, not_ready
 from .schemas import Case, CaseAccepted, CasePage, Status
 
 router = APIRouter(prefix="/cases", tags=["cases"])
-
-#: Largest page offset (SQLite integers are 64-bit; no store holds a billion cases).
-MAX_OFFSET = 1_000_000_000
 
 #: Plot names accepted in ``/cases/{id}/plots/{name}.png``.
 PlotName = Enum("PlotName", {name: name for name in PLOTS}, type=str)
@@ -64,7 +61,7 @@ async def submit_case(spec: CaseSpec, request: Request, response: Response,
 async def list_cases(request: Request,
                      status: Optional[Status] = Query(None, description="only cases in this status"),
                      limit: int = Query(100, ge=1, le=1000),
-                     offset: int = Query(0, ge=0, le=MAX_OFFSET, description="cases to skip"),
+                     offset: Offset = 0,
                      newest_first: bool = Query(False, description="newest submission first")) -> CasePage:
     """Cases, oldest submission first (or newest), a page at a time."""
     records, total = jobs_of(request).store.list_cases(status=status, limit=limit, offset=offset,

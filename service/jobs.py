@@ -48,7 +48,7 @@ from workflows.store import remove_stale_temporaries, stored_case_ids
 from workflows.tasks import case_id_of_key, solve_and_store, task_key  # one key per case, CLI too
 
 from .results import BrokenResult, public_error, result_state, stored_summary, written
-from .store import UNREADABLE, JobStore
+from .store import UNREADABLE, CaseRecord, JobStore
 
 logger = logging.getLogger(__name__)
 
@@ -179,40 +179,49 @@ class Dispatcher:
         """Recompute the ``failed`` cases among ``case_ids``, and the ``done`` ones whose result
         file is missing or unreadable; return their ids (now ``queued``)."""
         records = self.store.get_cases(case_ids)
-        done = [c for c, r in records.items() if r.status == "done"]
-        broken = []
-        for case_id in done:
-            if await asyncio.to_thread(result_state, self.root, case_id) != "readable":
-                broken.append(case_id)
-        again = self.store.requeue([c for c, r in records.items() if r.status == "failed"], statuses=("failed",))
-        again += self.store.requeue(broken, statuses=("done",))
-        for case_id in again:
-            self.submit(case_id, CaseSpec.model_validate(records[case_id].spec).canonical_json(), force=True)
+        _, broken = await self._recompute_unreadable([c for c, r in records.items() if r.status == "done"])
+        failed = [c for c, r in records.items() if r.status == "failed"]
+        again = self._requeue({c: records[c] for c in failed}, statuses=("failed",), force=lambda c: True)
         if again:
-            logger.info("recomputing %d cases", len(again))
-        return again
+            logger.info("recomputing %d failed cases", len(again))
+        return again + broken
 
     async def readable_results(self, case_ids: Sequence[str]) -> list[str]:
         """The ``done`` cases among ``case_ids`` whose result file reads back, in order;
         done cases whose file is missing or unreadable go back to the queue."""
         statuses = self.store.statuses(case_ids)
-        done = [c for c in case_ids if statuses.get(c) == "done"]
-        states = await asyncio.to_thread(lambda: [result_state(self.root, c) for c in done])
-        for case_id, state in zip(done, states):
-            if state != "readable":
-                await self.recompute_broken(case_id)
-        return [c for c, state in zip(done, states) if state == "readable"]
+        states, _ = await self._recompute_unreadable([c for c in case_ids if statuses.get(c) == "done"])
+        return [c for c, state in states.items() if state == "readable"]
 
     async def recompute_broken(self, case_id: str) -> bool:
         """Requeue a ``done`` case whose result file is missing or unreadable; True if it was."""
-        state = await asyncio.to_thread(result_state, self.root, case_id)
-        if state == "readable":
-            return False
-        record = self.store.get_case(case_id)
-        if record is not None and self.store.requeue([case_id], statuses=("done",)):
-            logger.warning("result of case %s is %s: recomputing it", case_id, state)
-            self.submit(case_id, CaseSpec.model_validate(record.spec).canonical_json(), force=state == "broken")
-        return True
+        states, _ = await self._recompute_unreadable([case_id])
+        return states[case_id] != "readable"
+
+    async def _recompute_unreadable(self, done: Sequence[str]) -> tuple[dict[str, str], list[str]]:
+        """The result state of each of the ``done`` cases (in order: ``readable``, ``missing``
+        or ``broken``); those not readable go back to the queue. Returns the states and the
+        cases requeued."""
+        found = await asyncio.to_thread(lambda: [result_state(self.root, c) for c in done])
+        states = dict(zip(done, found))
+        unreadable = [c for c, state in states.items() if state != "readable"]
+        if not unreadable:
+            return states, []
+        again = self._requeue(self.store.get_cases(unreadable), statuses=("done",),
+                              force=lambda c: states[c] == "broken")
+        for case_id in again:
+            logger.warning("result of case %s is %s: recomputing it", case_id, states[case_id])
+        return states, again
+
+    def _requeue(self, records: dict[str, CaseRecord], *, statuses: tuple[str, ...],
+                 force: Callable[[str], bool]) -> list[str]:
+        """Move the ``records`` still in one of ``statuses`` back to ``queued`` and submit
+        them (``force(case_id)``: over a stored file); return their ids."""
+        again = self.store.requeue(list(records), statuses=statuses)
+        for case_id in again:
+            self.submit(case_id, CaseSpec.model_validate(records[case_id].spec).canonical_json(),
+                        force=force(case_id))
+        return again
 
     async def _watch(self, case_id: str, future: Future) -> None:
         """Wait for one task and record its outcome."""
@@ -221,13 +230,13 @@ class Dispatcher:
                 outcome = await future
             except FutureCancelledError as exc:
                 logger.warning("task of case %s cancelled (%s)", case_id, exc.reason)
-                if not await self._resolve_from_store(case_id):
+                if await self._resolve_from_store(case_id) != "readable":
                     # resubmitted by the next reconciliation
                     await self._persist(self.store.mark_queued, case_id)
                 return
             except Exception as exc:  # the task raised: KilledWorker, import errors, ...
                 logger.warning("task of case %s raised %s: %s", case_id, type(exc).__name__, exc)
-                if not await self._resolve_from_store(case_id):
+                if await self._resolve_from_store(case_id) != "readable":
                     await self._persist(self.store.finish, case_id, status="failed",
                                         error=public_error(f"{type(exc).__name__}: {exc}", self.root))
                 return
@@ -263,17 +272,18 @@ class Dispatcher:
                 await asyncio.sleep(pause)
                 pause = min(2 * pause, MAX_BACKOFF)
 
-    async def _resolve_from_store(self, case_id: str) -> bool:
-        """Mark ``case_id`` done if its result file is stored and readable; True if it was."""
+    async def _resolve_from_store(self, case_id: str) -> str:
+        """Mark ``case_id`` done if its result file is stored and readable; return the file's
+        state (``readable``, ``missing`` or ``broken``), read once."""
         try:
             summary = await asyncio.to_thread(stored_summary, self.root, case_id)
         except BrokenResult as exc:
             logger.warning("stored result of case %s is unreadable: %s", case_id, public_error(str(exc), self.root))
-            return False
+            return "broken"
         if summary is None:
-            return False
+            return "missing"
         await self._persist(self.store.finish, case_id, status="done", summary=summary)
-        return True
+        return "readable"
 
     # -- background loops ----------------------------------------------------------------
 
@@ -290,7 +300,8 @@ class Dispatcher:
         for case_id in self.store.open_case_ids():
             if case_id in self._tracked or case_id in self._pending:
                 continue
-            if await self._resolve_from_store(case_id):
+            state = await self._resolve_from_store(case_id)
+            if state == "readable":
                 logger.info("case %s found in the store: done", case_id)
                 continue
             record = self.store.get_case(case_id)
@@ -300,8 +311,7 @@ class Dispatcher:
             if spec is None:
                 continue
             self.store.mark_queued(case_id)
-            broken = await asyncio.to_thread(result_state, self.root, case_id) == "broken"
-            if self.submit(case_id, spec.canonical_json(), force=broken):
+            if self.submit(case_id, spec.canonical_json(), force=state == "broken"):
                 logger.info("case %s resubmitted", case_id)
         await self._check_done_results()
         if self._rounds % 60 == 0:

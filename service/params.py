@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import HTTPException, Path, Request
+from fastapi import HTTPException, Path, Query, Request
 
 from .jobs import Dispatcher
 from .schemas import CASE_ID_PATTERN
@@ -11,6 +11,10 @@ from .settings import Settings
 
 CaseId = Annotated[str, Path(pattern=CASE_ID_PATTERN, description="case id, 16 lowercase hex digits")]
 SweepId = Annotated[str, Path(pattern=CASE_ID_PATTERN, description="sweep id, 16 lowercase hex digits")]
+
+#: Largest page offset (SQLite integers are 64-bit; no store holds a billion records).
+MAX_OFFSET = 1_000_000_000
+Offset = Annotated[int, Query(ge=0, le=MAX_OFFSET, description="records to skip")]
 
 NETCDF = "application/x-netcdf"
 

@@ -17,7 +17,7 @@ from workflows.store import is_stored
 from .comparison import ComparisonTable, comparison_table, table_csv
 from .errors import responses
 from .guards import require_token
-from .params import SweepId, jobs_of, not_found, not_ready
+from .params import Offset, SweepId, jobs_of, not_found, not_ready
 from .schemas import SweepCancelled, SweepPage, SweepStatus
 from .store import SweepRecord
 
@@ -36,7 +36,7 @@ def _sweep(request: Request, sweep_id: str) -> SweepRecord:
 
 @router.get("", response_model=SweepPage, responses=responses(422))
 async def list_sweeps(request: Request, limit: int = Query(20, ge=1, le=200),
-                      offset: int = Query(0, ge=0)) -> SweepPage:
+                      offset: Offset = 0) -> SweepPage:
     """Sweeps, newest submission first, a page at a time, each with its counts by status."""
     store = jobs_of(request).store
     records, total = store.list_sweeps(limit=limit, offset=offset)

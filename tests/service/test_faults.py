@@ -61,9 +61,10 @@ def test_non_finite_sweep_values_are_422_naming_the_varied_field(client):
     assert any("ground.young" in f for f in fields) and any("lining.young" in f for f in fields), fields
 
 
+@pytest.mark.parametrize("path", ["/cases", "/sweeps"])
 @pytest.mark.parametrize("offset", ["1e23", str(10**30), "-1", "nan"])
-def test_huge_or_bad_offset_is_422(client, offset):
-    response = client.get("/cases", params={"offset": offset})
+def test_huge_or_bad_offset_is_422(client, path, offset):
+    response = client.get(path, params={"offset": offset})
     assert response.status_code == 422
     assert response.json()["errors"][0]["field"] == "offset"
 
