@@ -55,6 +55,8 @@ def build_parser() -> argparse.ArgumentParser:
     scheduler(p)
     p.add_argument("--results", default=None, metavar="DIR",
                    help="result store folder (default: $TUNNEL_CONTACT_RESULTS or ./results)")
+    p.add_argument("--access-log", action="store_true", default=None,
+                   help="log every request (default: $TUNNEL_CONTACT_ACCESS_LOG, or off)")
     return parser
 
 
@@ -67,7 +69,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "serve":
         from service.server import serve
 
-        serve(host=args.host, port=args.port, scheduler=args.scheduler, results=args.results)
+        serve(host=args.host, port=args.port, scheduler=args.scheduler, results=args.results,
+              access_log=args.access_log)
         return 0
 
     from workflows import commands

@@ -14,7 +14,8 @@ logger = logging.getLogger(__name__)
 
 
 def serve(*, host: Optional[str] = None, port: Optional[int] = None, scheduler: Optional[str] = None,
-          results: str | Path | None = None, token: Optional[str] = None) -> None:
+          results: str | Path | None = None, token: Optional[str] = None,
+          access_log: Optional[bool] = None) -> None:
     """Serve the API until interrupted.
 
     Parameters
@@ -24,7 +25,10 @@ def serve(*, host: Optional[str] = None, port: Optional[int] = None, scheduler: 
     scheduler : dask scheduler address; None: ``DASK_SCHEDULER_ADDRESS`` or an embedded cluster.
     results : results directory; None: ``TUNNEL_CONTACT_RESULTS`` or ``./results``.
     token : bearer token required on POST; None: ``TUNNEL_CONTACT_TOKEN`` (or none).
+    access_log : log every request; None: ``TUNNEL_CONTACT_ACCESS_LOG`` (or off).
     """
-    settings = Settings.from_env(host=host, port=port, scheduler=scheduler, results=results, token=token)
+    settings = Settings.from_env(host=host, port=port, scheduler=scheduler, results=results, token=token,
+                                 access_log=access_log)
     logger.info("serving on http://%s:%d", settings.host, settings.port)
-    uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_level="info")
+    uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_level="info",
+                access_log=settings.access_log)

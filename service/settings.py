@@ -20,6 +20,10 @@ Environment variables
 ``TUNNEL_CONTACT_MAX_OPEN_CASES``
     Queued plus running cases above which a submission is refused with 429 and
     ``Retry-After`` (default 10000).
+``TUNNEL_CONTACT_ACCESS_LOG``
+    ``1``: log every request (uvicorn's access log, to standard output). Off by default:
+    at load it cost a fifth of the API's CPU (``bench/service.py``: 800 against 970
+    requests/s, p99 45–54 against 36–41 ms); the proxy in front usually keeps that log.
 ``TUNNEL_CONTACT_MIN_FREE_BYTES``
     Free space the results directory needs to take cases (default 32 MiB, the size of
     the largest result the element cap allows); below it submissions get 503 and
@@ -46,6 +50,7 @@ ENVIRONMENT = {
     "local_workers": "TUNNEL_CONTACT_LOCAL_WORKERS",
     "max_open_cases": "TUNNEL_CONTACT_MAX_OPEN_CASES",
     "min_free_bytes": "TUNNEL_CONTACT_MIN_FREE_BYTES",
+    "access_log": "TUNNEL_CONTACT_ACCESS_LOG",
 }
 
 
@@ -68,6 +73,8 @@ class Settings(BaseModel):
     retry_after: int = Field(30, gt=0, description="seconds a client is told to wait after a 429")
     min_free_bytes: int = Field(32 << 20, ge=0, description="free space (bytes) needed to accept cases: "
                                                             "about the largest result the element cap allows")
+
+    access_log: bool = Field(False, description="log every request (uvicorn's access log)")
 
     @property
     def database(self) -> Path:

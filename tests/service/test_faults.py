@@ -254,10 +254,11 @@ def test_serve_honours_host_and_port_from_the_environment(monkeypatch, tmp_path)
     from service.cli import main
 
     seen = {}
-    monkeypatch.setattr(service.server.uvicorn, "run", lambda app, host, port, **kw: seen.update(host=host, port=port))
+    monkeypatch.setattr(service.server.uvicorn, "run",
+                        lambda app, host, port, **kw: seen.update(host=host, port=port, access_log=kw["access_log"]))
     monkeypatch.setenv("TUNNEL_CONTACT_HOST", "127.0.0.2")
     monkeypatch.setenv("TUNNEL_CONTACT_PORT", "8123")
     assert main(["serve", "--results", str(tmp_path)]) == 0
-    assert seen == {"host": "127.0.0.2", "port": 8123}
-    assert main(["serve", "--results", str(tmp_path), "--port", "8124"]) == 0
-    assert seen == {"host": "127.0.0.2", "port": 8124}
+    assert seen == {"host": "127.0.0.2", "port": 8123, "access_log": False}
+    assert main(["serve", "--results", str(tmp_path), "--port", "8124", "--access-log"]) == 0
+    assert seen == {"host": "127.0.0.2", "port": 8124, "access_log": True}

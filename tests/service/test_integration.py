@@ -125,6 +125,7 @@ def test_cases_queued_when_the_api_is_killed_complete_after_restart(api):
         assert record["finished_at"] >= record["submitted_at"]
     assert api.get("/cases").json()["total"] == 4 + len(ids)
     assert api.get("/health").json()["queued"] == 0
+    assert '"GET /health HTTP/1.1" 200' not in api.log.read_text()  # no access log by default
 
 
 def test_api_started_before_the_scheduler_catches_up(tmp_path):
@@ -132,7 +133,8 @@ def test_api_started_before_the_scheduler_catches_up(tmp_path):
     port = free_port()
     address = f"tcp://127.0.0.1:{port}"
     api = Api(address, tmp_path / "results", tmp_path / "api.log")
-    api.process = start(api_command(port=api.port, results=api.results, scheduler=address), log=api.log)
+    api.process = start(api_command(port=api.port, results=api.results, scheduler=address), log=api.log,
+                        env={"TUNNEL_CONTACT_ACCESS_LOG": "1"})
     try:
         health = wait_until(lambda: _answer(api, "/health"), timeout=60, what="the API to answer")
         assert health.status_code == 503 and health.json()["scheduler_reachable"] is False
@@ -144,6 +146,7 @@ def test_api_started_before_the_scheduler_catches_up(tmp_path):
             wait_until(lambda: all_done(api, [queued.json()["id"]]), timeout=60, what="the queued case")
     finally:
         stop(api.process)
+    assert '"POST /cases HTTP/1.1" 202' in api.log.read_text()  # asked for: every request logged
 
 
 def _answer(api: Api, path: str):
