@@ -35,15 +35,14 @@ from workflows.plots import display_unit
 
 from .store import JobStore, SweepRecord
 
-#: Scalars of SPEC §3 in the contract's order (those the solver does not write yet included),
-#: with their CF units; the solver's own table fills in long names.
-SCALAR_ORDER: dict[str, str] = {
-    "max_contact_pressure": "Pa", "contact_extent": "degree", "crown_settlement": "m",
-    "max_thrust": "N m-1", "max_abs_moment": "N m m-1", "max_utilization": "1",
-    "max_surface_settlement": "m", "volume_loss": "1", "ground_crown_settlement": "m",
-    "lining_weight": "N m-1", "bolt_theta": "degree", "bolt_trials": "1", "iterations": "1",
-    "converged": "1", "kkt_residual": "1", "solve_seconds": "s",
-}
+#: Scalars of SPEC §3 in the contract's order; units and long names are the solver's
+#: (:data:`solver.dataset.SCALARS`).
+SCALAR_ORDER: tuple[str, ...] = (
+    "max_contact_pressure", "contact_extent", "crown_settlement", "max_thrust", "max_abs_moment",
+    "max_utilization", "max_surface_settlement", "volume_loss", "ground_crown_settlement",
+    "lining_weight", "bolt_theta", "bolt_trials", "iterations", "converged", "kkt_residual",
+    "solve_seconds",
+)
 
 
 class Column(BaseModel):
@@ -70,7 +69,7 @@ class ComparisonTable(BaseModel):
 
 def scalar_column(name: str) -> Column:
     """The column of result scalar ``name`` (units from the contract, names from the solver)."""
-    units, long_name = SCALARS.get(name, (SCALAR_ORDER.get(name, ""), name.replace("_", " ")))
+    units, long_name = SCALARS.get(name, ("", name.replace("_", " ")))
     shown, factor = display_unit(units)
     return Column(name=name, kind="scalar", units=units, long_name=long_name, display_unit=shown,
                   display_factor=factor)

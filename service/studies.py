@@ -12,7 +12,6 @@ from fastapi.responses import FileResponse, Response
 
 from workflows.artifacts import render_sweep_plot
 from workflows.plots import SWEEP_PLOT_NAMES
-from workflows.store import is_stored
 
 from .comparison import ComparisonTable, comparison_table, table_csv
 from .errors import responses
@@ -74,8 +73,7 @@ async def get_sweep_plot(sweep_id: SweepId, name: SweepPlotName, request: Reques
     have them) or ``scalars`` (each summary scalar against each varied parameter)."""
     jobs = jobs_of(request)
     record = _sweep(request, sweep_id)
-    statuses = jobs.store.statuses(record.case_ids)
-    done = [c for c in record.case_ids if statuses.get(c) == "done" and is_stored(jobs.root, c)]
+    done = await jobs.readable_results(record.case_ids)  # as for result.nc: a broken file is recomputed
     if not done:
         raise not_ready(f"sweep {sweep_id}", "no case is done yet")
     path = await asyncio.to_thread(render_sweep_plot, jobs.root, sweep_id, done, name.value)

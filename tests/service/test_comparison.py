@@ -96,3 +96,10 @@ def test_pages_render_without_a_scheduler_and_unknown_ids_are_html_404(tmp_path)
             assert "unknown" in response.text and "0123456789abcdef" in response.text
         assert client.get("/").status_code == 200
         assert "Submit" in client.get("/ui/submit").text
+
+
+def test_the_contract_order_names_every_scalar_the_solver_writes():
+    from service.comparison import SCALAR_ORDER
+    from solver.dataset import SCALARS
+
+    assert sorted(SCALAR_ORDER) == sorted(SCALARS)
