@@ -84,6 +84,46 @@ def reuse(cases_k0: int = 20, cases_ld: int = 10, mixed: int = 64, n_workers: in
     return out
 
 
+def _store_cases(n: int) -> list[float]:
+    """Seconds to solve and store each of ``n`` default cases (K0 varied) on one shared model,
+    the first (which builds the model) excluded."""
+    from solver import CaseSpec
+    from workflows.store import ResultStore
+
+    seconds = []
+    with tempfile.TemporaryDirectory(prefix="bench-per-case-") as root:
+        store = ResultStore(root)
+        for k0 in np.linspace(0.4, 1.2, n + 1):
+            start = time.perf_counter()
+            store.solve_and_store(CaseSpec.model_validate({"loads": {"lateral_ratio": round(float(k0), 4)}}))
+            seconds.append(time.perf_counter() - start)
+    return seconds[1:]
+
+
+def per_case(n: int = 30) -> dict:
+    """Median ms to store a default case on a shared model: in this process, in a dask worker
+    started with dask's own environment (``MALLOC_TRIM_THRESHOLD_`` alone), and in one
+    started with :data:`workflows.workers.WORKER_ENVIRON`."""
+    import dask
+    from distributed import Client, LocalCluster
+
+    from workflows.sweep import local_client
+    from workflows.workers import WORKER_ENVIRON
+
+    for name in WORKER_ENVIRON:  # a nanny copies them into this process; start clean
+        os.environ.pop(name, None)
+    out = {"plain_process_ms": 1e3 * float(np.median(_store_cases(n)))}
+    with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": 65536}), \
+            LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        out["worker_dask_default_ms"] = 1e3 * float(np.median(client.submit(_store_cases, n, pure=False).result()))
+    for name in WORKER_ENVIRON:
+        os.environ.pop(name, None)
+    with local_client(1) as client:
+        out["worker_ms"] = 1e3 * float(np.median(client.submit(_store_cases, n, pure=False).result()))
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m bench.sweep", description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true", help="print one JSON object")
@@ -91,7 +131,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeat", type=int, default=3, help="runs per configuration; the best counts")
     parser.add_argument("--reuse", action="store_true",
                         help="models shared per worker vs every case alone (200-case K0 x deconfinement, 64 mixed)")
+    parser.add_argument("--per-case", action="store_true",
+                        help="ms to store one case on a shared model: plain process, worker with dask's "
+                             "malloc setting, worker with ours")
     args = parser.parse_args(argv)
+    if args.per_case:
+        print(json.dumps(per_case(), indent=1))
+        return 0
     if args.reuse:
         print(json.dumps(reuse(), indent=1))
         return 0

@@ -7,7 +7,7 @@ hand freed memory back to the system quickly). Setting any malloc threshold also
 the mmap threshold at 128 KiB, so every array over 128 KiB is a fresh ``mmap`` whose pages
 fault in on first touch and are unmapped when freed. A case allocates thousands of such
 arrays (stresses at quadrature points, stage loads, netCDF buffers): measured case by case
-(``python -m bench.sweep --worker-env``), a stored default case on a shared model took
+(``python -m bench.sweep --per-case``), a stored default case on a shared model took
 95 ms in a worker against 67 ms in a plain process. Arrays up to 32 MiB
 now come from the heap, and only more than 128 MiB free at its top is returned.
 """
