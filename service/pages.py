@@ -22,9 +22,10 @@ from fastapi.templating import Jinja2Templates
 
 from workflows.plots import PLOTS, SWEEP_PLOT_NAMES
 
-from . import cases, studies, sweeps
-from .comparison import ordered_scalars, scalar_column, shown
-from .params import CaseId, SweepId, jobs_of
+from . import cases, studies
+from .comparison import comparison_table, ordered_scalars, scalar_column, shown
+from .params import CaseId, SweepId, jobs_of, not_found
+from .schemas import SweepStatus
 
 logger = logging.getLogger(__name__)
 
@@ -103,13 +104,13 @@ async def _error_page(request: Request, exc: HTTPException) -> HTMLResponse:
 
 @router.get("/ui/sweeps/{sweep_id}", response_class=HTMLResponse)
 async def sweep_page(sweep_id: SweepId, request: Request) -> HTMLResponse:
-    try:
-        status = await sweeps.get_sweep(sweep_id, request)
-    except HTTPException as exc:
-        return await _error_page(request, exc)
-    table = await studies.get_sweep_table(sweep_id, request)
-    spec = jobs_of(request).store.get_sweep(sweep_id).spec
-    return await _render(request, "sweep.html", sweep=status, table=table, spec=spec, plots=SWEEP_PLOT_NAMES)
+    store = jobs_of(request).store
+    record = store.get_sweep(sweep_id)  # read once for the status, the table and the spec
+    if record is None:
+        return await _error_page(request, not_found("sweep", sweep_id))
+    status = SweepStatus.of(record, store.status_counts(record.case_ids))
+    return await _render(request, "sweep.html", sweep=status, table=comparison_table(store, record),
+                         spec=record.spec, plots=SWEEP_PLOT_NAMES)
 
 
 @router.get("/ui/cases/{case_id}", response_class=HTMLResponse)
