@@ -329,3 +329,11 @@ def test_reconcile_resubmits_orphans_and_adopts_stored_results(client, app, done
     record = jobs.store.get_case(done_case["id"])
     assert record.status == "done" and record.summary["converged"] == 1.0
     assert record.submissions == submissions
+
+
+@pytest.mark.parametrize("path, what", [("/ui/sweeps/0123456789abcdef", "unknown sweep 0123456789abcdef"),
+                                        ("/ui/cases/0123456789abcdef", "unknown case 0123456789abcdef")])
+def test_pages_of_unknown_ids_are_404_pages_that_say_so(client, path, what):
+    response = client.get(path)
+    assert response.status_code == 404
+    assert response.headers["content-type"].startswith("text/html") and what in response.text
