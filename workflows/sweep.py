@@ -224,7 +224,7 @@ def local_client(n_workers: int = 2) -> Iterator:
     from .workers import worker_config
 
     with worker_config(), LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                                       dashboard_address=":0") as cluster, Client(cluster) as client:
+                                       dashboard_address=None) as cluster, Client(cluster) as client:
         yield client
 
 
