@@ -327,13 +327,31 @@ class JobStore:
                            submitted_at=row["submitted_at"], case_ids=tuple(r["case_id"] for r in ids))
 
     def list_sweeps(self, *, limit: int = 20, offset: int = 0) -> tuple[list[SweepRecord], int]:
-        """A page of sweeps, newest submission first, and how many there are."""
+        """A page of sweeps, newest submission first, and how many there are (three queries)."""
         with self._lock:
             total = self._db.execute("SELECT count(*) FROM sweeps").fetchone()[0]
-            ids = [r["id"] for r in self._db.execute(
-                "SELECT id FROM sweeps ORDER BY submitted_at DESC, id DESC LIMIT ? OFFSET ?",
-                (limit, offset)).fetchall()]
-        return [s for s in map(self.get_sweep, ids) if s is not None], total
+            rows = self._db.execute(
+                "SELECT * FROM sweeps ORDER BY submitted_at DESC, id DESC LIMIT ? OFFSET ?",
+                (limit, offset)).fetchall()
+            members: dict[str, list[str]] = {r["id"]: [] for r in rows}
+            for r in self._db.execute(
+                    "SELECT sweep_id, case_id FROM sweep_cases WHERE sweep_id IN "
+                    "(SELECT value FROM json_each(?)) ORDER BY sweep_id, position",
+                    (json.dumps(list(members)),)).fetchall():
+                members[r["sweep_id"]].append(r["case_id"])
+        return [SweepRecord(id=r["id"], name=r["name"], spec=json.loads(r["spec"]), submitted_at=r["submitted_at"],
+                            case_ids=tuple(members[r["id"]])) for r in rows], total
+
+    def sweep_status_counts(self, sweep_ids: Sequence[str]) -> dict[str, dict[str, int]]:
+        """:meth:`status_counts` of each sweep's cases, for many sweeps in one query."""
+        counts = {s: dict.fromkeys(STATUSES, 0) for s in sweep_ids}
+        rows = self._read(
+            "SELECT m.sweep_id, c.status, count(DISTINCT c.id) AS n FROM sweep_cases m "
+            "JOIN cases c ON c.id = m.case_id WHERE m.sweep_id IN (SELECT value FROM json_each(?)) "
+            "GROUP BY m.sweep_id, c.status", (json.dumps(list(sweep_ids)),))
+        for r in rows:
+            counts[r["sweep_id"]][r["status"]] = r["n"]
+        return counts
 
     def writable(self) -> bool:
         """Whether the database accepts a write (checked inside a rolled-back transaction)."""

@@ -39,7 +39,8 @@ async def list_sweeps(request: Request, limit: int = Query(20, ge=1, le=200),
     """Sweeps, newest submission first, a page at a time, each with its counts by status."""
     store = jobs_of(request).store
     records, total = store.list_sweeps(limit=limit, offset=offset)
-    return SweepPage(items=[SweepStatus.of(r, store.status_counts(r.case_ids)) for r in records],
+    counts = store.sweep_status_counts([r.id for r in records])
+    return SweepPage(items=[SweepStatus.of(r, counts[r.id]) for r in records],
                      total=total, limit=limit, offset=offset)
 
 

@@ -103,3 +103,23 @@ def test_the_contract_order_names_every_scalar_the_solver_writes():
     from solver.dataset import SCALARS
 
     assert sorted(SCALAR_ORDER) == sorted(SCALARS)
+
+
+def test_a_page_of_sweeps_and_their_counts_match_the_sweeps_one_by_one(tmp_path):
+    """list_sweeps and sweep_status_counts (a few queries for a page) against get_sweep and
+    status_counts per sweep, with sweeps sharing cases and a page boundary."""
+    store = JobStore(tmp_path / "jobs.sqlite")
+    a, b, c = specs(2e7, 5e7, 8e7), specs(5e7, 9e7), specs(1e8)
+    for i, cases in enumerate((a, b, c)):
+        store.add_sweep(f"{i:016x}", f"s{i}", "{}", cases)
+    store.finish(a[1][0], status="done", summary={})  # also b's first case
+    store.finish(a[2][0], status="failed", error="boom")
+    for limit, offset in ((20, 0), (2, 0), (2, 2), (5, 3)):
+        page, total = store.list_sweeps(limit=limit, offset=offset)
+        assert total == 3
+        counts = store.sweep_status_counts([r.id for r in page])
+        for record in page:
+            assert record == store.get_sweep(record.id)
+            assert counts[record.id] == store.status_counts(record.case_ids)
+    assert store.sweep_status_counts([f"{1:016x}"])[f"{1:016x}"] == {"queued": 1, "running": 0, "done": 1,
+                                                                      "failed": 0, "cancelled": 0}
