@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import csv
 import io
-import math
 from typing import Literal, Optional, Union
 
 from pydantic import BaseModel, Field
@@ -33,6 +32,7 @@ from solver.dataset import SCALARS
 from workflows.parameters import flat_parameters, varying_parameters
 from workflows.plots import display_unit
 
+from .results import non_finite_text
 from .store import JobStore, SweepRecord
 
 #: Scalars of SPEC §3 in the contract's order; units and long names are the solver's
@@ -98,14 +98,9 @@ def comparison_table(store: JobStore, record: SweepRecord) -> ComparisonTable:
         summary = case.summary or {}
         row: dict[str, Value] = {"case_id": case.id, "status": case.status}
         row.update({p: params.get(p) for p in varied})
-        row.update({s: _json_safe(summary.get(s)) for s in scalars})
+        row.update({s: non_finite_text(summary.get(s)) for s in scalars})
         rows.append(row)
     return ComparisonTable(sweep_id=record.id, columns=columns, rows=rows)
-
-
-def _json_safe(value: Value) -> Value:
-    """Non-finite numbers as the text Python's ``float()`` reads back (JSON has no inf)."""
-    return repr(value) if isinstance(value, float) and not math.isfinite(value) else value
 
 
 def table_csv(table: ComparisonTable) -> str:

@@ -119,8 +119,9 @@ async def case_page(case_id: CaseId, request: Request) -> HTMLResponse:
         case = await cases.get_case(case_id, request)
     except HTTPException as exc:
         return await _error_page(request, exc)
-    columns = [scalar_column(n) for n in ordered_scalars(case.summary or {})]
-    return await _render(request, "case.html", case=case, columns=columns, plots=list(PLOTS))
+    values = {**(case.summary or {}), **{k: float(v) for k, v in case.non_finite.items()}}  # inf shown as inf
+    columns = [scalar_column(n) for n in ordered_scalars(values)]
+    return await _render(request, "case.html", case=case, values=values, columns=columns, plots=list(PLOTS))
 
 
 @router.get("/ui/submit", response_class=HTMLResponse)

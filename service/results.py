@@ -79,12 +79,26 @@ def result_state(root: Path, case_id: str) -> str:
     return "readable" if _version(case_path(root, case_id)) is not None else "missing"
 
 
+def non_finite_text(value):
+    """A non-finite float as the text Python's ``float()`` reads back (``inf``, ``-inf``,
+    ``nan``: JSON has no such numbers); anything else as it is."""
+    return repr(float(value)) if isinstance(value, float) and not math.isfinite(value) else value
+
+
 def finite_summary(summary: Optional[dict]) -> Optional[dict[str, Optional[float]]]:
     """``summary`` with non-finite scalars as None (JSON has no NaN or Infinity)."""
     if summary is None:
         return None
     return {k: (float(v) if isinstance(v, (int, float)) and math.isfinite(v) else None)
             for k, v in summary.items()}
+
+
+def non_finite_entries(summary: Optional[dict]) -> dict[str, str]:
+    """The scalars of ``summary`` that are not finite, as ``inf``, ``-inf`` or ``nan``:
+    what the nulls of :func:`finite_summary` stand for (``max_utilization`` inf: the
+    section fails at any load level; ``bolt_theta`` nan: a bonded interface has none)."""
+    return {k: non_finite_text(float(v)) for k, v in (summary or {}).items()
+            if isinstance(v, (int, float)) and not math.isfinite(v)}
 
 
 _ADDRESS = re.compile(r"\b(?:tcp|tls|ucx|ws|wss|inproc)://[\w.\-\[\]:%]*[\w\]]")

@@ -6,7 +6,7 @@ from typing import Literal, Optional
 
 from pydantic import BaseModel, Field
 
-from .results import finite_summary
+from .results import finite_summary, non_finite_entries
 from .store import CaseRecord, SweepRecord
 
 Status = Literal["queued", "running", "done", "failed", "cancelled"]
@@ -24,7 +24,10 @@ class Case(BaseModel):
     status: Status
     spec: dict = Field(description="the case with every default filled in")
     summary: Optional[dict[str, Optional[float]]] = Field(
-        None, description="result scalars (SPEC §3) once done; null where not finite")
+        None, description="result scalars (SPEC §3) once done; null where not finite (see non_finite)")
+    non_finite: dict[str, Literal["inf", "-inf", "nan"]] = Field(
+        default_factory=dict, description="the summary scalars that are not finite and what they are "
+                                          "(max_utilization inf: the section fails at any load level)")
     error: Optional[str] = Field(None, description="why the case failed")
     submitted_at: datetime
     started_at: Optional[datetime] = None
@@ -35,6 +38,7 @@ class Case(BaseModel):
     def of(cls, record: CaseRecord) -> "Case":
         return cls(
             id=record.id, status=record.status, spec=record.spec, summary=finite_summary(record.summary),
+            non_finite=non_finite_entries(record.summary),
             error=record.error, submitted_at=_time(record.submitted_at),
             started_at=_time(record.started_at), finished_at=_time(record.finished_at),
             result=f"/cases/{record.id}/result.nc" if record.status == "done" else None)

@@ -5,6 +5,7 @@ Every endpoint of SPEC §6, its status codes and error bodies.
 from __future__ import annotations
 
 import json
+import math
 
 import pytest
 import xarray as xr
@@ -337,3 +338,19 @@ def test_pages_of_unknown_ids_are_404_pages_that_say_so(client, path, what):
     response = client.get(path)
     assert response.status_code == 404
     assert response.headers["content-type"].startswith("text/html") and what in response.text
+
+
+def test_a_section_that_fails_at_any_load_is_not_shown_as_blank(app, client):
+    """max_utilization = inf (the section fails whatever the load level) and bolt_theta = nan
+    (a bonded interface has none): null in the JSON summary, named in non_finite, and shown
+    as inf / nan on the case page, never as an empty cell."""
+    case_id = plant(app, {**COARSE, "loads": {"surface_load": 4.321e4}})
+    app.state.jobs.store.finish(case_id, status="done", summary={
+        "max_abs_moment": 1.5e5, "max_utilization": math.inf, "bolt_theta": math.nan})
+    body = client.get(f"/cases/{case_id}").json()
+    assert body["summary"] == {"max_abs_moment": 1.5e5, "max_utilization": None, "bolt_theta": None}
+    assert body["non_finite"] == {"max_utilization": "inf", "bolt_theta": "nan"}
+    page = client.get(f"/ui/cases/{case_id}").text
+    row = page[page.index("<code>max_utilization</code>") - 300:page.index("<code>max_utilization</code>")]
+    assert ">inf</td>" in row
+    assert ">nan</td>" in page[page.index("<code>bolt_theta</code>") - 300:page.index("<code>bolt_theta</code>")]
