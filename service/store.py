@@ -100,6 +100,11 @@ def _case(row: sqlite3.Row) -> CaseRecord:
         finished_at=row["finished_at"], submissions=row["submissions"])
 
 
+def _sweep(row: sqlite3.Row, case_ids: Sequence[str]) -> SweepRecord:
+    return SweepRecord(id=row["id"], name=row["name"], spec=json.loads(row["spec"]),
+                       submitted_at=row["submitted_at"], case_ids=tuple(case_ids))
+
+
 class JobStore:
     """Case and sweep records in ``path`` (created with its parent directory if missing)."""
 
@@ -323,8 +328,7 @@ class JobStore:
                 return None
             ids = self._db.execute("SELECT case_id FROM sweep_cases WHERE sweep_id = ? ORDER BY position",
                                    (sweep_id,)).fetchall()
-        return SweepRecord(id=row["id"], name=row["name"], spec=json.loads(row["spec"]),
-                           submitted_at=row["submitted_at"], case_ids=tuple(r["case_id"] for r in ids))
+        return _sweep(row, [r["case_id"] for r in ids])
 
     def list_sweeps(self, *, limit: int = 20, offset: int = 0) -> tuple[list[SweepRecord], int]:
         """A page of sweeps, newest submission first, and how many there are (three queries)."""
@@ -339,8 +343,7 @@ class JobStore:
                     "(SELECT value FROM json_each(?)) ORDER BY sweep_id, position",
                     (json.dumps(list(members)),)).fetchall():
                 members[r["sweep_id"]].append(r["case_id"])
-        return [SweepRecord(id=r["id"], name=r["name"], spec=json.loads(r["spec"]), submitted_at=r["submitted_at"],
-                            case_ids=tuple(members[r["id"]])) for r in rows], total
+        return [_sweep(r, members[r["id"]]) for r in rows], total
 
     def sweep_status_counts(self, sweep_ids: Sequence[str]) -> dict[str, dict[str, int]]:
         """:meth:`status_counts` of each sweep's cases, for many sweeps in one query."""

@@ -124,17 +124,24 @@ class BoltTrial:
     accepted: bool
 
 
-@dataclass
-class ContactSolution:
-    """Pressure λ (Pa), gap (m), lining translation a (m), and the bolt search record."""
+@dataclass(kw_only=True)
+class BoltedSolution:
+    """What every interface model reports: the lining's rigid translation a (m) and the
+    bolt search record (``bolt`` None, no trials, when no bolt is needed: ``bonded``)."""
 
-    lam: np.ndarray
-    gap: np.ndarray
     a: float
-    bolt: int
+    bolt: int | None
     trials: list[BoltTrial] = field(default_factory=list)
     iterations: int = 0
     admissible: bool = True
+
+
+@dataclass(kw_only=True)
+class ContactSolution(BoltedSolution):
+    """Frictionless contact: pressure λ (Pa) and gap (m), with the bolt search record."""
+
+    lam: np.ndarray
+    gap: np.ndarray
 
 
 def _curvature(dual: DualProblem, bolt: int) -> float:

@@ -78,7 +78,7 @@ class FactoredBody:
     """
 
     def __init__(self, body: Body, B: sp.csr_matrix, m: int, pin: int | None = None):
-        self.body, self.B, self.m, self.pin = body, B, m, pin
+        self.body, self.B, self.m = body, B, m
         self._factors: dict[str, tuple[InterfaceFactor, sp.csr_matrix]] = {}
         n = body.n
         self._keep = np.flatnonzero(np.arange(n) != pin) if pin is not None else None
@@ -86,28 +86,29 @@ class FactoredBody:
     def _restrict(self, A: sp.spmatrix) -> sp.spmatrix:
         return A if self._keep is None else A[self._keep][:, self._keep]
 
+    def _columns(self, B: sp.csr_matrix) -> sp.csr_matrix:
+        return B if self._keep is None else B[:, self._keep].tocsr()
+
+    def matrix(self) -> tuple[sp.spmatrix, np.ndarray]:
+        """The matrix every factorization of this body is of (``K`` without the pinned DOF)
+        and the mesh node of each of its unknowns."""
+        groups = self.body.node_of_dof()
+        return self._restrict(self.body.K), groups if self._keep is None else groups[self._keep]
+
     def factor(self, rows: Rows) -> tuple[InterfaceFactor, sp.csr_matrix]:
         """The factorization serving ``rows`` and those rows of ``B`` in its unknowns (built
         on first use)."""
         if rows not in self._factors:
-            K, groups = self._restrict(self.body.K), self.body.node_of_dof()
-            groups = groups if self._keep is None else groups[self._keep]
+            K, groups = self.matrix()
             if rows == "normal":
-                T = self._restrict(normal_rotation(self.body, self.B[: self.m]))
-                B = (self._columns(self.B[: self.m]) @ T).tocsr()
-                # a normal row on its node's tangential component is zero up to rounding
-                B.data[np.abs(B.data) < 1e-12 * np.abs(B.data).max()] = 0.0
-                B.eliminate_zeros()
-                last = np.unique(B.indices)
-                factor = InterfaceFactor(K, last, groups, rotation=T)
+                T, B = normal_rotation(self.body, self.B[: self.m])
+                T, B = self._restrict(T), self._columns(B)
+                factor = InterfaceFactor(K, np.unique(B.indices), groups, rotation=T)
             else:
                 B = self._columns(self.B)
                 factor = InterfaceFactor(K, np.unique(B.indices), groups)
             self._factors[rows] = (factor, B)
         return self._factors[rows]
-
-    def _columns(self, B: sp.csr_matrix) -> sp.csr_matrix:
-        return B if self._keep is None else B[:, self._keep].tocsr()
 
     def solve(self, rhs: np.ndarray, rows: Rows = "normal") -> np.ndarray:
         """``K⁺ rhs`` on the free DOFs (the pinned DOF, if any, is zero)."""
@@ -129,15 +130,20 @@ class FactoredBody:
         return factor.flexibility(on_last.toarray())
 
 
-def normal_rotation(body: Body, B_normal: sp.csr_matrix) -> sp.csr_matrix:
-    """Orthogonal ``T`` (n, n): at each interface node with both DOFs free, its x and y
-    DOFs become the components along the unit normal and tangent of its normal row
-    (``u = T u'``); the identity elsewhere (a node on the symmetry line keeps its one free
-    DOF, which its normal row already is)."""
+def normal_rotation(body: Body, B_normal: sp.csr_matrix) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    """Orthogonal ``T`` (n, n) and the normal rows in its unknowns, ``B_normal T``.
+
+    At each interface node with both DOFs free, its x and y DOFs become the components
+    along the unit normal and tangent of its normal row (``u = T u'``): that row is then
+    ``|c|`` on the normal component alone, written exactly here (the product would leave
+    rounding on the tangential one). Elsewhere ``T`` is the identity: a node on the
+    symmetry line keeps its one free DOF, which its normal row already is.
+    """
     n = body.n
     node_of_dof = body.node_of_dof()
     diag = np.ones(n)
     rows, cols, vals = [np.arange(n)], [np.arange(n)], [diag]
+    rotated = B_normal.tolil(copy=True)
     for i in range(B_normal.shape[0]):
         span = slice(B_normal.indptr[i], B_normal.indptr[i + 1])
         dofs, coefficients = B_normal.indices[span], B_normal.data[span]
@@ -148,13 +154,16 @@ def normal_rotation(body: Body, B_normal: sp.csr_matrix) -> sp.csr_matrix:
             continue
         c = np.zeros(2)
         c[(dofs == dy).astype(int)] = coefficients
-        nx, ny = c / np.hypot(*c)
+        length = np.hypot(*c)
+        nx, ny = c / length
         # columns: T[:, dx] = (nx, ny) (normal), T[:, dy] = (-ny, nx) (tangent)
         diag[dx] = diag[dy] = nx
         rows.append(np.array([dy, dx]))
         cols.append(np.array([dx, dy]))
         vals.append(np.array([ny, -ny]))
-    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
+        rotated.rows[i], rotated.data[i] = [int(dx)], [float(length)]
+    T = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
+    return T, rotated.tocsr()
 
 
 def lining_pin(body: Body, interface_nodes: np.ndarray) -> int:

@@ -45,13 +45,13 @@ below ``tol / 2``.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as la
 from scipy.optimize import lsq_linear
 
-from .contact import BoltTrial, NotConvergedError, pressure_scale, search_bolt
+from .contact import BoltedSolution, NotConvergedError, pressure_scale, search_bolt
 
 log = logging.getLogger(__name__)
 
@@ -86,16 +86,11 @@ class FrictionProblem:
         return v - a * self.r, float(a)
 
 
-@dataclass
-class CoulombSolution:
-    """Tractions t = [λ; s] (Pa), lining translation a (m) and the bolt search record."""
+@dataclass(kw_only=True)
+class CoulombSolution(BoltedSolution):
+    """Tractions t = [λ; s] (Pa), with the lining translation and the bolt search record."""
 
     t: np.ndarray
-    a: float
-    bolt: int
-    trials: list[BoltTrial] = field(default_factory=list)
-    iterations: int = 0
-    admissible: bool = True
 
 
 @dataclass

@@ -42,7 +42,7 @@ from .assembly import (
     surface_load,
     vector_basis,
 )
-from .contact import BoltTrial, DualProblem, SolverError, pressure_scale, solve_contact
+from .contact import BoltedSolution, BoltTrial, DualProblem, SolverError, pressure_scale, solve_contact
 from .flexibility import (
     FactoredBody,
     Rows,
@@ -268,26 +268,24 @@ class TunnelModel:
         iface = self.mesh.interface
         m, g0, sv = self.m, spec.geometry.gap, spec.solver
         model = spec.interface.model
-        trials: list[BoltTrial] = []
-        bolt, iterations, admissible = None, 0, True
+        sol: BoltedSolution
         if model == "frictionless":
-            dual = self._dual(d, F2, g0)
-            sol = solve_contact(dual, iface.theta, inner=sv.inner, tol=sv.tolerance,
+            sol = solve_contact(self._dual(d, F2, g0), iface.theta, inner=sv.inner, tol=sv.tolerance,
                                 max_iterations=sv.max_iterations, bolt=sv.bolt)
             t = np.r_[sol.lam, np.zeros(m - 2)]
-            a, bolt, trials, iterations, admissible = sol.a, sol.bolt, sol.trials, sol.iterations, sol.admissible
         elif model == "bonded":
             t, a = self._tie(d, F2)
+            sol = BoltedSolution(a=a, bolt=None)
         else:
             fp = friction.FrictionProblem(S=self.S, d=d, g0=g0, w=self.w, r=self.r, F2=F2, m=m,
                                           mu=spec.interface.friction)
             sol = friction.solve_coulomb(fp, iface.theta, tol=sv.tolerance, max_iterations=sv.max_iterations,
                                          bolt=sv.bolt)
-            t, a, bolt, trials, iterations, admissible = sol.t, sol.a, sol.bolt, sol.trials, sol.iterations, sol.admissible
+            t = sol.t
         t_solve = time.perf_counter()
         Wt = self.w * t
         u_g = ug_f - ground.solve(ground.B.T @ Wt, rows)
-        u_l = ul_f - lining.solve(lining.B.T @ Wt, rows) + a * self.rigid
+        u_l = ul_f - lining.solve(lining.B.T @ Wt, rows) + sol.a * self.rigid
         J = ground.B @ u_g + lining.B @ u_l
         lam = t[:m]
         shear = np.zeros(m)
@@ -308,8 +306,8 @@ class TunnelModel:
                            mu=spec.interface.friction)
         return Solution(spec=spec, u_ground=ground.body.expand(u_g + u1), u_stage1=ground.body.expand(u1),
                         u_lining=u_lining, lam=lam, shear=shear, normal_jump=J[:m], tangential_jump=jt,
-                        in_contact=closed, slipping=slipping, a=float(a),
-                        bolt=bolt, trials=trials, iterations=int(iterations), admissible=bool(admissible), F2=F2,
+                        in_contact=closed, slipping=slipping, a=float(sol.a), bolt=sol.bolt, trials=sol.trials,
+                        iterations=int(sol.iterations), admissible=bool(sol.admissible), F2=F2,
                         kkt_residual=kkt,
                         timings={"contact": t_solve - t0, "recovery": time.perf_counter() - t_solve})
 
@@ -371,8 +369,8 @@ def shared_model(spec: CaseSpec) -> TunnelModel:
     deconfinement, interface, solver and design varying) then pay mesh, assembly and
     factorization once per worker process. Least recently used models are dropped
     beyond :data:`SHARED_MODELS`. Solving on a shared model gives the same result as on
-    a fresh one: the model holds no state that a solve changes except a load cache keyed
-    by the load parameters.
+    a fresh one: what a model builds on first use (unit load vectors, the factorization and
+    flexibility an interface model needs, stress bases) depends on the model alone.
     """
     if SHARED_MODELS <= 0:
         return TunnelModel(spec)

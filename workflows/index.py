@@ -73,9 +73,6 @@ PENDING_FRACTION = 16
 _ENTRY_MAGIC = b"TCIDX1\n"
 _DECODE = {k: v for k, v in OPEN_OPTIONS.items() if k != "engine"}
 _NO_KEY: FileKey = (-1, -1, -1, -1)
-#: One index read or rewrite at a time in a process: netCDF-C/HDF5 are not thread-safe,
-#: and xarray does not lock the metadata reads of a file opened by handle.
-_THREAD_LOCK = netcdf_lock  # the process-wide netCDF lock (workflows.store)
 
 
 @dataclass
@@ -166,12 +163,12 @@ class ResultIndex:
     def open_results(self, case_ids: Sequence[str] | None = None) -> xr.Dataset:
         """:func:`workflows.open_results` from the index; identical to
         :func:`workflows.combine.combine_files`."""
-        with _THREAD_LOCK:
+        with netcdf_lock:
             return self._open_results(case_ids)
 
     def update(self) -> int:
         """Rewrite the index file to hold every stored case now; return how many it holds."""
-        with _THREAD_LOCK:
+        with netcdf_lock:
             keys = self.store.file_keys()
             with self._opened() as index:
                 extra, _ = self._entries(index, sorted(keys), keys)
