@@ -32,7 +32,7 @@ async def lifespan(app: FastAPI):
     settings: Settings = app.state.settings
     root = settings.results.resolve()
     root.mkdir(parents=True, exist_ok=True)
-    store = JobStore(settings.database)
+    store = JobStore(settings.database, background_checkpoints=True)
     try:
         async with cluster_connection(settings) as connect:
             jobs = Dispatcher(connect, store, root, poll_interval=settings.poll_interval,
