@@ -1,6 +1,6 @@
 """Sweep throughput on one and on two dask worker processes.
 
-``python -m bench.sweep [--json] [--cases N]``: the same sweep of N default-size cases
+``python -m bench.sweep [--json] [--cases N] [--reuse | --per-case | --idle]``: the same sweep of N default-size cases
 (lining thickness varied) is solved into a fresh result folder on an embedded
 LocalCluster with 1 and then 2 worker processes (one thread each). Cluster start-up
 and worker warm-up (imports, one coarse case stored) are excluded from the timings. Each
@@ -16,6 +16,7 @@ import os
 import sys
 import tempfile
 import time
+from contextlib import nullcontext
 
 import numpy as np
 
@@ -124,6 +125,35 @@ def per_case(n: int = 30) -> dict:
     return out
 
 
+def idle(seconds: float = 10.0, n_workers: int = 2) -> dict:
+    """CPU seconds the cluster's processes spend doing nothing for ``seconds``: the
+    process holding the scheduler and the nannies, and each worker, with dask's defaults
+    and with :data:`workflows.workers.CLUSTER_CONFIG`, alternating, twice."""
+    import psutil
+    from distributed import Client, LocalCluster
+
+    from workflows.workers import worker_config
+
+    def cpu(process) -> float:
+        return sum(process.cpu_times()[:2])
+
+    out: dict[str, list] = {"dask_defaults": [], "ours": []}
+    for _ in range(2):
+        for label, config in (("dask_defaults", nullcontext), ("ours", worker_config)):
+            with config(), LocalCluster(n_workers=n_workers, threads_per_worker=1, dashboard_address=None) as cluster, \
+                    Client(cluster):
+                time.sleep(2.0)  # start-up done
+                me = psutil.Process()
+                workers = [c for c in me.children(recursive=True) if "resource_tracker" not in " ".join(c.cmdline())]
+                before = [cpu(me)] + [cpu(w) for w in workers]
+                time.sleep(seconds)
+                after = [cpu(me)] + [cpu(w) for w in workers]
+            spent = [round(b - a, 3) for a, b in zip(before, after)]
+            out[label].append({"scheduler_and_nannies_s": spent[0], "workers_s": spent[1:]})
+    out["seconds"] = seconds
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m bench.sweep", description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true", help="print one JSON object")
@@ -131,12 +161,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeat", type=int, default=3, help="runs per configuration; the best counts")
     parser.add_argument("--reuse", action="store_true",
                         help="models shared per worker vs every case alone (200-case K0 x deconfinement, 64 mixed)")
+    parser.add_argument("--idle", action="store_true",
+                        help="CPU seconds an idle two-worker cluster spends in 10 s: dask's defaults vs ours")
     parser.add_argument("--per-case", action="store_true",
                         help="ms to store one case on a shared model: plain process, worker with dask's "
                              "malloc setting, worker with ours")
     args = parser.parse_args(argv)
     if args.per_case:
         print(json.dumps(per_case(), indent=1))
+        return 0
+    if args.idle:
+        print(json.dumps(idle(), indent=1))
         return 0
     if args.reuse:
         print(json.dumps(reuse(), indent=1))

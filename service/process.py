@@ -18,7 +18,7 @@ from typing import IO, Iterator, Optional, Sequence
 
 import httpx
 
-from workflows.workers import worker_process_env
+from workflows.workers import cluster_process_env, worker_process_env
 
 logger = logging.getLogger(__name__)
 
@@ -125,7 +125,7 @@ def running_cluster(n_workers: int = 2, *, logs: Optional[Path] = None, nice: in
     try:
         processes.append(start(dask_command("scheduler", "--host", "127.0.0.1", "--port", str(port),
                                              "--no-dashboard", "--dashboard-address", LOOPBACK_ANY_PORT),
-                               log=log("scheduler"), env=env))
+                               log=log("scheduler"), env={**cluster_process_env(), **(env or {})}))
         for i in range(n_workers):
             niced = ["nice", "-n", str(nice)] if nice else []
             processes.append(start(niced + worker_command(address, f"worker-{i}"), log=log(f"worker-{i}"),

@@ -10,6 +10,16 @@ arrays (stresses at quadrature points, stage loads, netCDF buffers): measured ca
 (``python -m bench.sweep --per-case``), a stored default case on a shared model took
 95 ms in a worker against 67 ms in a plain process. Arrays up to 32 MiB
 now come from the heap, and only more than 128 MiB free at its top is returned.
+
+Housekeeping. Beside its tasks every dask process does periodic work: the worker samples
+its task thread's stack every 10 ms for the dashboard's profile page, and every process
+reads its CPU and memory with psutil every 0.5 s (system monitor) and every 0.1 s (memory
+monitor of workers and nannies). :data:`CLUSTER_CONFIG` turns the profiler off (no
+dashboard shows it here) and reads the system every 2 s and the memory every 0.5 s (a
+case's memory is bounded before it starts, by the element cap). An idle worker then
+spends 0.17-0.21 s of CPU per 10 s instead of 0.33-0.36 s, time otherwise taken from the
+tasks when both workers of this two-core machine solve (``python -m bench.sweep --idle``;
+the process holding the scheduler and the nannies, 0.3-0.6 s, moves within its noise).
 """
 from __future__ import annotations
 
@@ -24,17 +34,37 @@ WORKER_ENVIRON: dict[str, int] = {
     "MALLOC_TRIM_THRESHOLD_": 128 * 2**20,
 }
 
+#: dask settings of every process of the cluster (scheduler, nannies, workers).
+CLUSTER_CONFIG: dict[str, object] = {
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.system-monitor.interval": "2s",
+    "distributed.worker.memory.monitor-interval": "500ms",
+}
+
 _PRE_SPAWN = "distributed.nanny.pre-spawn-environ"
+
+
+def _env_name(key: str) -> str:
+    return "DASK_" + "__".join(part.upper().replace("-", "_") for part in key.split("."))
 
 
 @contextmanager
 def worker_config() -> Iterator[None]:
-    """dask configuration in which nannies (of a LocalCluster made inside) start workers
-    with :data:`WORKER_ENVIRON` (on top of dask's own, e.g. one BLAS thread)."""
-    with dask.config.set({f"{_PRE_SPAWN}.{name}": value for name, value in WORKER_ENVIRON.items()}):
+    """dask configuration in which a LocalCluster made inside runs with
+    :data:`CLUSTER_CONFIG` and its nannies start workers with :data:`WORKER_ENVIRON` (on
+    top of dask's own, e.g. one BLAS thread). The nannies hand the configuration on to
+    their workers."""
+    with dask.config.set({**CLUSTER_CONFIG,
+                          **{f"{_PRE_SPAWN}.{name}": value for name, value in WORKER_ENVIRON.items()}}):
         yield
 
 
+def cluster_process_env() -> dict[str, str]:
+    """Environment variables that give a ``dask scheduler`` command :data:`CLUSTER_CONFIG`."""
+    return {_env_name(key): str(value) for key, value in CLUSTER_CONFIG.items()}
+
+
 def worker_process_env() -> dict[str, str]:
-    """Environment variables that give a ``dask worker`` command the same setting."""
-    return {"DASK_DISTRIBUTED__NANNY__PRE_SPAWN_ENVIRON": repr(WORKER_ENVIRON)}
+    """Environment variables that give a ``dask worker`` command the same settings as
+    :func:`worker_config` gives a LocalCluster."""
+    return {**cluster_process_env(), "DASK_DISTRIBUTED__NANNY__PRE_SPAWN_ENVIRON": repr(WORKER_ENVIRON)}

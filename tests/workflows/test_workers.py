@@ -1,5 +1,6 @@
-"""Worker processes get the malloc settings of :mod:`workflows.workers`, however they are
-started, and those settings do what they are for: a freed array's pages are reused."""
+"""Worker processes get the malloc settings and dask configuration of
+:mod:`workflows.workers`, however they are started, and those settings do what they are
+for: a freed array's pages are reused, and the dask processes' housekeeping is lighter."""
 from __future__ import annotations
 
 import os
@@ -15,7 +16,7 @@ from distributed import Client
 
 from service.process import running_cluster
 from workflows.sweep import local_client
-from workflows.workers import WORKER_ENVIRON, worker_process_env
+from workflows.workers import CLUSTER_CONFIG, WORKER_ENVIRON, cluster_process_env, worker_process_env
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -25,6 +26,21 @@ cloudpickle.register_pickle_by_value(sys.modules[__name__])
 
 def malloc_environ() -> dict[str, str]:
     return {k: os.environ.get(k) for k in WORKER_ENVIRON}
+
+
+def cluster_config() -> dict[str, object]:
+    """The :data:`CLUSTER_CONFIG` keys as this process's dask configuration has them."""
+    return {k: dask.config.get(k) for k in CLUSTER_CONFIG}
+
+
+def profiler_running(dask_worker) -> bool:
+    """Whether the worker's statistical profiler samples its task thread (dask adds a
+    periodic callback for it when profiling is on)."""
+    return "profile" in dask_worker.periodic_callbacks
+
+
+def system_monitor_interval_ms(dask_scheduler) -> float:
+    return dask_scheduler.periodic_callbacks["monitor"].callback_time
 
 
 #: Bytes of each probe array: over glibc's default mmap threshold (128 KiB), under the 4 MiB
@@ -64,16 +80,41 @@ def test_local_cluster_workers():
     with local_client(1) as client:
         (environ,) = client.run(malloc_environ).values()
         (faults,) = client.run(page_faults_of_reused_arrays).values()
+        (config,) = client.run(cluster_config).values()
+        (profiling,) = client.run(profiler_running).values()
+        monitor_ms = client.run_on_scheduler(system_monitor_interval_ms)
     assert environ == expected()
     assert faults < 40 * PAGES / 10, f"{faults} page faults: freed arrays are not reused"
+    assert config == CLUSTER_CONFIG
+    assert not profiling
+    assert monitor_ms == 2000
 
 
 def test_dask_worker_processes(tmp_path):
-    """The ``dask worker`` command line of the deployment (service.process)."""
+    """The ``dask scheduler`` and ``dask worker`` command lines of the deployment (service.process)."""
     with running_cluster(1, logs=tmp_path) as address, Client(address, timeout=30) as client:
         client.wait_for_workers(1, timeout=60)
         (environ,) = client.run(malloc_environ).values()
+        (config,) = client.run(cluster_config).values()
+        (profiling,) = client.run(profiler_running).values()
+        monitor_ms = client.run_on_scheduler(system_monitor_interval_ms)
     assert environ == expected()
+    assert config == CLUSTER_CONFIG
+    assert not profiling
+    assert monitor_ms == 2000
+
+
+def test_dask_defaults_profile_and_monitor_more_often():
+    """Guards the tests above: without the settings a worker profiles, the scheduler
+    reads the system every 0.5 s."""
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        (profiling,) = client.run(profiler_running).values()
+        monitor_ms = client.run_on_scheduler(system_monitor_interval_ms)
+    assert profiling
+    assert monitor_ms == 500
 
 
 def test_without_the_settings_a_worker_faults_every_array():
@@ -90,10 +131,13 @@ def test_without_the_settings_a_worker_faults_every_array():
     assert faults > 40 * PAGES / 2, faults
 
 
-def test_compose_workers_get_the_same_environment():
+def test_compose_workers_and_scheduler_get_the_same_environment():
     compose = yaml.safe_load((ROOT / "docker-compose.yml").read_text())
     environment = compose["services"]["worker"]["environment"]
     assert environment == worker_process_env()
+    assert compose["services"]["scheduler"]["environment"] == cluster_process_env()
     # and dask reads it as the same mapping
     parsed = dask.config.collect_env(environment)
     assert dask.config.get("distributed.nanny.pre-spawn-environ", config=parsed) == WORKER_ENVIRON
+    assert {k: dask.config.get(k, config=parsed) for k in CLUSTER_CONFIG} == {
+        k: v if isinstance(v, bool) else str(v) for k, v in CLUSTER_CONFIG.items()}
