@@ -11,15 +11,16 @@ arrays (stresses at quadrature points, stage loads, netCDF buffers): measured ca
 95 ms in a worker against 67 ms in a plain process. Arrays up to 32 MiB
 now come from the heap, and only more than 128 MiB free at its top is returned.
 
-Housekeeping. Beside its tasks every dask process does periodic work: the worker samples
-its task thread's stack every 10 ms for the dashboard's profile page, and every process
-reads its CPU and memory with psutil every 0.5 s (system monitor) and every 0.1 s (memory
-monitor of workers and nannies). :data:`CLUSTER_CONFIG` turns the profiler off (no
-dashboard shows it here) and reads the system every 2 s and the memory every 0.5 s (a
-case's memory is bounded before it starts, by the element cap). An idle worker then
-spends 0.17-0.21 s of CPU per 10 s instead of 0.33-0.36 s, time otherwise taken from the
-tasks when both workers of this two-core machine solve (``python -m bench.sweep --idle``;
-the process holding the scheduler and the nannies, 0.3-0.6 s, moves within its noise).
+Housekeeping. Beside its tasks every dask process does periodic work: its event loop
+ticks every 20 ms (to notice a blocked loop, reported from 3 s on), the worker samples its
+task thread's stack every 10 ms for the dashboard's profile page, and every process reads
+its CPU and memory with psutil every 0.5 s (system monitor) and every 0.1 s (memory
+monitor of workers and nannies). Idle, that cost each worker 0.33-0.44 s of CPU per 10 s
+and the process holding the scheduler and the nannies 0.33-0.64 s (``python -m bench.sweep
+--idle``): up to 7 % of this machine's two cores, taken from the tasks when both workers
+solve. :data:`CLUSTER_CONFIG` ticks every 0.2 s, turns the profiler off (no dashboard shows
+it here) and reads the system every 2 s and the memory every 0.5 s (a case's memory is
+bounded before it starts, by the element cap): 0.05-0.06 s per worker and 0.16 s.
 """
 from __future__ import annotations
 
@@ -39,6 +40,7 @@ CLUSTER_CONFIG: dict[str, object] = {
     "distributed.worker.profile.enabled": False,
     "distributed.admin.system-monitor.interval": "2s",
     "distributed.worker.memory.monitor-interval": "500ms",
+    "distributed.admin.tick.interval": "200ms",
 }
 
 _PRE_SPAWN = "distributed.nanny.pre-spawn-environ"

@@ -43,6 +43,10 @@ def system_monitor_interval_ms(dask_scheduler) -> float:
     return dask_scheduler.periodic_callbacks["monitor"].callback_time
 
 
+def tick_interval_ms(dask_worker) -> float:
+    return dask_worker.periodic_callbacks["tick"].callback_time
+
+
 #: Bytes of each probe array: over glibc's default mmap threshold (128 KiB), under the 4 MiB
 #: from which NumPy asks for transparent huge pages (2 faults instead of 1024 when the
 #: kernel has them to give, which made the count depend on memory fragmentation).
@@ -82,12 +86,14 @@ def test_local_cluster_workers():
         (faults,) = client.run(page_faults_of_reused_arrays).values()
         (config,) = client.run(cluster_config).values()
         (profiling,) = client.run(profiler_running).values()
+        (tick_ms,) = client.run(tick_interval_ms).values()
         monitor_ms = client.run_on_scheduler(system_monitor_interval_ms)
     assert environ == expected()
     assert faults < 40 * PAGES / 10, f"{faults} page faults: freed arrays are not reused"
     assert config == CLUSTER_CONFIG
     assert not profiling
     assert monitor_ms == 2000
+    assert tick_ms == 200
 
 
 def test_dask_worker_processes(tmp_path):
@@ -97,11 +103,13 @@ def test_dask_worker_processes(tmp_path):
         (environ,) = client.run(malloc_environ).values()
         (config,) = client.run(cluster_config).values()
         (profiling,) = client.run(profiler_running).values()
+        (tick_ms,) = client.run(tick_interval_ms).values()
         monitor_ms = client.run_on_scheduler(system_monitor_interval_ms)
     assert environ == expected()
     assert config == CLUSTER_CONFIG
     assert not profiling
     assert monitor_ms == 2000
+    assert tick_ms == 200
 
 
 def test_dask_defaults_profile_and_monitor_more_often():
@@ -112,9 +120,11 @@ def test_dask_defaults_profile_and_monitor_more_often():
     with LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=None) as cluster, \
             Client(cluster) as client:
         (profiling,) = client.run(profiler_running).values()
+        (tick_ms,) = client.run(tick_interval_ms).values()
         monitor_ms = client.run_on_scheduler(system_monitor_interval_ms)
     assert profiling
     assert monitor_ms == 500
+    assert tick_ms == 20
 
 
 def test_without_the_settings_a_worker_faults_every_array():
