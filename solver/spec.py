@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from typing import Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
@@ -40,7 +41,9 @@ def content_id(text: str) -> str:
 class _Frozen(BaseModel):
     # allow_inf_nan=False: NaN, Infinity and overflowing literals such as 1e400 are
     # refused with the field's name instead of failing later in the solver.
-    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+    # strict: a number is a number. Lax validation took JSON ``true`` as 1.0 (a 1 m
+    # lining) and the string "0.5" as 0.5; an integer field takes integers only.
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False, strict=True)
 
 
 class Geometry(_Frozen):
@@ -151,7 +154,10 @@ class Interface(_Frozen):
     def _friction_only_for_coulomb(cls, data):
         # friction is ignored by the other models (SPEC §2): dropping it keeps one id per
         # physical case (a bonded case with friction 0.3 is the bonded case)
-        if isinstance(data, dict) and data.get("model", "frictionless") != "coulomb" and "friction" in data:
+        # (a value that is not a number is left for validation to refuse)
+        if isinstance(data, dict) and data.get("model", "frictionless") != "coulomb" and "friction" in data \
+                and isinstance(data["friction"], (int, float)) and not isinstance(data["friction"], bool) \
+                and math.isfinite(data["friction"]):
             data = {**data, "friction": 0.0}
         return data
 
@@ -191,6 +197,14 @@ class SolverSettings(_Frozen):
     bolt: Union[Literal["auto"], float] = Field(
         "auto", description="'auto' (bolt-point search) or a bolt position theta in degrees [0, 180]")
 
+    @field_validator("bolt", mode="before")
+    @classmethod
+    def _bolt_kind(cls, v):
+        # one clear error instead of one per branch of the union
+        if v == "auto" or (isinstance(v, (int, float)) and not isinstance(v, bool)):
+            return v
+        raise ValueError(f"bolt: expected 'auto' or a position in degrees, got {v!r}")
+
     @field_validator("bolt")
     @classmethod
     def _bolt_range(cls, v):
@@ -215,6 +229,12 @@ class CaseSpec(_Frozen):
 
     @model_validator(mode="after")
     def _consistent(self) -> "CaseSpec":
+        if self.interface.model == "bonded" and self.geometry.gap > 0:
+            # [u]ν = 0 with a clearance would glue the lining to ground it never reaches
+            raise ValueError(
+                f"geometry.gap: {self.geometry.gap} m of clearance cannot be bonded (a bonded "
+                "interface ties lining and ground where they stand, so gap must be 0); use "
+                "'frictionless' or 'coulomb', whose contact closes the gap first")
         ratio = self.lining.young / self.ground.young
         if not 1.0 / MAX_STIFFNESS_RATIO <= ratio <= MAX_STIFFNESS_RATIO:
             raise ValueError(

@@ -46,6 +46,12 @@ def done_case(client) -> dict:
     (b'{"loads": {"surface_load": NaN}}', "loads.surface_load"),
     (b'{"geometry": {"width": 1e308}}', "geometry.width"),
     (b'{"mesh": {"interface_size": 1e-300}}', "mesh.interface_size"),
+    # a number is a number: lax validation solved `true` as a 1 m lining
+    (b'{"geometry": {"thickness": true}}', "geometry.thickness"),
+    (b'{"loads": {"lateral_ratio": "0.5"}}', "loads.lateral_ratio"),
+    (b'{"solver": {"bolt": true}}', "solver.bolt"),
+    (b'{"solver": {"max_iterations": 1000.5}}', "solver.max_iterations"),
+    (b'{"interface": {"model": "bonded"}, "geometry": {"gap": 0.02}}', "geometry.gap"),
 ])
 def test_non_finite_and_huge_numbers_are_422_naming_the_field(client, raw, field):
     response = client.post("/cases", content=raw, headers={"content-type": "application/json"})

@@ -6,9 +6,10 @@ import math
 
 import numpy as np
 import pytest
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
 from solver import CaseSpec
+from solver.errors import field_errors
 from solver.mesh import build_mesh
 from solver.sizing import MAX_ELEMENTS, estimated_elements
 
@@ -32,6 +33,7 @@ def test_default_case_and_stable_id():
     ({"lining": {"young": float("nan")}}, "lining.young", "finite number"),
     ({"loads": {"surface_load": float("inf")}}, "loads.surface_load", "finite number"),
     ({"interface": {"model": "coulomb"}}, "interface", "friction: interface.model 'coulomb' needs"),
+    ({"interface": {"friction": float("nan")}}, "interface.friction", "finite number"),
     ({"excavation": {"deconfinement": 1.5}}, "excavation.deconfinement", "less than or equal to 1"),
     ({"excavation": {"method": "cut-and-cover"}}, "excavation.method", "'deconfinement' or 'wished-in-place'"),
     ({"design": {"reinforcement_area": 0.001, "axis_distance": 0.2}}, "", "design.axis_distance"),
@@ -61,6 +63,56 @@ def test_invalid_cases_name_the_field(patch, field, reason):
     locs = [".".join(str(p) for p in e["loc"] if not str(p).startswith("function-after")) for e in errors]
     assert any(loc == field or loc.startswith(field + ".") for loc in locs), locs
     assert reason in str(err.value)
+
+
+def _numeric_fields(model=CaseSpec, prefix=""):
+    """Dotted paths and annotations of every numeric leaf field of the case."""
+    for name, info in model.model_fields.items():
+        if isinstance(info.annotation, type) and issubclass(info.annotation, BaseModel):
+            yield from _numeric_fields(info.annotation, f"{prefix}{name}.")
+        elif info.annotation in (float, int) or "float" in str(info.annotation):
+            yield f"{prefix}{name}"
+
+
+NUMERIC_FIELDS = list(_numeric_fields())
+
+
+def _patch(path, value):
+    section, name = path.split(".")
+    return {section: {name: value}}
+
+
+def test_every_numeric_field_is_found():
+    assert len(NUMERIC_FIELDS) > 25 and "geometry.thickness" in NUMERIC_FIELDS and "solver.bolt" in NUMERIC_FIELDS
+
+
+@pytest.mark.parametrize("path", NUMERIC_FIELDS)
+@pytest.mark.parametrize("value", [True, False, "0.5", "1", None, [1.0]])
+def test_a_number_must_be_a_number(path, value):
+    """Lax validation took JSON ``true`` as 1.0 (a 1 m lining) and "0.5" as 0.5."""
+    with pytest.raises(ValidationError) as err:
+        CaseSpec.model_validate(_patch(path, value))
+    assert [field for field, _ in field_errors(err.value)] == [path]
+
+
+def test_integers_stay_integers_and_floats_take_integers():
+    assert CaseSpec.model_validate({"solver": {"max_iterations": 500}}).solver.max_iterations == 500
+    with pytest.raises(ValidationError, match="valid integer"):
+        CaseSpec.model_validate({"solver": {"max_iterations": 500.0}})
+    spec = CaseSpec.model_validate_json('{"geometry": {"depth": 20}, "solver": {"bolt": 30}}')
+    assert spec.geometry.depth == 20.0 and isinstance(spec.geometry.depth, float) and spec.solver.bolt == 30.0
+    assert spec.case_id == CaseSpec.model_validate({"geometry": {"depth": 20.0}, "solver": {"bolt": 30.0}}).case_id
+
+
+def test_bonded_interface_refuses_a_clearance():
+    """[u]ν = 0 with g0 > 0 glued a lining 20 mm away to the ground at full pressure."""
+    with pytest.raises(ValidationError) as err:
+        CaseSpec.model_validate({"interface": {"model": "bonded"}, "geometry": {"gap": 0.02}})
+    assert field_errors(err.value)[0][0] == "geometry.gap"
+    assert "cannot be bonded" in str(err.value)
+    CaseSpec.model_validate({"interface": {"model": "bonded"}})
+    for model in ({"model": "frictionless"}, {"model": "coulomb", "friction": 0.3}):
+        CaseSpec.model_validate({"interface": model, "geometry": {"gap": 0.02}})
 
 
 def test_element_cap_is_stated_and_estimate_is_close():
