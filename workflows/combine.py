@@ -16,7 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 import xarray as xr
 
-from .parameters import flat_parameters, varying_parameters
+from .parameters import flat_parameters, parameter_attrs, varying_parameters
 from .store import ResultStore, StoreLike, as_store, check_case_id
 
 logger = logging.getLogger(__name__)
@@ -78,10 +78,11 @@ def label_cases(stacked: xr.Dataset, case_ids: Sequence[str], specs: Sequence[st
     combined = stacked
     for name in varying_parameters(flat):
         values = [f[name] for f in flat]
-        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+        numeric = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)
+        if not numeric:
             values = [str(v) for v in values]
-        combined = combined.assign_coords({name: ("case", np.asarray(values))})
-        combined[name].attrs["long_name"] = f"case parameter {name}"
+        attrs = parameter_attrs(name, numeric=numeric)
+        combined = combined.assign_coords({name: ("case", np.asarray(values), attrs)})
     combined = combined.assign_coords(case_id=("case", np.asarray(list(case_ids))))
     combined["case_id"].attrs["long_name"] = "case id (hash of the canonical case JSON)"
     combined["case_spec"] = ("case", np.asarray(list(specs)), {"long_name": "canonical case JSON"})

@@ -22,7 +22,7 @@ from pydantic import ValidationError
 from solver import CaseSpec, SolverError
 from solver.errors import field_errors, format_errors
 
-from .parameters import flat_parameters, varying_parameters
+from .parameters import flat_parameters, parameter_attrs, varying_parameters
 from .store import ResultStore, StoreLike, as_store, check_case_id
 from .summary import summarize
 from .sweep import Sweep, SweepError, run_sweep
@@ -121,8 +121,10 @@ def run_command(case_file: str | None, results: str, *, force: bool = False, ret
         except SolverError as exc:
             print(f"case {spec.case_id} failed: {exc}", file=out)
             return 1
+    with store.opened(spec.case_id) as ds:
+        units = scalar_units(ds)
     print(f"case {spec.case_id} stored in {store.case_path(spec.case_id)}", file=out)
-    print(format_summary(summary), file=out)
+    print(format_summary(summary, units), file=out)
     return 0
 
 
@@ -173,8 +175,9 @@ def show_command(case_id: str, results: str, *, out: TextIO = sys.stdout) -> int
     ds = store.open_case(case_id)
     params = flat_parameters(ds.attrs["case_spec"])
     print(f"case {case_id}", file=out)
-    print("\n".join(f"  {k} = {v}" for k, v in params.items()), file=out)
-    print(format_summary(summarize(ds)), file=out)
+    print("\n".join(f"  {k} = {_with_unit(v, parameter_attrs(k, numeric=_is_number(v)).get('units'))}"
+                    for k, v in params.items()), file=out)
+    print(format_summary(summarize(ds), scalar_units(ds)), file=out)
     if "utilization" in ds:
         print(utilization_report(ds), file=out)
     warnings = ds.attrs.get("warnings", "[]")
@@ -185,10 +188,36 @@ def show_command(case_id: str, results: str, *, out: TextIO = sys.stdout) -> int
     return 0
 
 
-def format_summary(summary: dict[str, float]) -> str:
-    """The scalars of one case, one per line (SI units; non-finite values as ``inf``/``nan``)."""
+def format_summary(summary: dict[str, float], units: dict[str, str] | None = None) -> str:
+    """The scalars of one case, one ``name = value unit`` per line.
+
+    Values in the SI ``units`` of the result (:func:`scalar_units`); no unit is shown
+    for a dimensionless (``1``) or unknown one; non-finite values as ``inf``/``nan``.
+    """
+    units = units or {}
     width = max((len(k) for k in summary), default=0)
-    return "\n".join(f"  {k:<{width}} = {_summary_value(v)}" for k, v in summary.items())
+    return "\n".join(f"  {k:<{width}} = {_with_unit(_summary_value(v), units.get(k))}"
+                     for k, v in summary.items())
+
+
+def scalar_units(ds: xr.Dataset) -> dict[str, str]:
+    """``{name: units}`` of the 0-d variables of a result: their ``units`` attributes."""
+    return {str(n): str(v.attrs["units"]) for n, v in ds.data_vars.items()
+            if v.ndim == 0 and "units" in v.attrs}
+
+
+def _unit_label(units: str | None) -> str:
+    """The unit as printed: nothing for a dimensionless (``1``) or unknown one."""
+    return "" if units in (None, "", "1") else units
+
+
+def _with_unit(value: Any, units: str | None) -> str:
+    label = _unit_label(units)
+    return f"{value} {label}" if label else str(value)
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def _summary_value(value: Any) -> str:
@@ -261,7 +290,8 @@ def comparison_table(rows: Iterable[dict[str, Any]]) -> str:
     rows = list(rows)
     varied = varying_parameters([r["params"] for r in rows if r["params"]])
     header = ["case_id", *varied, *(h for _, h, _, _ in TABLE_COLUMNS)]
-    units = ["", *([""] * len(varied)), *(u for _, _, u, _ in TABLE_COLUMNS)]
+    units = ["", *(_unit_label(parameter_attrs(n).get("units")) for n in varied),
+             *(u for _, _, u, _ in TABLE_COLUMNS)]
     lines = []
     for r in rows:
         cells = [r["case_id"], *(_fmt(r["params"].get(n, "")) for n in varied)]

@@ -24,6 +24,45 @@ PATH_ALIASES: dict[str, str] = {"lining.thickness": "geometry.thickness"}
 FLAT_NAME_OVERRIDES: dict[str, str] = {"geometry.thickness": "lining_thickness"}
 
 
+#: CF units (UDUNITS spelling, SI as in SPEC §2) and long name of every case parameter, by
+#: canonical path; units None for a choice (a string such as ``interface.model``).
+#: Combined results, tables and the command line take parameter units from here alone.
+PARAMETER_ATTRS: dict[str, tuple[str | None, str]] = {
+    "geometry.inner_radius": ("m", "lining inner radius"),
+    "geometry.thickness": ("m", "lining thickness"),
+    "geometry.depth": ("m", "depth of the tunnel axis below the surface"),
+    "geometry.width": ("m", "ground model width from the symmetry axis"),
+    "geometry.height": ("m", "ground model height"),
+    "geometry.gap": ("m", "initial radial clearance between lining and ground"),
+    "ground.young": ("Pa", "ground Young's modulus"),
+    "ground.poisson": ("1", "ground Poisson ratio"),
+    "ground.density": ("kg m-3", "ground density"),
+    "lining.young": ("Pa", "lining Young's modulus"),
+    "lining.poisson": ("1", "lining Poisson ratio"),
+    "lining.density": ("kg m-3", "lining density"),
+    "loads.surface_load": ("Pa", "uniform surface load"),
+    "loads.gravity": ("m s-2", "gravitational acceleration"),
+    "loads.lateral_ratio": ("1", "lateral earth pressure ratio K0"),
+    "excavation.method": (None, "excavation method"),
+    "excavation.deconfinement": ("1", "deconfinement ratio released before lining placement"),
+    "interface.model": (None, "interface contact model"),
+    "interface.friction": ("1", "interface Coulomb friction coefficient"),
+    "boundaries.side": (None, "side boundary condition"),
+    "boundaries.bottom": (None, "bottom boundary condition"),
+    "mesh.interface_size": ("m", "element size along the interface"),
+    "mesh.far_size": ("m", "element size far from the tunnel"),
+    "solver.inner": (None, "inner contact solver"),
+    "solver.tolerance": ("1", "relative KKT tolerance"),
+    "solver.max_iterations": ("1", "inner iteration cap per bolt"),
+    "solver.bolt": ("degree", "bolt position theta"),
+    "design.concrete_strength": ("Pa", "concrete characteristic strength fck"),
+    "design.steel_strength": ("Pa", "reinforcement characteristic yield strength fyk"),
+    "design.reinforcement_area": ("m2 m-1", "reinforcement area per face per metre of tunnel"),
+    "design.axis_distance": ("m", "reinforcement axis distance from each face"),
+    "design.load_factor": ("1", "partial factor on actions gamma_F"),
+}
+
+
 def canonical_path(path: str) -> str:
     """The :class:`CaseSpec` path ``path`` stands for (resolving aliases)."""
     return PATH_ALIASES.get(path, path)
@@ -44,6 +83,23 @@ def parameter_paths() -> list[str]:
         if isinstance(model, type) and issubclass(model, BaseModel):
             paths.extend(f"{section}.{field}" for field in model.model_fields)
     return paths
+
+
+def parameter_attrs(name: str, *, numeric: bool = True) -> dict[str, str]:
+    """``units`` and ``long_name`` of a case parameter (:data:`PARAMETER_ATTRS`).
+
+    ``name`` is a flat name (``lining_thickness``) or a dotted path. ``numeric=False``
+    (values stored as text, e.g. ``solver.bolt`` mixing ``auto`` and angles) drops the
+    units. An unknown name (a parameter of an older case model) gets a generic long name.
+    """
+    path = _paths_by_flat_name().get(name, canonical_path(name))
+    units, long_name = PARAMETER_ATTRS.get(path, (None, f"case parameter {name}"))
+    return {"units": units, "long_name": long_name} if numeric and units else {"long_name": long_name}
+
+
+@lru_cache(maxsize=1)
+def _paths_by_flat_name() -> dict[str, str]:
+    return {flat_name(p): p for p in parameter_paths()}
 
 
 def flat_parameters(spec: CaseSpec | dict[str, Any] | str) -> dict[str, Any]:
