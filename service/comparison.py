@@ -19,6 +19,11 @@ the scalars
     in the contract's order, then any other recorded scalar by name; SI units as
     stored (Pa, N/m, N·m/m, m, degrees). Empty until the case is done; a non-finite
     value is written ``inf``, ``-inf`` or ``nan`` (what ``float()`` reads back).
+``error``
+    Why the case failed (the case record's error text); empty unless it failed.
+``warnings``
+    The solver's warnings about a done case's result (e.g. displacements outside the
+    small-displacement model), joined by ``"; "``; empty when there are none.
 """
 from __future__ import annotations
 
@@ -29,7 +34,7 @@ from typing import Literal, Optional, Union
 from pydantic import BaseModel, Field
 
 from solver.dataset import SCALARS
-from workflows.parameters import flat_parameters, varying_parameters
+from workflows.parameters import flat_parameters, parameter_attrs, varying_parameters
 from workflows.plots import display_unit
 
 from .results import non_finite_text
@@ -49,7 +54,7 @@ class Column(BaseModel):
     """One column of the comparison table."""
 
     name: str
-    kind: Literal["id", "status", "parameter", "scalar"]
+    kind: Literal["id", "status", "parameter", "scalar", "text"]
     units: str = Field("", description="CF units of the values (SI)")
     long_name: str = ""
     display_unit: str = Field("", description="unit the dashboard shows")
@@ -91,14 +96,17 @@ def comparison_table(store: JobStore, record: SweepRecord) -> ComparisonTable:
     scalars = ordered_scalars({*SCALARS, *(name for c in ordered for name in (c.summary or {}))})
     columns = [Column(name="case_id", kind="id", long_name="case id"),
                Column(name="status", kind="status", long_name="status")]
-    columns += [Column(name=p, kind="parameter", long_name=f"case parameter {p}") for p in varied]
+    columns += [Column(name=p, kind="parameter", **parameter_attrs(p)) for p in varied]
     columns += [scalar_column(s) for s in scalars]
+    columns += [Column(name="error", kind="text", long_name="why the case failed"),
+                Column(name="warnings", kind="text", long_name="solver warnings about the result")]
     rows = []
     for case, params in zip(ordered, flat):
         summary = case.summary or {}
         row: dict[str, Value] = {"case_id": case.id, "status": case.status}
         row.update({p: params.get(p) for p in varied})
         row.update({s: non_finite_text(summary.get(s)) for s in scalars})
+        row.update(error=case.error or "", warnings="; ".join(case.warnings))
         rows.append(row)
     return ComparisonTable(sweep_id=record.id, columns=columns, rows=rows)
 

@@ -47,7 +47,7 @@ from solver.spec import CaseSpec
 from workflows.store import remove_stale_temporaries, stored_case_ids
 from workflows.tasks import case_id_of_key, solve_and_store, task_key  # one key per case, CLI too
 
-from .results import BrokenResult, public_error, result_state, stored_summary, written
+from .results import BrokenResult, public_error, result_state, stored_summary, stored_warnings, written
 from .store import UNREADABLE, CaseRecord, JobStore
 
 logger = logging.getLogger(__name__)
@@ -252,7 +252,7 @@ class Dispatcher:
             if outcome.get("computed"):
                 written(self.root, case_id)
             await self._persist(self.store.finish, case_id, status="done", summary=outcome.get("summary"),
-                                seconds=seconds)
+                                seconds=seconds, warnings=outcome.get("warnings") or ())
         else:
             error = public_error(outcome.get("error") or "unknown error", self.root)
             await self._persist(self.store.finish, case_id, status="failed", error=error, seconds=seconds)
@@ -282,7 +282,8 @@ class Dispatcher:
             return "broken"
         if summary is None:
             return "missing"
-        await self._persist(self.store.finish, case_id, status="done", summary=summary)
+        warnings = await asyncio.to_thread(stored_warnings, self.root, case_id)
+        await self._persist(self.store.finish, case_id, status="done", summary=summary, warnings=warnings)
         return "readable"
 
     # -- background loops ----------------------------------------------------------------
@@ -353,8 +354,10 @@ class Dispatcher:
     async def _reconnect(self) -> None:
         if self.client is not None and self.client.status in ("connecting", "newly-created"):
             return  # distributed is still trying on its own
-        logger.warning("dask client is %s; connecting again",
-                       None if self.client is None else self.client.status)
+        if self.client is None:  # never connected (or never succeeded): not a reconnection
+            logger.info("connecting to the dask scheduler")
+        else:
+            logger.warning("dask client is %s; connecting again", self.client.status)
         try:
             self.client = await self._connect()
         except Exception as exc:

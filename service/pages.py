@@ -36,11 +36,12 @@ templates.env.filters["pretty_json"] = lambda value: json.dumps(value, indent=2,
 
 router = APIRouter(include_in_schema=False)
 
-#: A small sweep for the submit form: coarse mesh, small ground block, four cases.
+#: A small sweep for the submit form: coarse mesh, four cases. The ground block is the
+#: default one (side boundary about 14 radii out): a narrower one stiffens the ground and
+#: understates the settlements.
 EXAMPLE_SWEEP = {
     "name": "thickness-and-stiffness",
-    "base": {"geometry": {"depth": 10.0, "width": 20.0, "height": 25.0},
-             "mesh": {"interface_size": 0.15, "far_size": 8.0}},
+    "base": {"mesh": {"interface_size": 0.15, "far_size": 8.0}},
     "vary": {"lining.thickness": [0.2, 0.3], "ground.young": [2.0e7, 5.0e7]},
     "mode": "grid",
 }
@@ -100,6 +101,12 @@ async def _error_page(request: Request, exc: HTTPException) -> HTMLResponse:
     response = await _render(request, "error.html", status_code=exc.status_code, detail=exc.detail)
     response.status_code = exc.status_code
     return response
+
+
+async def error_page(request: Request, status_code: int, detail: str) -> HTMLResponse:
+    """The HTML error page for a page request refused before its route ran (a malformed id,
+    an unknown page)."""
+    return await _error_page(request, HTTPException(status_code=status_code, detail=detail))
 
 
 @router.get("/ui/sweeps/{sweep_id}", response_class=HTMLResponse)

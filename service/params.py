@@ -33,3 +33,21 @@ def not_found(kind: str, ident: str) -> HTTPException:
 
 def not_ready(what: str, status: str) -> HTTPException:
     return HTTPException(status_code=409, detail=f"{what} not ready: {status}")
+
+
+def no_sweep_result(sweep_id: str, counts: dict[str, int]) -> HTTPException:
+    """Why a sweep with no readable done case has no result (combined file, plots): 409 while
+    a case is still queued or running (it may yet finish), else 404 saying what became of the
+    cases, so that a polling client stops."""
+    if counts["queued"] + counts["running"]:
+        return not_ready(f"sweep {sweep_id}", "no case is done yet")
+    failed, cancelled = counts["failed"], counts["cancelled"]
+    total = failed + cancelled
+    if failed and not cancelled:
+        what = f"all {failed} cases failed" if failed > 1 else "its only case failed"
+    elif cancelled and not failed:
+        what = f"all {cancelled} cases were cancelled" if cancelled > 1 else "its only case was cancelled"
+    else:
+        what = f"none of its {total} cases is done ({failed} failed, {cancelled} cancelled)"
+    return HTTPException(status_code=404, detail=f"sweep {sweep_id} has no result: {what} "
+                                                 "(retry with POST /sweeps?retry=failed)")

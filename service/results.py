@@ -56,6 +56,16 @@ def stored_summary(root: Path, case_id: str) -> Optional[dict[str, float]]:
     return summary
 
 
+def stored_warnings(root: Path, case_id: str) -> list[str]:
+    """The solver's warnings recorded in the stored result of ``case_id`` (none if it has
+    none, or if the file cannot be read: :func:`stored_summary` is the check of that)."""
+    try:
+        return ResultStore(root).read_warnings(case_id)
+    except Exception as exc:
+        logger.warning("warnings of case %s not read: %s", case_id, public_error(f"{type(exc).__name__}: {exc}", root))
+        return []
+
+
 def written(root: Path, case_id: str) -> None:
     """Record the file a worker has just written whole (atomically, its summary taken from the
     result in memory) as read: the first GET of a new result then does not open it."""

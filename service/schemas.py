@@ -29,6 +29,8 @@ class Case(BaseModel):
         default_factory=dict, description="the summary scalars that are not finite and what they are "
                                           "(max_utilization inf: the section fails at any load level)")
     error: Optional[str] = Field(None, description="why the case failed")
+    warnings: list[str] = Field(default_factory=list, description="the solver's warnings about a done "
+                                "case's result (e.g. displacements outside the small-displacement model)")
     submitted_at: datetime
     started_at: Optional[datetime] = None
     finished_at: Optional[datetime] = None
@@ -39,7 +41,7 @@ class Case(BaseModel):
         return cls(
             id=record.id, status=record.status, spec=record.spec, summary=finite_summary(record.summary),
             non_finite=non_finite_entries(record.summary),
-            error=record.error, submitted_at=_time(record.submitted_at),
+            error=record.error, warnings=list(record.warnings), submitted_at=_time(record.submitted_at),
             started_at=_time(record.started_at), finished_at=_time(record.finished_at),
             result=f"/cases/{record.id}/result.nc" if record.status == "done" else None)
 

@@ -44,7 +44,8 @@ CREATE TABLE IF NOT EXISTS {name} (
     submitted_at REAL NOT NULL,
     started_at   REAL,
     finished_at  REAL,
-    submissions  INTEGER NOT NULL DEFAULT 0
+    submissions  INTEGER NOT NULL DEFAULT 0,
+    warnings     TEXT
 );
 """
 
@@ -78,6 +79,7 @@ class CaseRecord:
     started_at: Optional[float]
     finished_at: Optional[float]
     submissions: int
+    warnings: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -111,7 +113,13 @@ def _case(row: sqlite3.Row) -> CaseRecord:
         status=row["status"],
         summary=summary if isinstance(summary, dict) and summary else None, error=row["error"],
         submitted_at=row["submitted_at"], started_at=row["started_at"],
-        finished_at=row["finished_at"], submissions=row["submissions"])
+        finished_at=row["finished_at"], submissions=row["submissions"], warnings=_warnings(row["warnings"]))
+
+
+def _warnings(text: Optional[str]) -> tuple[str, ...]:
+    """The recorded warnings of a case (a JSON list); none if absent or damaged."""
+    warnings = _json(text, [])
+    return tuple(str(w) for w in warnings) if isinstance(warnings, list) else ()
 
 
 def _sweep(row: sqlite3.Row, case_ids: Sequence[str]) -> SweepRecord:
@@ -168,6 +176,7 @@ class JobStore:
             # NORMAL in WAL mode: a commit survives the process being killed (not power loss).
             self._db.execute("PRAGMA synchronous=NORMAL")
             self._migrate_status_check()
+            self._migrate_warnings_column()
             self._db.execute("PRAGMA foreign_keys=ON")
             self._db.executescript(_SCHEMA)
             if background_checkpoints:
@@ -189,14 +198,24 @@ class JobStore:
         self._db.execute("BEGIN IMMEDIATE")
         try:
             self._db.execute(_CASES_TABLE.format(name="cases_new"))
-            self._db.execute("INSERT INTO cases_new SELECT id, spec, status, summary, error, submitted_at, "
-                             "started_at, finished_at, submissions FROM cases")
+            columns = ("id, spec, status, summary, error, submitted_at, started_at, finished_at, submissions"
+                       + (", warnings" if "warnings" in self._case_columns() else ""))
+            self._db.execute(f"INSERT INTO cases_new ({columns}) SELECT {columns} FROM cases")
             self._db.execute("DROP TABLE cases")
             self._db.execute("ALTER TABLE cases_new RENAME TO cases")
             self._db.execute("COMMIT")
         except BaseException:
             self._db.execute("ROLLBACK")
             raise
+
+    def _case_columns(self) -> set[str]:
+        return {r[1] for r in self._db.execute("PRAGMA table_info(cases)").fetchall()}
+
+    def _migrate_warnings_column(self) -> None:
+        """Give a database written before case warnings were recorded their column."""
+        columns = self._case_columns()
+        if columns and "warnings" not in columns:
+            self._db.execute("ALTER TABLE cases ADD COLUMN warnings TEXT")
 
     def close(self) -> None:
         if self._checkpointer is not None:
@@ -274,8 +293,11 @@ class JobStore:
                     "WHERE id = ? AND status IN ('queued', 'running')", (case_id,))
 
     def finish(self, case_id: str, *, status: str, summary: dict | None = None,
-               error: str | None = None, seconds: float | None = None) -> None:
+               error: str | None = None, seconds: float | None = None,
+               warnings: Sequence[str] = ()) -> None:
         """Record a final outcome (``done`` or ``failed``).
+
+        ``warnings``: the solver's warnings about the result (none for a failed case).
 
         ``seconds``, the task's run time, dates the start when no poll saw it running.
         """
@@ -285,8 +307,9 @@ class JobStore:
         started = now - seconds if seconds is not None else None
         self._write(
             "UPDATE cases SET status = ?, summary = ?, error = ?, finished_at = ?, "
-            "started_at = coalesce(started_at, ?) WHERE id = ?",
-            (status, json.dumps(summary) if summary is not None else None, error, now, started, case_id))
+            "started_at = coalesce(started_at, ?), warnings = ? WHERE id = ?",
+            (status, json.dumps(summary) if summary is not None else None, error, now, started,
+             json.dumps(list(warnings)) if warnings else None, case_id))
 
     def status_counts(self, case_ids: Sequence[str] | None = None) -> dict[str, int]:
         """Cases per status (every status present, zero if none), optionally among ``case_ids``."""
@@ -328,7 +351,8 @@ class JobStore:
             self._db.execute("BEGIN IMMEDIATE")
             try:
                 requeued = [r["id"] for r in self._db.execute(
-                    "UPDATE cases SET status = 'queued', summary = NULL, error = NULL, started_at = NULL, "
+                    "UPDATE cases SET status = 'queued', summary = NULL, error = NULL, warnings = NULL, "
+                    "started_at = NULL, "
                     "finished_at = NULL WHERE status IN (SELECT value FROM json_each(?)) "
                     "AND id IN (SELECT value FROM json_each(?)) RETURNING id",
                     (json.dumps(list(statuses)), json.dumps(list(case_ids)))).fetchall()]

@@ -16,7 +16,7 @@ from workflows.plots import SWEEP_PLOT_NAMES
 from .comparison import ComparisonTable, comparison_table, table_csv
 from .errors import responses
 from .guards import require_token
-from .params import Offset, SweepId, jobs_of, not_found, not_ready
+from .params import Offset, SweepId, jobs_of, no_sweep_result, not_found
 from .schemas import SweepCancelled, SweepPage, SweepStatus
 from .store import SweepRecord
 
@@ -47,15 +47,17 @@ async def list_sweeps(request: Request, limit: int = Query(20, ge=1, le=200),
 @router.get("/{sweep_id}/table", response_model=ComparisonTable, responses=responses(404))
 async def get_sweep_table(sweep_id: SweepId, request: Request) -> ComparisonTable:
     """The comparison table: one row per case; columns ``case_id``, ``status``, the parameters
-    that vary across the sweep, then the result scalars (SI units; see ``columns``)."""
+    that vary across the sweep, the result scalars (SI units; see ``columns``), then ``error``
+    and ``warnings``."""
     return comparison_table(jobs_of(request).store, _sweep(request, sweep_id))
 
 
 @router.get("/{sweep_id}/summary.csv", response_class=Response, responses={
     200: {"content": {"text/csv": {}},
           "description": "header row, then one row per case in sweep order: case_id, status, the "
-                         "varied parameters (flat names, e.g. lining_thickness), then the result "
-                         "scalars of SPEC §3 in SI units (empty until the case is done)"},
+                         "varied parameters (flat names, e.g. lining_thickness), the result "
+                         "scalars of SPEC §3 in SI units (empty until the case is done), then "
+                         "error (why a case failed) and warnings (the solver's, about a result)"},
     **responses(404)})
 async def get_sweep_csv(sweep_id: SweepId, request: Request) -> Response:
     """The comparison table as CSV (the same columns as ``/sweeps/{id}/table``)."""
@@ -71,12 +73,13 @@ async def get_sweep_csv(sweep_id: SweepId, request: Request) -> Response:
 async def get_sweep_plot(sweep_id: SweepId, name: SweepPlotName, request: Request) -> FileResponse:
     """A figure of the sweep's finished cases: ``contact_pressure``, ``lining_forces``,
     ``interaction`` (N–M stations of every case, with design envelopes when the results
-    have them) or ``scalars`` (each summary scalar against each varied parameter)."""
+    have them) or ``scalars`` (each summary scalar against each varied parameter).
+    As for ``result.nc``: 409 while no case is done but some is open, 404 when none can be."""
     jobs = jobs_of(request)
     record = _sweep(request, sweep_id)
     done = await jobs.readable_results(record.case_ids)  # as for result.nc: a broken file is recomputed
     if not done:
-        raise not_ready(f"sweep {sweep_id}", "no case is done yet")
+        raise no_sweep_result(sweep_id, jobs.store.status_counts(record.case_ids))
     path = await asyncio.to_thread(render_sweep_plot, jobs.root, sweep_id, done, name.value)
     return FileResponse(path, media_type="image/png",
                         headers={"X-Cases-Included": f"{len(done)}/{len(record.case_ids)}"})

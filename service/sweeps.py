@@ -15,7 +15,7 @@ from workflows.artifacts import write_combined
 from .errors import invalid, responses
 from .cases import RETRY_QUERY, Retry
 from .guards import check_capacity, require_token
-from .params import NETCDF, SweepId, jobs_of, not_found, not_ready, settings_of
+from .params import NETCDF, SweepId, jobs_of, no_sweep_result, not_found, settings_of
 from .schemas import FieldError, SweepAccepted, SweepStatus
 
 router = APIRouter(prefix="/sweeps", tags=["sweeps"])
@@ -77,14 +77,15 @@ async def get_sweep(sweep_id: SweepId, request: Request) -> SweepStatus:
                                                    "(header X-Cases-Included: done/total)"},
     **responses(404, 409)})
 async def get_sweep_result(sweep_id: SweepId, request: Request) -> FileResponse:
-    """The combined dataset (dim ``case``) of the sweep's finished cases; 409 while none is done."""
+    """The combined dataset (dim ``case``) of the sweep's finished cases; 409 while none is done
+    but some is still queued or running, 404 (saying why) when none is done and none is open."""
     jobs = jobs_of(request)
     record = jobs.store.get_sweep(sweep_id)
     if record is None:
         raise not_found("sweep", sweep_id)
     done = await jobs.readable_results(record.case_ids)
     if not done:
-        raise not_ready(f"sweep {sweep_id}", "no case is done yet")
+        raise no_sweep_result(sweep_id, jobs.store.status_counts(record.case_ids))
     path = await asyncio.to_thread(write_combined, jobs.root, sweep_id, done)
     return FileResponse(path, media_type=NETCDF, filename=f"sweep-{sweep_id}.nc",
                         headers={"X-Cases-Included": f"{len(done)}/{len(record.case_ids)}"})

@@ -191,6 +191,11 @@ class ResultStore:
         with self.opened(case_id) as ds:
             return summarize(ds)
 
+    def read_warnings(self, case_id: str) -> list[str]:
+        """The warnings of a stored case (see :func:`case_warnings`), reading only its attributes."""
+        with self.opened(case_id) as ds:
+            return case_warnings(ds)
+
     def read_error(self, case_id: str) -> dict[str, Any] | None:
         """The error record of ``case_id``, or None if it has none."""
         try:
@@ -225,10 +230,16 @@ class ResultStore:
     def solve_and_store(self, spec: CaseSpec, *, force: bool = False) -> dict[str, float] | None:
         """:meth:`run_and_store` returning the new result's scalars (from memory, not read
         back), or None when the case was already stored and not recomputed."""
+        return self.solve_and_report(spec, force=force)[0]
+
+    def solve_and_report(self, spec: CaseSpec, *, force: bool = False
+                         ) -> tuple[dict[str, float] | None, list[str]]:
+        """:meth:`solve_and_store` and the new result's warnings (:func:`case_warnings`):
+        ``(None, [])`` when the case was already stored and not recomputed."""
         case_id = spec.case_id
         if not force and self.is_stored(case_id):
             logger.info("case %s already stored, not recomputed", case_id)
-            return None
+            return None, []
         logger.info("solving case %s", case_id)
         try:
             # cases sharing geometry, mesh and materials reuse one factorized model per process
@@ -237,7 +248,7 @@ class ResultStore:
             self.write_error(spec, exc)
             raise
         self.write_case(ds)
-        return summarize(ds)
+        return summarize(ds), case_warnings(ds)
 
     def write_case(self, ds: xr.Dataset) -> Path:
         """Write a result Dataset atomically under its ``case_id`` attribute; return the path.
@@ -308,6 +319,20 @@ StoreLike = Union[ResultStore, str, os.PathLike]
 def as_store(root: StoreLike) -> ResultStore:
     """``root`` itself if it is a :class:`ResultStore`, else the store at that path."""
     return root if isinstance(root, ResultStore) else ResultStore(root)
+
+
+def case_warnings(ds: xr.Dataset) -> list[str]:
+    """The solver's warnings about a result (e.g. displacements outside the small-displacement
+    model): its ``warnings`` attribute, a JSON list in a file, a list in memory."""
+    warnings = ds.attrs.get("warnings", [])
+    if isinstance(warnings, str):
+        try:
+            warnings = json.loads(warnings) if warnings.strip() else []
+        except ValueError:
+            warnings = [warnings]
+    if isinstance(warnings, str):
+        warnings = [warnings]
+    return [str(w) for w in warnings]
 
 
 def _digest(case_ids: Sequence[str]) -> str:

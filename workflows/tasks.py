@@ -47,9 +47,10 @@ def solve_and_store(spec_json: str, root: StoreLike, force: bool = False) -> dic
     -------
     dict
         ``{"case_id", "status": "done" | "failed", "error": str | None,
-        "summary": {scalar name: float}, "computed": bool, "seconds": float}``;
-        ``summary`` is empty for a failed case. Solver failures are returned (and
-        recorded in the store), not raised.
+        "summary": {scalar name: float}, "warnings": [str], "computed": bool, "seconds": float}``;
+        ``summary`` and ``warnings`` are empty for a failed case; ``warnings`` are the
+        solver's (e.g. displacements outside the small-displacement model). Solver
+        failures are returned (and recorded in the store), not raised.
 
     Raises
     ------
@@ -61,13 +62,14 @@ def solve_and_store(spec_json: str, root: StoreLike, force: bool = False) -> dic
     case_id = spec.case_id
     start = time.perf_counter()
     try:
-        summary = store.solve_and_store(spec, force=force)
+        summary, warnings = store.solve_and_report(spec, force=force)
     except Exception as exc:  # recorded in the store by solve_and_store; the sweep goes on
         return {"case_id": case_id, "status": "failed", "error": f"{type(exc).__name__}: {exc}",
-                "summary": {}, "computed": True, "seconds": time.perf_counter() - start}
+                "summary": {}, "warnings": [], "computed": True, "seconds": time.perf_counter() - start}
     computed = summary is not None
     return {"case_id": case_id, "status": "done", "error": None,
-            "summary": summary if computed else store.read_summary(case_id), "computed": computed,
+            "summary": summary if computed else store.read_summary(case_id),
+            "warnings": warnings if computed else store.read_warnings(case_id), "computed": computed,
             "seconds": time.perf_counter() - start}
 
 

@@ -28,7 +28,8 @@ def test_table_has_case_status_varied_parameters_then_scalars_and_csv_reads_back
     table = comparison_table(store, record)
     names = [c.name for c in table.columns]
     assert names[:3] == ["case_id", "status", "ground_young"]  # thickness is the same in all: not shown
-    scalars = names[3:]
+    assert names[-2:] == ["error", "warnings"]
+    scalars = names[3:-2]
     assert scalars[-1] == "extra_scalar"
     assert [s for s in scalars if s in SCALAR_ORDER] == [s for s in SCALAR_ORDER if s in scalars]
     # non-finite values survive JSON, as the text float() reads back
@@ -41,6 +42,7 @@ def test_table_has_case_status_varied_parameters_then_scalars_and_csv_reads_back
     assert float(rows[0]["max_contact_pressure"]) == 2.5e5
     assert float(rows[0]["max_utilization"]) == math.inf
     assert rows[1]["max_contact_pressure"] == rows[2]["max_contact_pressure"] == ""
+    assert [r["error"] for r in rows] == ["", "boom", ""]
 
 
 def test_cancel_takes_only_queued_cases_and_requeue_brings_them_back(tmp_path):

@@ -1,0 +1,246 @@
+"""Review fixes, in process on an embedded LocalCluster: a sweep whose cases all failed has
+no result (404, not 409 for ever); the comparison table says why a case failed; the
+solver's warnings reach the REST record, the case page and the table (also when a record
+is settled from a stored file); the first dask connection is not logged as a reconnection;
+pages answer in HTML and link to the service by root-relative paths."""
+from __future__ import annotations
+
+import asyncio
+import csv
+import io
+import json
+import logging
+import re
+import sqlite3
+
+import pytest
+
+from service_helpers import COARSE, coarse_case, finished, wait_until
+from service.app import create_app
+from service.jobs import Dispatcher
+from service.settings import Settings
+from service.store import JobStore
+from solver.spec import CaseSpec
+from workflows import Sweep, expand_sweep
+from workflows.plots import SWEEP_PLOT_NAMES
+
+#: A sweep whose two cases both fail (one Uzawa iteration cannot converge).
+FAILING_SWEEP = {"name": "fails", "base": {**COARSE, "solver": {"inner": "uzawa", "max_iterations": 1}},
+                 "vary": {"geometry.gap": [0.005, 0.015]}}
+#: A surface load far beyond the small-displacement model: solved, with a warning.
+HUGE_LOAD = coarse_case(loads={"surface_load": 1e9})
+
+
+@pytest.fixture(scope="module")
+def app(tmp_path_factory):
+    settings = Settings(results=tmp_path_factory.mktemp("results"), local_workers=2,
+                        max_sweep_cases=50, poll_interval=0.1, reconcile_interval=3600)
+    return create_app(settings)
+
+
+def sweep_finished(client, sweep_id: str) -> dict:
+    return wait_until(lambda: (s := client.get(f"/sweeps/{sweep_id}").json())["finished"] and s,
+                      what=f"sweep {sweep_id}")
+
+
+def csv_rows(client, sweep_id: str) -> list[dict]:
+    response = client.get(f"/sweeps/{sweep_id}/summary.csv")
+    assert response.status_code == 200
+    return list(csv.DictReader(io.StringIO(response.text)))
+
+
+# -- 1, 2: a sweep whose cases all failed -------------------------------------------------------
+
+def test_a_sweep_whose_cases_all_failed_has_no_result_and_says_why(client):
+    body = client.post("/sweeps", json=FAILING_SWEEP).json()
+    sweep_id, case_ids = body["id"], body["case_ids"]
+    status = sweep_finished(client, sweep_id)
+    assert status["counts"]["failed"] == 2 and status["counts"]["done"] == 0
+
+    for path in [f"/sweeps/{sweep_id}/result.nc", *(f"/sweeps/{sweep_id}/plots/{n}.png" for n in SWEEP_PLOT_NAMES)]:
+        response = client.get(path)
+        assert response.status_code == 404, path
+        detail = response.json()["detail"]
+        assert f"sweep {sweep_id} has no result" in detail and "all 2 cases failed" in detail, detail
+        assert "retry=failed" in detail
+
+    # the table, its CSV and the sweep page say why each case failed
+    errors = {c: client.get(f"/cases/{c}").json()["error"] for c in case_ids}
+    assert all("NotConvergedError" in e for e in errors.values())
+    table = client.get(f"/sweeps/{sweep_id}/table").json()
+    assert [c["name"] for c in table["columns"]][-2:] == ["error", "warnings"]
+    assert {r["case_id"]: r["error"] for r in table["rows"]} == errors
+    assert {r["case_id"]: r["error"] for r in csv_rows(client, sweep_id)} == errors
+    page = client.get(f"/ui/sweeps/{sweep_id}").text
+    cells = re.findall(r'<td class="text kind-text col-error" data-value="[^"]*">([^<]*)</td>', page)
+    assert len(cells) == 2 and all("NotConvergedError" in c for c in cells)
+
+
+def test_no_result_is_409_while_a_case_is_open_and_404_once_failed_or_cancelled(client, app):
+    store = app.state.jobs.store
+    cases = [CaseSpec.model_validate(coarse_case(loads={"surface_load": 1.0e4 + i})) for i in range(3)]
+    ids = [c.case_id for c in cases]
+    record, _ = store.add_sweep("00000000000000fe", "planted", "{}", [(c.case_id, c.canonical_json()) for c in cases])
+    store.finish(ids[0], status="failed", error="boom")
+    store.cancel_queued([ids[1]])
+    response = client.get(f"/sweeps/{record.id}/result.nc")  # ids[2] is still queued
+    assert response.status_code == 409 and "no case is done yet" in response.json()["detail"]
+    assert client.get(f"/sweeps/{record.id}/plots/scalars.png").status_code == 409
+    store.cancel_queued([ids[2]])
+    for path in (f"/sweeps/{record.id}/result.nc", f"/sweeps/{record.id}/plots/scalars.png"):
+        response = client.get(path)
+        assert response.status_code == 404
+        assert "none of its 3 cases is done (1 failed, 2 cancelled)" in response.json()["detail"]
+    assert {r["case_id"]: r["error"] for r in client.get(f"/sweeps/{record.id}/table").json()["rows"]} == \
+        {ids[0]: "boom", ids[1]: "", ids[2]: ""}
+
+
+# -- 3: warnings of a solved case ----------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def warned_case(client) -> dict:
+    body = finished(client, client.post("/cases", json=HUGE_LOAD).json()["id"])
+    assert body["status"] == "done"
+    return body
+
+
+def test_warnings_of_a_solved_case_reach_the_record_and_the_case_page(client, warned_case):
+    assert warned_case["summary"]["crown_settlement"] > 1.0  # metres: far outside small displacements
+    assert any("small-displacement" in w for w in warned_case["warnings"]), warned_case["warnings"]
+    page = client.get(f"/ui/cases/{warned_case['id']}").text
+    block = re.search(r'<div class="warnings" id="case-warnings" role="alert">(.*?)</div>', page, re.S)
+    assert block and "small-displacement" in block.group(1)
+
+    ordinary = finished(client, client.post("/cases", json=COARSE).json()["id"])
+    assert ordinary["status"] == "done" and ordinary["warnings"] == []
+    assert 'id="case-warnings"' not in client.get(f"/ui/cases/{ordinary['id']}").text
+
+
+def test_the_sweep_table_marks_cases_with_warnings(client, warned_case):
+    sweep = {"name": "loads", "base": COARSE, "vary": {"loads.surface_load": [2.0e4, 1e9]}}
+    body = client.post("/sweeps", json=sweep).json()
+    assert warned_case["id"] in body["case_ids"]  # the same case: not recomputed
+    sweep_finished(client, body["id"])
+    rows = client.get(f"/sweeps/{body['id']}/table").json()["rows"]
+    assert rows[0]["warnings"] == "" and "small-displacement" in rows[1]["warnings"]
+    assert [r["error"] for r in rows] == ["", ""]
+    assert [bool(r["warnings"]) for r in csv_rows(client, body["id"])] == [False, True]
+    page = client.get(f"/ui/sweeps/{body['id']}").text
+    marked = re.findall(r'<tr data-key="([0-9a-f]{16})" class="has-warnings">', page)
+    assert marked == [warned_case["id"]]
+
+
+def test_warnings_are_read_from_the_stored_file_at_reconciliation(client, app, warned_case):
+    jobs = app.state.jobs
+    # a record that lost its outcome (the process died before writing it) but whose file is stored
+    jobs.store._write("UPDATE cases SET status = 'running', summary = NULL, warnings = NULL WHERE id = ?",
+                      (warned_case["id"],))
+    assert client.get(f"/cases/{warned_case['id']}").json()["warnings"] == []
+    submissions = jobs.store.get_case(warned_case["id"]).submissions
+    client.portal.call(jobs.reconcile)
+    body = client.get(f"/cases/{warned_case['id']}").json()
+    assert body["status"] == "done" and body["warnings"] == warned_case["warnings"]
+    assert jobs.store.get_case(warned_case["id"]).submissions == submissions  # not solved again
+
+
+def test_a_database_without_the_warnings_column_is_migrated(tmp_path):
+    path = tmp_path / "jobs.sqlite"
+    db = sqlite3.connect(path)
+    db.executescript("""
+        CREATE TABLE cases (id TEXT PRIMARY KEY, spec TEXT NOT NULL,
+            status TEXT NOT NULL CHECK (status IN ('queued', 'running', 'done', 'failed', 'cancelled')),
+            summary TEXT, error TEXT, submitted_at REAL NOT NULL, started_at REAL, finished_at REAL,
+            submissions INTEGER NOT NULL DEFAULT 0);
+        INSERT INTO cases (id, spec, status, summary, submitted_at)
+            VALUES ('aaaaaaaaaaaaaaaa', '{}', 'done', '{"converged": 1.0}', 1.0);
+        INSERT INTO cases (id, spec, status, submitted_at) VALUES ('cccccccccccccccc', '{}', 'queued', 2.0);""")
+    db.commit()
+    db.close()
+    store = JobStore(path)
+    old = store.get_case("aaaaaaaaaaaaaaaa")
+    assert (old.status, old.summary, old.warnings) == ("done", {"converged": 1.0}, ())
+    store.finish("cccccccccccccccc", status="done", summary={}, warnings=["too far"])
+    store.close()
+    store = JobStore(path)  # opened again: nothing left to migrate
+    assert store.get_case("cccccccccccccccc").warnings == ("too far",)
+    assert store.requeue(["cccccccccccccccc"], statuses=("done",)) == ["cccccccccccccccc"]
+    assert store.get_case("cccccccccccccccc").warnings == ()
+    store.close()
+
+
+# -- 4: the first connection is not a reconnection --------------------------------------------
+
+class _FakeClient:
+    def __init__(self, status: str = "running"):
+        self.status = status
+
+    async def close(self) -> None:
+        self.status = "closed"
+
+
+def test_first_connection_is_logged_at_info_and_a_reconnection_as_a_warning(tmp_path, caplog):
+    async def connect():
+        return _FakeClient()
+
+    async def run():
+        jobs = Dispatcher(connect, JobStore(tmp_path / "jobs.sqlite"), tmp_path, reconcile_interval=3600)
+        await jobs.start()
+        first = list(caplog.records)
+        jobs.client.status = "closed"  # the scheduler went away
+        caplog.clear()
+        await jobs.reconcile()
+        again = list(caplog.records)
+        await jobs.stop()
+        jobs.store.close()
+        return first, again
+
+    with caplog.at_level(logging.INFO, logger="service.jobs"):
+        first, again = asyncio.run(run())
+    assert not [r for r in first if r.levelno >= logging.WARNING], [r.getMessage() for r in first]
+    assert any(r.levelno == logging.INFO and "connecting" in r.getMessage() for r in first)
+    assert [r.getMessage() for r in again if r.levelno == logging.WARNING] == ["dask client is closed; connecting again"]
+
+
+def test_a_clean_service_start_logs_no_reconnection(tmp_path, caplog):
+    from fastapi.testclient import TestClient
+
+    with caplog.at_level(logging.INFO, logger="service.jobs"):
+        with TestClient(create_app(Settings(results=tmp_path, local_workers=1, reconcile_interval=3600))) as c:
+            assert c.get("/health").status_code == 200
+    assert not [r.getMessage() for r in caplog.records if r.name == "service.jobs" and r.levelno >= logging.WARNING]
+
+
+# -- 5: pages -------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("path", ["/ui/sweeps/nope", "/ui/sweeps/0123456789ABCDEF", "/ui/cases/nope",
+                                  "/ui/sweeps/0123456789abcdef", "/ui/no-such-page"])
+def test_unknown_pages_are_html_404_pages(client, path):
+    response = client.get(path, headers={"accept": "text/html"})
+    assert response.status_code == 404
+    assert response.headers["content-type"].startswith("text/html")
+    assert 'id="error-detail"' in response.text
+
+
+def test_no_page_links_to_the_service_by_an_absolute_url(client, warned_case):
+    sweep_id = client.post("/sweeps", json=FAILING_SWEEP).json()["id"]
+    own = str(client.base_url).rstrip("/")
+    for path in ("/", "/ui/submit", f"/ui/sweeps/{sweep_id}", f"/ui/cases/{warned_case['id']}", "/ui/sweeps/nope"):
+        page = client.get(path).text
+        links = re.findall(r'(?:href|src)="([^"]*)"', page)
+        assert '/static/dashboard.css' in links and '/static/dashboard.js' in links, path
+        assert not [link for link in links if link.startswith(own) or link.startswith("//")], path
+        assert own not in page, path
+        for link in ("/static/dashboard.css", "/static/dashboard.js"):
+            assert client.get(link).status_code == 200
+
+
+def test_the_example_sweep_of_the_submit_page_has_a_domain_as_wide_as_the_default(client):
+    page = client.get("/ui/submit").text
+    examples = json.loads(re.search(r'<script type="application/json" id="examples">(.*?)</script>', page, re.S).group(1))
+    default = CaseSpec().geometry
+    specs = expand_sweep(Sweep.model_validate(json.loads(examples["sweep"])))
+    assert len(specs) == 4
+    for spec in specs:
+        g = spec.geometry
+        assert g.width >= default.width and g.height >= default.height
+        assert g.width / g.outer_radius >= default.width / default.outer_radius
