@@ -11,7 +11,8 @@ from collections.abc import Sequence
 
 from solver.spec import CaseSpec
 
-from .store import StoreLike, as_store
+from .store import StoreLike, as_store, case_warnings
+from .summary import summarize
 
 logger = logging.getLogger(__name__)
 
@@ -67,10 +68,11 @@ def solve_and_store(spec_json: str, root: StoreLike, force: bool = False) -> dic
         return {"case_id": case_id, "status": "failed", "error": f"{type(exc).__name__}: {exc}",
                 "summary": {}, "warnings": [], "computed": True, "seconds": time.perf_counter() - start}
     computed = summary is not None
-    return {"case_id": case_id, "status": "done", "error": None,
-            "summary": summary if computed else store.read_summary(case_id),
-            "warnings": warnings if computed else store.read_warnings(case_id), "computed": computed,
-            "seconds": time.perf_counter() - start}
+    if not computed:  # stored before: its file says both, read once
+        with store.opened(case_id) as ds:
+            summary, warnings = summarize(ds), case_warnings(ds)
+    return {"case_id": case_id, "status": "done", "error": None, "summary": summary, "warnings": warnings,
+            "computed": computed, "seconds": time.perf_counter() - start}
 
 
 def submit_cases(client, specs: Sequence[CaseSpec], root: StoreLike, *, force: bool = False) -> dict:

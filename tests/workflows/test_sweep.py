@@ -108,6 +108,15 @@ def test_task_function(tmp_path):
     assert first["summary"]["max_thrust"] == float(ds["max_thrust"])
     second = solve_and_store(spec.canonical_json(), str(tmp_path))
     assert not second["computed"] and second["summary"] == first["summary"]
+    assert first["warnings"] == second["warnings"] == []
+
+    # the solver's warnings travel with the outcome, computed or read back from the file
+    warned = CaseSpec.model_validate({**COARSE, "loads": {"surface_load": 1e9}})
+    computed = solve_and_store(warned.canonical_json(), str(tmp_path))
+    stored = solve_and_store(warned.canonical_json(), str(tmp_path))
+    assert computed["computed"] and not stored["computed"]
+    assert computed["warnings"] and stored["warnings"] == computed["warnings"]
+    assert any("small-displacement" in w or "displacement" in w for w in computed["warnings"]), computed["warnings"]
 
     failing = CaseSpec.model_validate({**COARSE, "solver": {"inner": "uzawa", "max_iterations": 1}})
     result = solve_and_store(failing.canonical_json(), str(tmp_path))
