@@ -47,7 +47,7 @@ from solver.spec import CaseSpec
 from workflows.store import remove_stale_temporaries, stored_case_ids
 from workflows.tasks import case_id_of_key, solve_and_store, task_key  # one key per case, CLI too
 
-from .results import BrokenResult, public_error, result_state, stored_summary, stored_warnings, written
+from .results import BrokenResult, public_error, result_state, stored_outcome, written
 from .store import UNREADABLE, CaseRecord, JobStore
 
 logger = logging.getLogger(__name__)
@@ -276,13 +276,13 @@ class Dispatcher:
         """Mark ``case_id`` done if its result file is stored and readable; return the file's
         state (``readable``, ``missing`` or ``broken``), read once."""
         try:
-            summary = await asyncio.to_thread(stored_summary, self.root, case_id)
+            outcome = await asyncio.to_thread(stored_outcome, self.root, case_id)
         except BrokenResult as exc:
             logger.warning("stored result of case %s is unreadable: %s", case_id, public_error(str(exc), self.root))
             return "broken"
-        if summary is None:
+        if outcome is None:
             return "missing"
-        warnings = await asyncio.to_thread(stored_warnings, self.root, case_id)
+        summary, warnings = outcome
         await self._persist(self.store.finish, case_id, status="done", summary=summary, warnings=warnings)
         return "readable"
 

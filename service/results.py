@@ -33,8 +33,8 @@ def _version(path: Path) -> Optional[FileKey]:
         return None
 
 
-def stored_summary(root: Path, case_id: str) -> Optional[dict[str, float]]:
-    """Scalars of the stored result of ``case_id``; None if no file is stored.
+def stored_outcome(root: Path, case_id: str) -> Optional[tuple[dict[str, float], list[str]]]:
+    """Scalars and warnings of the stored result of ``case_id``; None if no file is stored.
 
     Raises
     ------
@@ -45,7 +45,7 @@ def stored_summary(root: Path, case_id: str) -> Optional[dict[str, float]]:
     if _version(path) is None:
         return None
     try:
-        summary = ResultStore(root).read_summary(case_id)  # under the process's netCDF lock
+        outcome = ResultStore(root).read_outcome(case_id)  # under the process's netCDF lock
     except FileNotFoundError:
         return None
     except Exception as exc:
@@ -53,17 +53,7 @@ def stored_summary(root: Path, case_id: str) -> Optional[dict[str, float]]:
     version = _version(path)
     if version is not None:
         _VERIFIED[case_id] = version
-    return summary
-
-
-def stored_warnings(root: Path, case_id: str) -> list[str]:
-    """The solver's warnings recorded in the stored result of ``case_id`` (none if it has
-    none, or if the file cannot be read: :func:`stored_summary` is the check of that)."""
-    try:
-        return ResultStore(root).read_warnings(case_id)
-    except Exception as exc:
-        logger.warning("warnings of case %s not read: %s", case_id, public_error(f"{type(exc).__name__}: {exc}", root))
-        return []
+    return outcome
 
 
 def written(root: Path, case_id: str) -> None:
@@ -82,7 +72,7 @@ def result_state(root: Path, case_id: str) -> str:
     if _VERIFIED.get(case_id) == version:
         return "readable"
     try:
-        stored_summary(root, case_id)
+        stored_outcome(root, case_id)
     except BrokenResult as exc:
         logger.warning("stored result of case %s is unreadable: %s", case_id, public_error(str(exc), root))
         return "broken"

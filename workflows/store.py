@@ -191,10 +191,10 @@ class ResultStore:
         with self.opened(case_id) as ds:
             return summarize(ds)
 
-    def read_warnings(self, case_id: str) -> list[str]:
-        """The warnings of a stored case (see :func:`case_warnings`), reading only its attributes."""
+    def read_outcome(self, case_id: str) -> tuple[dict[str, float], list[str]]:
+        """The scalars and the warnings (:func:`case_warnings`) of a stored case, one read."""
         with self.opened(case_id) as ds:
-            return case_warnings(ds)
+            return summarize(ds), case_warnings(ds)
 
     def read_error(self, case_id: str) -> dict[str, Any] | None:
         """The error record of ``case_id``, or None if it has none."""

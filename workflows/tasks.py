@@ -11,8 +11,7 @@ from collections.abc import Sequence
 
 from solver.spec import CaseSpec
 
-from .store import StoreLike, as_store, case_warnings
-from .summary import summarize
+from .store import StoreLike, as_store
 
 logger = logging.getLogger(__name__)
 
@@ -68,9 +67,8 @@ def solve_and_store(spec_json: str, root: StoreLike, force: bool = False) -> dic
         return {"case_id": case_id, "status": "failed", "error": f"{type(exc).__name__}: {exc}",
                 "summary": {}, "warnings": [], "computed": True, "seconds": time.perf_counter() - start}
     computed = summary is not None
-    if not computed:  # stored before: its file says both, read once
-        with store.opened(case_id) as ds:
-            summary, warnings = summarize(ds), case_warnings(ds)
+    if not computed:  # stored before: its file says both
+        summary, warnings = store.read_outcome(case_id)
     return {"case_id": case_id, "status": "done", "error": None, "summary": summary, "warnings": warnings,
             "computed": computed, "seconds": time.perf_counter() - start}
 
