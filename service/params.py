@@ -49,5 +49,6 @@ def no_sweep_result(sweep_id: str, counts: dict[str, int]) -> HTTPException:
         what = f"all {cancelled} cases were cancelled" if cancelled > 1 else "its only case was cancelled"
     else:
         what = f"none of its {total} cases is done ({failed} failed, {cancelled} cancelled)"
-    return HTTPException(status_code=404, detail=f"sweep {sweep_id} has no result: {what} "
-                                                 "(retry with POST /sweeps?retry=failed)")
+    how = [hint for hint, needed in (("POST /sweeps?retry=failed recomputes failed cases", failed),
+                                     ("posting the sweep again resumes cancelled ones", cancelled)) if needed]
+    return HTTPException(status_code=404, detail=f"sweep {sweep_id} has no result: {what} ({'; '.join(how)})")

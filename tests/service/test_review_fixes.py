@@ -90,7 +90,9 @@ def test_no_result_is_409_while_a_case_is_open_and_404_once_failed_or_cancelled(
     for path in (f"/sweeps/{record.id}/result.nc", f"/sweeps/{record.id}/plots/scalars.png"):
         response = client.get(path)
         assert response.status_code == 404
-        assert "none of its 3 cases is done (1 failed, 2 cancelled)" in response.json()["detail"]
+        detail = response.json()["detail"]
+        assert "none of its 3 cases is done (1 failed, 2 cancelled)" in detail
+        assert "retry=failed recomputes failed cases" in detail and "posting the sweep again resumes" in detail
     assert {r["case_id"]: r["error"] for r in client.get(f"/sweeps/{record.id}/table").json()["rows"]} == \
         {ids[0]: "boom", ids[1]: "", ids[2]: ""}
 
