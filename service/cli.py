@@ -85,6 +85,9 @@ def main(argv: list[str] | None = None) -> int:
     except commands.InputError as exc:
         print(f"tunnel-contact: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:  # the machine's side: a results path that is a file, a scheduler that does not answer
+        print(f"tunnel-contact: error: {exc}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -38,6 +38,12 @@ def content_id(text: str) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+def _ignorable(value) -> bool:
+    """Whether ``value`` of a field its model ignores may be replaced by the canonical one: a
+    finite number (anything else is left for validation to refuse)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
 class _Frozen(BaseModel):
     # allow_inf_nan=False: NaN, Infinity and overflowing literals such as 1e400 are
     # refused with the field's name instead of failing later in the solver.
@@ -140,7 +146,18 @@ class Excavation(_Frozen):
                     "of lambda_d; 'wished-in-place': the paper's model, both bodies stress-free")
     deconfinement: float = Field(
         0.3, ge=0, le=1,
-        description="lambda_d: fraction of the excavation load released before the lining is placed")
+        description="lambda_d: fraction of the excavation load released before the lining is placed "
+                    "(no meaning for 'wished-in-place', where it is recorded as 0)")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _deconfinement_only_when_staged(cls, data):
+        # as interface.friction: a value the model ignores must not split one physical case
+        # into several ids (nor be kept in the record as if it had acted)
+        if isinstance(data, dict) and data.get("method") == "wished-in-place" \
+                and ("deconfinement" not in data or _ignorable(data["deconfinement"])):
+            data = {**data, "deconfinement": 0.0}
+        return data
 
 
 class Interface(_Frozen):
@@ -154,10 +171,7 @@ class Interface(_Frozen):
     def _friction_only_for_coulomb(cls, data):
         # friction is ignored by the other models (SPEC §2): dropping it keeps one id per
         # physical case (a bonded case with friction 0.3 is the bonded case)
-        # (a value that is not a number is left for validation to refuse)
-        if isinstance(data, dict) and data.get("model", "frictionless") != "coulomb" and "friction" in data \
-                and isinstance(data["friction"], (int, float)) and not isinstance(data["friction"], bool) \
-                and math.isfinite(data["friction"]):
+        if isinstance(data, dict) and data.get("model", "frictionless") != "coulomb" and _ignorable(data.get("friction")):
             data = {**data, "friction": 0.0}
         return data
 

@@ -23,7 +23,7 @@ from solver import CaseSpec, SolverError
 from solver.errors import field_errors, format_errors
 
 from .parameters import flat_parameters, parameter_attrs, varying_parameters
-from .store import ResultStore, StoreLike, as_store, check_case_id
+from .store import ResultStore, StoreLike, as_store, case_warnings, check_case_id
 from .summary import summarize
 from .sweep import Sweep, SweepError, run_sweep
 
@@ -172,7 +172,11 @@ def show_command(case_id: str, results: str, *, out: TextIO = sys.stdout) -> int
             raise InputError(f"case {case_id} is not in {results}")
         print(f"case {case_id} failed: {error['error']}", file=out)
         return 1
-    ds = store.open_case(case_id)
+    try:
+        ds = store.open_case(case_id)
+    except Exception as exc:  # truncated or corrupted: say so, and how to get it back
+        raise InputError(f"the stored result of case {case_id} cannot be read ({type(exc).__name__}: {exc}); "
+                         "tunnel-contact run (or sweep) with its case recomputes it") from None
     params = flat_parameters(ds.attrs["case_spec"])
     print(f"case {case_id}", file=out)
     print("\n".join(f"  {k} = {_with_unit(v, parameter_attrs(k, numeric=_is_number(v)).get('units'))}"
@@ -180,8 +184,7 @@ def show_command(case_id: str, results: str, *, out: TextIO = sys.stdout) -> int
     print(format_summary(summarize(ds), scalar_units(ds)), file=out)
     if "utilization" in ds:
         print(utilization_report(ds), file=out)
-    warnings = ds.attrs.get("warnings", "[]")
-    for warning in json.loads(warnings) if isinstance(warnings, str) else list(warnings):
+    for warning in case_warnings(ds):
         print(f"warning: {warning}", file=out)
     for name in PLOTS:
         print(f"wrote {render_plot(store, case_id, name, ds)}", file=out)

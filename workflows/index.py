@@ -192,6 +192,26 @@ class ResultIndex:
                 index, extra = self._rewrite(keys, extra), _Table()
             return _assemble(ids, [extra, index])
 
+    def unverified(self, case_ids: Sequence[str]) -> list[str]:
+        """The stored cases of ``case_ids`` whose file neither the index nor a pending entry
+        describes as it is now (its key differs: written by something else, truncated,
+        replaced). Their files have not been read since; the others were read whole when
+        their entry was made."""
+        keys = self.store.file_keys()
+        stored = [c for c in case_ids if c in keys]
+        with netcdf_lock, self._opened() as index:
+            wanted = [c for c in stored if index.key(c) != keys[c]]
+        out = []
+        for case_id in wanted:
+            try:
+                header, _ = _unpack_entry(self.pending_path(case_id).read_bytes())
+            except Exception:  # none, or corrupt
+                out.append(case_id)
+                continue
+            if tuple(header["file_key"]) != keys[case_id] or header["case_id"] != case_id:
+                out.append(case_id)
+        return out
+
     # -- internals -------------------------------------------------------------------
 
     def _entries(self, index: _Table, ids: Sequence[str], keys: dict[str, FileKey]) -> tuple[_Table, int]:

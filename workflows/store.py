@@ -191,6 +191,22 @@ class ResultStore:
         with self.opened(case_id) as ds:
             return summarize(ds)
 
+    def unreadable(self, case_ids: Sequence[str]) -> list[str]:
+        """The stored cases of ``case_ids`` whose file cannot be read (truncated, corrupted):
+        to recompute, never to serve. Files the index vouches for are not opened; the rest
+        are read once."""
+        broken = []
+        for case_id in self.index.unverified(case_ids):
+            try:
+                self.read_summary(case_id)
+            except FileNotFoundError:
+                continue
+            except Exception as exc:
+                logger.warning("stored result of case %s is unreadable (%s: %s); recomputing it",
+                               case_id, type(exc).__name__, exc)
+                broken.append(case_id)
+        return broken
+
     def read_outcome(self, case_id: str) -> tuple[dict[str, float], list[str]]:
         """The scalars and the warnings (:func:`case_warnings`) of a stored case, one read."""
         with self.opened(case_id) as ds:

@@ -168,7 +168,8 @@ def run_sweep(sweep: Sweep | dict[str, Any], root: StoreLike, client=None, *, pr
     The cases go to the scheduler through :func:`workflows.tasks.submit_cases` (one
     task per case under :func:`workflows.tasks.task_key`, the key the service uses
     too). Cases already stored are skipped without submitting anything (unless
-    ``force``); a failing case records its error file and does not stop the others.
+    ``force``), except a stored file that cannot be read, which is computed again; a
+    failing case records its error file and does not stop the others.
 
     Parameters
     ----------
@@ -192,15 +193,17 @@ def run_sweep(sweep: Sweep | dict[str, Any], root: StoreLike, client=None, *, pr
     specs = expand_sweep(sweep)
     store.remove_stale_temporaries()
     ids = [s.case_id for s in specs]
-    todo = [s for s in specs if force or not store.is_stored(s.case_id)]
+    broken = set() if force else set(store.unreadable(ids))  # recomputed, never combined
+    todo = [s for s in specs if force or not store.is_stored(s.case_id) or s.case_id in broken]
     if not retry_failed and not force:
-        todo = [s for s in todo if store.read_error(s.case_id) is None]
+        todo = [s for s in todo if s.case_id in broken or store.read_error(s.case_id) is None]
     logger.info("sweep %r: %d cases, %d to compute", sweep.name, len(ids), len(todo))
     if not todo:
         return ids
     store = ResultStore(os.path.abspath(store.root))
     with _client_or_local(client) as c:
-        submitted = submit_cases(c, todo, store, force=force)
+        submitted = submit_cases(c, [s for s in todo if s.case_id not in broken], store, force=force)
+        submitted.update(submit_cases(c, [s for s in todo if s.case_id in broken], store, force=True))
         bar = tqdm(total=len(todo), desc=f"sweep {sweep.name}", unit="case") if progress else None
         try:
             for future in as_completed(submitted):

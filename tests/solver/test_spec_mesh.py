@@ -164,3 +164,20 @@ def test_friction_is_ignored_outside_coulomb_so_one_physical_case_has_one_id():
     assert CaseSpec.model_validate({"interface": {"friction": 0.3}}) == CaseSpec()
     coulomb = CaseSpec.model_validate({"interface": {"model": "coulomb", "friction": 0.3}})
     assert coulomb.interface.friction == 0.3 and coulomb.case_id != bonded.case_id
+
+
+def test_deconfinement_is_ignored_when_wished_in_place_so_one_physical_case_has_one_id():
+    """Wished-in-place gave identical results for λd = 0 and 0.5 under two ids, and kept 0.5
+    in the record as if it had acted."""
+    wip = {"method": "wished-in-place"}
+    ids = {CaseSpec.model_validate({"excavation": {**wip, **extra}}).case_id
+           for extra in ({}, {"deconfinement": 0.0}, {"deconfinement": 0.5}, {"deconfinement": 1}, {"deconfinement": 0.3})}
+    assert len(ids) == 1
+    spec = CaseSpec.model_validate({"excavation": {**wip, "deconfinement": 0.5}})
+    assert spec.excavation.deconfinement == 0.0
+    assert CaseSpec.model_validate_json(spec.canonical_json()).case_id == spec.case_id
+    staged = {CaseSpec.model_validate({"excavation": {"deconfinement": x}}).case_id for x in (0.0, 0.5)}
+    assert len(staged) == 2  # where it acts, it counts
+    for bad in (float("nan"), True, "0.5"):
+        with pytest.raises(ValidationError):
+            CaseSpec.model_validate({"excavation": {**wip, "deconfinement": bad}})

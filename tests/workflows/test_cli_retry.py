@@ -61,3 +61,38 @@ def test_failed_sweep_cases_are_recomputed_only_when_asked(tmp_path):
     assert record.stat().st_mtime_ns == first  # shown as failed, not solved again
     assert main([*args, "--retry-failed"]) == 1
     assert record.stat().st_mtime_ns != first  # solved (and failed) again
+
+
+def test_sweep_recomputes_a_truncated_result_and_show_says_it_is_unreadable(tmp_path, capsys):
+    """A stored file cut short after the fact (a full disk, a bad copy) made every later
+    ``tunnel-contact sweep`` of its study stop on an HDF error, and was never recomputed."""
+    sweep = {"name": "truncated", "base": COARSE, "vary": {"loads.lateral_ratio": [0.5, 0.8]}}
+    (tmp_path / "sweep.json").write_text(json.dumps(sweep))
+    results = str(tmp_path / "results")
+    args = ["sweep", str(tmp_path / "sweep.json"), "--results", results, "--no-progress"]
+    assert main(args) == 0
+    broken = CaseSpec.model_validate({**COARSE, "loads": {"lateral_ratio": 0.5}}).case_id
+    kept = CaseSpec.model_validate({**COARSE, "loads": {"lateral_ratio": 0.8}}).case_id
+    store = ResultStore(results)
+    first = store.read_summary(broken)
+    untouched = case_path(results, kept).stat().st_mtime_ns
+    path = case_path(results, broken)
+    path.write_bytes(path.read_bytes()[:1000])
+    assert store.unreadable([broken, kept]) == [broken]
+
+    capsys.readouterr()
+    assert main(["show", broken, "--results", results]) == 2
+    assert "cannot be read" in capsys.readouterr().err
+
+    assert main(args) == 0
+    assert store.read_summary(broken)["max_abs_moment"] == first["max_abs_moment"]
+    assert case_path(results, kept).stat().st_mtime_ns == untouched  # a readable result is not recomputed
+    assert store.unreadable([broken, kept]) == []
+
+
+def test_operator_errors_are_one_line_not_a_traceback(tmp_path, capsys):
+    (tmp_path / "case.json").write_text(json.dumps(COARSE))
+    (tmp_path / "afile").write_text("not a folder")
+    assert main(["run", str(tmp_path / "case.json"), "--results", str(tmp_path / "afile")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("tunnel-contact: error:") and "Traceback" not in err
