@@ -49,9 +49,7 @@ async def request_validation_handler(request: Request, exc: RequestValidationErr
         names = ", ".join(f"{e['loc'][-1]} {e.get('input')!r}" for e in path_errors)
         detail = f"not found: unknown {names}"
         if _page_request(request):
-            from .pages import error_page  # pages import the routers, which import this module
-
-            return await error_page(request, 404, detail)
+            return await _error_page(request, 404, detail)
         return JSONResponse(status_code=404, content=ErrorBody(detail=detail).model_dump())
     return invalid(field_errors(errors))
 
@@ -75,16 +73,22 @@ async def http_error_handler(request: Request, exc: StarletteHTTPException) -> R
     UTF-8, say) is invalid input like any other: 422 naming the body, not 400."""
     if exc.status_code == 400:
         return invalid([FieldError(field="body", reason=f"cannot be parsed: {exc.detail}", type="json_invalid")])
-    if exc.status_code >= 400 and _page_request(request):  # a browser gets a page, not JSON
-        from .pages import error_page
-
-        return await error_page(request, exc.status_code, str(exc.detail))
+    if exc.status_code >= 400 and _page_request(request):
+        return await _error_page(request, exc.status_code, str(exc.detail))
     return await http_exception_handler(request, exc)
 
 
 def _page_request(request: Request) -> bool:
     """Whether ``request`` asks for a dashboard page (``/ui/...``: answered in HTML, errors too)."""
     return request.url.path.startswith("/ui/")
+
+
+async def _error_page(request: Request, status_code: int, detail: str) -> Response:
+    """A page request's error as the dashboard's HTML error page: every page error (a
+    malformed or unknown id, an unknown page) comes here, raised or refused by validation."""
+    from .pages import error_page  # pages import the routers, which import this module
+
+    return await error_page(request, status_code, detail)
 
 
 async def overflow_handler(request: Request, exc: OverflowError) -> JSONResponse:

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Optional
 
 import httpx
-from fastapi import APIRouter, FastAPI, HTTPException, Request
+from fastapi import APIRouter, FastAPI, Request
 from fastapi.responses import HTMLResponse
 from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
@@ -97,16 +97,11 @@ async def index(request: Request) -> HTMLResponse:
     return await _render(request, "index.html", sweeps=sweep_page, cases=case_page, workers=workers)
 
 
-async def _error_page(request: Request, exc: HTTPException) -> HTMLResponse:
-    response = await _render(request, "error.html", status_code=exc.status_code, detail=exc.detail)
-    response.status_code = exc.status_code
-    return response
-
-
 async def error_page(request: Request, status_code: int, detail: str) -> HTMLResponse:
-    """The HTML error page for a page request refused before its route ran (a malformed id,
-    an unknown page)."""
-    return await _error_page(request, HTTPException(status_code=status_code, detail=detail))
+    """The HTML error page (what :mod:`service.errors` answers a page request's HTTP error with)."""
+    response = await _render(request, "error.html", status_code=status_code, detail=detail)
+    response.status_code = status_code
+    return response
 
 
 @router.get("/ui/sweeps/{sweep_id}", response_class=HTMLResponse)
@@ -114,7 +109,7 @@ async def sweep_page(sweep_id: SweepId, request: Request) -> HTMLResponse:
     store = jobs_of(request).store
     record = store.get_sweep(sweep_id)  # read once for the status, the table and the spec
     if record is None:
-        return await _error_page(request, not_found("sweep", sweep_id))
+        raise not_found("sweep", sweep_id)
     status = SweepStatus.of(record, store.status_counts(record.case_ids))
     return await _render(request, "sweep.html", sweep=status, table=comparison_table(store, record),
                          spec=record.spec, plots=SWEEP_PLOT_NAMES)
@@ -122,10 +117,7 @@ async def sweep_page(sweep_id: SweepId, request: Request) -> HTMLResponse:
 
 @router.get("/ui/cases/{case_id}", response_class=HTMLResponse)
 async def case_page(case_id: CaseId, request: Request) -> HTMLResponse:
-    try:
-        case = await cases.get_case(case_id, request)
-    except HTTPException as exc:
-        return await _error_page(request, exc)
+    case = await cases.get_case(case_id, request)  # an unknown case: the error page (service.errors)
     values = {**(case.summary or {}), **{k: float(v) for k, v in case.non_finite.items()}}  # inf shown as inf
     columns = [scalar_column(n) for n in ordered_scalars(values)]
     return await _render(request, "case.html", case=case, values=values, columns=columns, plots=list(PLOTS))

@@ -8,6 +8,7 @@ from fastapi import HTTPException, Path, Query, Request
 from .jobs import Dispatcher
 from .schemas import CASE_ID_PATTERN
 from .settings import Settings
+from .store import SweepRecord
 
 CaseId = Annotated[str, Path(pattern=CASE_ID_PATTERN, description="case id, 16 lowercase hex digits")]
 SweepId = Annotated[str, Path(pattern=CASE_ID_PATTERN, description="sweep id, 16 lowercase hex digits")]
@@ -33,6 +34,15 @@ def not_found(kind: str, ident: str) -> HTTPException:
 
 def not_ready(what: str, status: str) -> HTTPException:
     return HTTPException(status_code=409, detail=f"{what} not ready: {status}")
+
+
+async def sweep_results(jobs: Dispatcher, record: SweepRecord) -> list[str]:
+    """The sweep's done cases whose result files read back (a broken one goes back to the
+    queue), for its combined file and its plots; none: :func:`no_sweep_result` is raised."""
+    done = await jobs.readable_results(record.case_ids)
+    if not done:
+        raise no_sweep_result(record.id, jobs.store.status_counts(record.case_ids))
+    return done
 
 
 def no_sweep_result(sweep_id: str, counts: dict[str, int]) -> HTTPException:

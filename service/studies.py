@@ -16,7 +16,7 @@ from workflows.plots import SWEEP_PLOT_NAMES
 from .comparison import ComparisonTable, comparison_table, table_csv
 from .errors import responses
 from .guards import require_token
-from .params import Offset, SweepId, jobs_of, no_sweep_result, not_found
+from .params import Offset, SweepId, jobs_of, not_found, sweep_results
 from .schemas import SweepCancelled, SweepPage, SweepStatus
 from .store import SweepRecord
 
@@ -77,9 +77,7 @@ async def get_sweep_plot(sweep_id: SweepId, name: SweepPlotName, request: Reques
     As for ``result.nc``: 409 while no case is done but some is open, 404 when none can be."""
     jobs = jobs_of(request)
     record = _sweep(request, sweep_id)
-    done = await jobs.readable_results(record.case_ids)  # as for result.nc: a broken file is recomputed
-    if not done:
-        raise no_sweep_result(sweep_id, jobs.store.status_counts(record.case_ids))
+    done = await sweep_results(jobs, record)  # as for result.nc
     path = await asyncio.to_thread(render_sweep_plot, jobs.root, sweep_id, done, name.value)
     return FileResponse(path, media_type="image/png",
                         headers={"X-Cases-Included": f"{len(done)}/{len(record.case_ids)}"})

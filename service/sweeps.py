@@ -15,7 +15,7 @@ from workflows.artifacts import write_combined
 from .errors import invalid, responses
 from .cases import RETRY_QUERY, Retry
 from .guards import check_capacity, require_token
-from .params import NETCDF, SweepId, jobs_of, no_sweep_result, not_found, settings_of
+from .params import NETCDF, SweepId, jobs_of, not_found, settings_of, sweep_results
 from .schemas import FieldError, SweepAccepted, SweepStatus
 
 router = APIRouter(prefix="/sweeps", tags=["sweeps"])
@@ -83,9 +83,7 @@ async def get_sweep_result(sweep_id: SweepId, request: Request) -> FileResponse:
     record = jobs.store.get_sweep(sweep_id)
     if record is None:
         raise not_found("sweep", sweep_id)
-    done = await jobs.readable_results(record.case_ids)
-    if not done:
-        raise no_sweep_result(sweep_id, jobs.store.status_counts(record.case_ids))
+    done = await sweep_results(jobs, record)
     path = await asyncio.to_thread(write_combined, jobs.root, sweep_id, done)
     return FileResponse(path, media_type=NETCDF, filename=f"sweep-{sweep_id}.nc",
                         headers={"X-Cases-Included": f"{len(done)}/{len(record.case_ids)}"})

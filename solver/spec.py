@@ -38,10 +38,15 @@ def content_id(text: str) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+def is_number(value) -> bool:
+    """Whether ``value`` is a number as JSON has them (a bool is not one)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
 def _ignorable(value) -> bool:
     """Whether ``value`` of a field its model ignores may be replaced by the canonical one: a
     finite number (anything else is left for validation to refuse)."""
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    return is_number(value) and math.isfinite(value)
 
 
 class _Frozen(BaseModel):
@@ -215,7 +220,7 @@ class SolverSettings(_Frozen):
     @classmethod
     def _bolt_kind(cls, v):
         # one clear error instead of one per branch of the union
-        if v == "auto" or (isinstance(v, (int, float)) and not isinstance(v, bool)):
+        if v == "auto" or is_number(v):
             return v
         raise ValueError(f"bolt: expected 'auto' or a position in degrees, got {v!r}")
 

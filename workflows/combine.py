@@ -16,6 +16,8 @@ from collections.abc import Sequence
 import numpy as np
 import xarray as xr
 
+from solver.spec import is_number
+
 from .parameters import flat_parameters, parameter_attrs, varying_parameters
 from .store import ResultStore, StoreLike, as_store, check_case_id
 
@@ -78,7 +80,7 @@ def label_cases(stacked: xr.Dataset, case_ids: Sequence[str], specs: Sequence[st
     combined = stacked
     for name in varying_parameters(flat):
         values = [f[name] for f in flat]
-        numeric = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)
+        numeric = all(map(is_number, values))
         if not numeric:
             values = [str(v) for v in values]
         attrs = parameter_attrs(name, numeric=numeric)

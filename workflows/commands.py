@@ -20,7 +20,9 @@ import xarray as xr
 from pydantic import ValidationError
 
 from solver import CaseSpec, SolverError
+from solver.dataset import SCALARS
 from solver.errors import field_errors, format_errors
+from solver.spec import is_number
 
 from .parameters import flat_parameters, parameter_attrs, varying_parameters
 from .store import ResultStore, StoreLike, as_store, case_warnings, check_case_id
@@ -121,10 +123,8 @@ def run_command(case_file: str | None, results: str, *, force: bool = False, ret
         except SolverError as exc:
             print(f"case {spec.case_id} failed: {exc}", file=out)
             return 1
-    with store.opened(spec.case_id) as ds:
-        units = scalar_units(ds)
     print(f"case {spec.case_id} stored in {store.case_path(spec.case_id)}", file=out)
-    print(format_summary(summary, units), file=out)
+    print(format_summary(summary), file=out)
     return 0
 
 
@@ -179,9 +179,9 @@ def show_command(case_id: str, results: str, *, out: TextIO = sys.stdout) -> int
                          "tunnel-contact run (or sweep) with its case recomputes it") from None
     params = flat_parameters(ds.attrs["case_spec"])
     print(f"case {case_id}", file=out)
-    print("\n".join(f"  {k} = {_with_unit(v, parameter_attrs(k, numeric=_is_number(v)).get('units'))}"
+    print("\n".join(f"  {k} = {_with_unit(v, parameter_attrs(k, numeric=is_number(v)).get('units'))}"
                     for k, v in params.items()), file=out)
-    print(format_summary(summarize(ds), scalar_units(ds)), file=out)
+    print(format_summary(summarize(ds)), file=out)
     if "utilization" in ds:
         print(utilization_report(ds), file=out)
     for warning in case_warnings(ds):
@@ -191,22 +191,16 @@ def show_command(case_id: str, results: str, *, out: TextIO = sys.stdout) -> int
     return 0
 
 
-def format_summary(summary: dict[str, float], units: dict[str, str] | None = None) -> str:
+def format_summary(summary: dict[str, float]) -> str:
     """The scalars of one case, one ``name = value unit`` per line.
 
-    Values in the SI ``units`` of the result (:func:`scalar_units`); no unit is shown
-    for a dimensionless (``1``) or unknown one; non-finite values as ``inf``/``nan``.
+    Values in the SI units the solver writes them in (:data:`solver.dataset.SCALARS`); no
+    unit is shown for a dimensionless (``1``) or unknown one; non-finite values as
+    ``inf``/``nan``.
     """
-    units = units or {}
     width = max((len(k) for k in summary), default=0)
-    return "\n".join(f"  {k:<{width}} = {_with_unit(_summary_value(v), units.get(k))}"
+    return "\n".join(f"  {k:<{width}} = {_with_unit(_summary_value(v), SCALARS.get(k, (None,))[0])}"
                      for k, v in summary.items())
-
-
-def scalar_units(ds: xr.Dataset) -> dict[str, str]:
-    """``{name: units}`` of the 0-d variables of a result: their ``units`` attributes."""
-    return {str(n): str(v.attrs["units"]) for n, v in ds.data_vars.items()
-            if v.ndim == 0 and "units" in v.attrs}
 
 
 def _unit_label(units: str | None) -> str:
@@ -217,10 +211,6 @@ def _unit_label(units: str | None) -> str:
 def _with_unit(value: Any, units: str | None) -> str:
     label = _unit_label(units)
     return f"{value} {label}" if label else str(value)
-
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def _summary_value(value: Any) -> str:

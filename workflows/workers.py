@@ -15,12 +15,12 @@ Housekeeping. Beside its tasks every dask process does periodic work: its event 
 ticks every 20 ms (to notice a blocked loop, reported from 3 s on), the worker samples its
 task thread's stack every 10 ms for the dashboard's profile page, and every process reads
 its CPU and memory with psutil every 0.5 s (system monitor) and every 0.1 s (memory
-monitor of workers and nannies). Idle, that cost each worker 0.33-0.44 s of CPU per 10 s
-and the process holding the scheduler and the nannies 0.33-0.64 s (``python -m bench.sweep
---idle``): up to 7 % of this machine's two cores, taken from the tasks when both workers
+monitor of workers and nannies). Idle, that cost each worker 0.42-0.49 s of CPU per 10 s
+and the process holding the scheduler and the nannies 0.55-0.75 s (``python -m bench.sweep
+--idle``): up to 8 % of this machine's two cores, taken from the tasks when both workers
 solve. :data:`CLUSTER_CONFIG` ticks every 0.2 s, turns the profiler off (no dashboard shows
 it here) and reads the system every 2 s and the memory every 0.5 s (a case's memory is
-bounded before it starts, by the element cap): 0.05-0.06 s per worker and 0.16 s.
+bounded before it starts, by the element cap): 0.06 s per worker and 0.15-0.18 s.
 """
 from __future__ import annotations
 
@@ -69,4 +69,4 @@ def cluster_process_env() -> dict[str, str]:
 def worker_process_env() -> dict[str, str]:
     """Environment variables that give a ``dask worker`` command the same settings as
     :func:`worker_config` gives a LocalCluster."""
-    return {**cluster_process_env(), "DASK_DISTRIBUTED__NANNY__PRE_SPAWN_ENVIRON": repr(WORKER_ENVIRON)}
+    return {**cluster_process_env(), _env_name(_PRE_SPAWN): repr(WORKER_ENVIRON)}

@@ -33,6 +33,20 @@ def _wal_pages(store: JobStore) -> float:
     return wal.stat().st_size / page if wal.exists() else 0.0
 
 
+def _filled_background_store(tmp_path, monkeypatch, n: int) -> tuple[JobStore, bool]:
+    """A store checkpointing every 20 ms, given ``n`` records; and whether its database file
+    then grew by their pages (the log copied back into it) within a minute."""
+    monkeypatch.setattr(store_module, "CHECKPOINT_INTERVAL", 0.02)
+    path = tmp_path / "jobs.sqlite"
+    store = JobStore(path, background_checkpoints=True)
+    size = path.stat().st_size + n * 4096
+    _fill(store, n)
+    deadline = time.monotonic() + 60.0  # a bound on waiting, not a speed requirement
+    while path.stat().st_size < size and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return store, path.stat().st_size >= size
+
+
 def test_default_store_checkpoints_in_its_commits(tmp_path):
     """The reference behaviour: the WAL is reused from its start once it has been
     checkpointed, so it never grows much past the automatic limit."""
@@ -58,31 +72,33 @@ def test_background_store_commits_never_checkpoint(tmp_path, monkeypatch):
 
 
 def test_background_checkpointer_copies_the_log_while_the_store_is_open(tmp_path, monkeypatch):
-    monkeypatch.setattr(store_module, "CHECKPOINT_INTERVAL", 0.05)
-    path = tmp_path / "jobs.sqlite"
-    store = JobStore(path, background_checkpoints=True)
-    empty = path.stat().st_size
-    _fill(store, 300)
-    deadline = time.monotonic() + 60.0  # a bound on waiting, not a speed requirement
-    while path.stat().st_size < empty + 300 * 4096 and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert path.stat().st_size >= empty + 300 * 4096, "the checkpointer never copied the log back"
+    store, copied = _filled_background_store(tmp_path, monkeypatch, 300)
+    assert copied, "the checkpointer never copied the log back"
     assert store.get_case(f"{299:016x}").status == "queued"
     store.close()
     assert not store._checkpointer.is_alive()
 
 
-def test_a_failing_checkpoint_is_logged_and_retried(tmp_path, caplog):
-    class Broken:
-        calls = 0
+def test_failing_rounds_are_logged_and_the_thread_tries_again(tmp_path, monkeypatch, caplog):
+    """A round that fails (a full disk) must not end the thread: the next round tries again."""
+    checkpoint = store_module._Checkpointer.checkpoint
+    rounds = []
 
+    class Full:
         def execute(self, sql):
-            Broken.calls += 1
             raise sqlite3.OperationalError("database or disk is full")
 
-    store_module._Checkpointer.checkpoint(Broken())
-    assert Broken.calls == 1
-    assert "checkpoint failed (database or disk is full)" in caplog.text
+    def flaky(db):  # the first two rounds hit a full disk, the later ones the real database
+        rounds.append(db)
+        checkpoint(Full() if len(rounds) <= 2 else db)
+
+    monkeypatch.setattr(store_module._Checkpointer, "checkpoint", staticmethod(flaky))
+    store, copied = _filled_background_store(tmp_path, monkeypatch, 50)
+    assert copied, "no round after the failing ones copied the log back"
+    assert store._checkpointer.is_alive()
+    store.close()
+    assert len(rounds) > 2
+    assert caplog.text.count("checkpoint failed (database or disk is full)") == 2
 
 
 @pytest.fixture(autouse=True)

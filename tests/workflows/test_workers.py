@@ -12,6 +12,7 @@ import cloudpickle
 import dask.config
 import pytest
 import yaml
+from dask.utils import parse_timedelta
 from distributed import Client
 
 from service.process import running_cluster
@@ -80,36 +81,38 @@ def expected() -> dict[str, str]:
     return {k: str(v) for k, v in WORKER_ENVIRON.items()}
 
 
+def settings_seen(client) -> dict:
+    """What one worker and the scheduler of ``client``'s cluster run with."""
+    seen = {}
+    for probe in (malloc_environ, cluster_config, profiler_running, tick_interval_ms):
+        (seen[probe.__name__],) = client.run(probe).values()
+    seen["system_monitor_interval_ms"] = client.run_on_scheduler(system_monitor_interval_ms)
+    return seen
+
+
+def ms(key: str) -> float:
+    """A :data:`CLUSTER_CONFIG` interval in milliseconds."""
+    return 1000 * parse_timedelta(CLUSTER_CONFIG[key])
+
+
+OURS = {"malloc_environ": expected(), "cluster_config": CLUSTER_CONFIG, "profiler_running": False,
+        "tick_interval_ms": ms("distributed.admin.tick.interval"),
+        "system_monitor_interval_ms": ms("distributed.admin.system-monitor.interval")}
+
+
 def test_local_cluster_workers():
     with local_client(1) as client:
-        (environ,) = client.run(malloc_environ).values()
+        seen = settings_seen(client)
         (faults,) = client.run(page_faults_of_reused_arrays).values()
-        (config,) = client.run(cluster_config).values()
-        (profiling,) = client.run(profiler_running).values()
-        (tick_ms,) = client.run(tick_interval_ms).values()
-        monitor_ms = client.run_on_scheduler(system_monitor_interval_ms)
-    assert environ == expected()
+    assert seen == OURS
     assert faults < 40 * PAGES / 10, f"{faults} page faults: freed arrays are not reused"
-    assert config == CLUSTER_CONFIG
-    assert not profiling
-    assert monitor_ms == 2000
-    assert tick_ms == 200
 
 
 def test_dask_worker_processes(tmp_path):
     """The ``dask scheduler`` and ``dask worker`` command lines of the deployment (service.process)."""
     with running_cluster(1, logs=tmp_path) as address, Client(address, timeout=30) as client:
         client.wait_for_workers(1, timeout=60)
-        (environ,) = client.run(malloc_environ).values()
-        (config,) = client.run(cluster_config).values()
-        (profiling,) = client.run(profiler_running).values()
-        (tick_ms,) = client.run(tick_interval_ms).values()
-        monitor_ms = client.run_on_scheduler(system_monitor_interval_ms)
-    assert environ == expected()
-    assert config == CLUSTER_CONFIG
-    assert not profiling
-    assert monitor_ms == 2000
-    assert tick_ms == 200
+        assert settings_seen(client) == OURS
 
 
 def test_dask_defaults_profile_and_monitor_more_often():
@@ -119,12 +122,10 @@ def test_dask_defaults_profile_and_monitor_more_often():
 
     with LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=None) as cluster, \
             Client(cluster) as client:
-        (profiling,) = client.run(profiler_running).values()
-        (tick_ms,) = client.run(tick_interval_ms).values()
-        monitor_ms = client.run_on_scheduler(system_monitor_interval_ms)
-    assert profiling
-    assert monitor_ms == 500
-    assert tick_ms == 20
+        seen = settings_seen(client)
+    assert seen["profiler_running"]
+    assert (seen["system_monitor_interval_ms"], seen["tick_interval_ms"]) == (500, 20)
+    assert all(seen[k] != OURS[k] for k in ("profiler_running", "tick_interval_ms", "system_monitor_interval_ms"))
 
 
 def test_without_the_settings_a_worker_faults_every_array():
