@@ -89,6 +89,10 @@ class FactoredBody:
     def _columns(self, B: sp.csr_matrix) -> sp.csr_matrix:
         return B if self._keep is None else B[:, self._keep].tocsr()
 
+    def drop(self) -> None:
+        """Forget the factorizations (rebuilt on next use)."""
+        self._factors.clear()
+
     def matrix(self) -> tuple[sp.spmatrix, np.ndarray]:
         """The matrix every factorization of this body is of (``K`` without the pinned DOF)
         and the mesh node of each of its unknowns."""

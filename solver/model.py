@@ -63,6 +63,16 @@ def _sigma0_unit(basis, q: float, rho_g: float) -> tuple[np.ndarray, np.ndarray]
             initial_stress_forces(basis, q=q, rho_g=rho_g, k0=0.0))
 
 
+#: The terms every ground load is linear in: ρg (N/m³), q (Pa), K0·q (Pa), K0·ρg (N/m³).
+LOAD_TERMS = ("rho_g", "q", "k0_q", "k0_rho_g")
+
+
+def load_coefficients(spec: CaseSpec) -> np.ndarray:
+    """The case's values of :data:`LOAD_TERMS`."""
+    rho_g, q, k0 = spec.ground.density * spec.loads.gravity, spec.loads.surface_load, spec.loads.lateral_ratio
+    return np.array([rho_g, q, k0 * q, k0 * rho_g])
+
+
 #: Relative gap (to the largest displacement) below which a node counts as closed.
 CONTACT_GAP_TOL = 1e-6
 
@@ -167,11 +177,23 @@ class TunnelModel:
         self.timings = {"mesh": t1 - t0, "assembly": t2 - t1, "factorization": 0.0}
         self._factorize(rows_of_model(spec.interface.model))
         self._units: dict[str, np.ndarray] = {}
+        self._responses: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]] = {}
         self._point_bases: dict = {}
 
     @property
     def m(self) -> int:
         return self.mesh.interface.size
+
+    def drop_factorizations(self) -> None:
+        """Forget both bodies' factorizations and what was solved with them (flexibilities,
+        unit-load responses): their memory is freed and they are rebuilt, and timed, on
+        next use (``python -m bench.solver`` times them repeatedly this way)."""
+        for fb in (self.ground, self.lining):
+            fb.drop()
+        self._S.clear()
+        self._responses.clear()
+        self.timings["factorization"] = 0.0
+        self.timings.pop("flexibility", None)
 
     def point_basis(self, body: str) -> "Basis":
         """``'ground'`` or ``'lining'`` basis at the sub-triangle centroids (built on first use)."""
@@ -217,43 +239,65 @@ class TunnelModel:
             self._units[name] = compute()
         return self._units[name]
 
-    def ground_loads(self, spec: CaseSpec) -> np.ndarray:
-        """Full-DOF external loads on the ground: gravity, surface load, a 'pressure' side.
+    def _shapes(self, spec: CaseSpec, method: str) -> np.ndarray:
+        """(N, 4) full-DOF ground load per :data:`LOAD_TERMS` term, assembled once per model:
+        the applied loads (``method = "wished-in-place"``: gravity, surface load, a
+        'pressure' side) or the excavation load ``f_ext - ∫Bᵀσ0`` (``"deconfinement"``).
+        Every ground load of a case is ``shapes @ load_coefficients(case)``: a sweep over
+        loads and K0 assembles nothing."""
+        return self._unit(f"shapes_{method}", lambda: self._build_shapes(spec, method))
 
-        Every load is linear in (ρg, q, K0·q, K0·ρg), so it is a combination of unit
-        vectors assembled once per model: a sweep over loads and K0 assembles nothing.
-        """
-        g, L = spec.geometry, spec.loads
-        rho_g, q, k0 = spec.ground.density * L.gravity, L.surface_load, L.lateral_ratio
+    def _build_shapes(self, spec: CaseSpec, method: str) -> np.ndarray:
         basis = self.ground.body.basis
+        if method == "deconfinement":
+            # ∫Bᵀσ0 = K0·(xx part) + (yy part), for (q, ρg) = (1, 0) and (0, 1)
+            (q_xx, q_yy), (g_xx, g_yy) = _sigma0_unit(basis, 1.0, 0.0), _sigma0_unit(basis, 0.0, 1.0)
+            return self._shapes(spec, "wished-in-place") - np.column_stack([g_yy, q_yy, q_xx, g_xx])
+        g = spec.geometry
         scale = max(g.width, g.height)
-        f = rho_g * self._unit("gravity", lambda: gravity_load(basis, 1.0, 1.0)) \
-            + q * self._unit("surface", lambda: surface_load(basis, 1.0, scale=scale))
+        shapes = np.zeros((basis.N, len(LOAD_TERMS)))
+        shapes[:, 0] = gravity_load(basis, 1.0, 1.0)
+        shapes[:, 1] = surface_load(basis, 1.0, scale=scale)
         if spec.boundaries.side == "pressure":
-            f = f + k0 * q * self._unit("side_q", lambda: side_pressure_load(
-                basis, q=1.0, rho_g=0.0, k0=1.0, width=g.width, scale=scale)) \
-                + k0 * rho_g * self._unit("side_rho_g", lambda: side_pressure_load(
-                    basis, q=0.0, rho_g=1.0, k0=1.0, width=g.width, scale=scale))
-        return f
+            shapes[:, 2] = side_pressure_load(basis, q=1.0, rho_g=0.0, k0=1.0, width=g.width, scale=scale)
+            shapes[:, 3] = side_pressure_load(basis, q=0.0, rho_g=1.0, k0=1.0, width=g.width, scale=scale)
+        return shapes
+
+    def ground_loads(self, spec: CaseSpec) -> np.ndarray:
+        """Full-DOF external loads on the ground (N/m): gravity, surface load, a 'pressure' side."""
+        return self._shapes(spec, "wished-in-place") @ load_coefficients(spec)
 
     def excavation_load(self, spec: CaseSpec) -> np.ndarray:
         """Full-DOF excavation load ``r = f_ext - ∫Bᵀσ0`` (N/m): what σ0 leaves unbalanced."""
-        L = spec.loads
-        rho_g, q, k0 = spec.ground.density * L.gravity, L.surface_load, L.lateral_ratio
-        basis = self.ground.body.basis
-        units = {(a, b): self._unit(f"sigma0_{a}_{b}", lambda a=a, b=b: _sigma0_unit(basis, a, b))
-                 for a, b in ((1, 0), (0, 1))}
-        internal = q * (k0 * units[(1, 0)][0] + units[(1, 0)][1]) + rho_g * (k0 * units[(0, 1)][0] + units[(0, 1)][1])
-        return self.ground_loads(spec) - internal
+        return self._shapes(spec, "deconfinement") @ load_coefficients(spec)
 
     def stage_loads(self, spec: CaseSpec) -> StageLoads:
         ground, lining = self.ground.body, self.lining.body
-        f_l = lining.restrict(spec.lining.density * spec.loads.gravity
-                              * self._unit("lining_gravity", lambda: gravity_load(lining.basis, 1.0, 1.0)))
+        f_l = lining.restrict(spec.lining.density * spec.loads.gravity * self._lining_shape())
+        loads = ground.restrict(self._shapes(spec, spec.excavation.method) @ load_coefficients(spec))
         if spec.excavation.method == "wished-in-place":
-            return StageLoads(ground.restrict(self.ground_loads(spec)), f_l, None)
-        release = ground.restrict(self.excavation_load(spec))
-        return StageLoads((1.0 - spec.excavation.deconfinement) * release, f_l, release)
+            return StageLoads(loads, f_l, None)
+        return StageLoads((1.0 - spec.excavation.deconfinement) * loads, f_l, loads)
+
+    def _lining_shape(self) -> np.ndarray:
+        return self._unit("lining_gravity", lambda: gravity_load(self.lining.body.basis, 1.0, 1.0))
+
+    def _unit_responses(self, spec: CaseSpec, rows: Rows) -> tuple[np.ndarray, np.ndarray]:
+        """``K⁺`` of the ground's load shapes, (n, 4), and of the lining's unit weight, (n,),
+        on the free DOFs, with the factorization serving ``rows``: solved once per model
+        (all shapes in one block solve), so a case's loads cost no solve, only the
+        recovery of its contact tractions does."""
+        key = (spec.excavation.method, rows)
+        if key not in self._responses:
+            ground, lining = self.ground.body, self.lining.body
+            shapes = ground.restrict(self._shapes(spec, spec.excavation.method))
+            used = np.flatnonzero(np.any(shapes != 0.0, axis=0))
+            responses = np.zeros_like(shapes)
+            if used.size:
+                responses[:, used] = self.ground.solve(shapes[:, used], rows)
+            self._responses[key] = (responses,
+                                    self.lining.solve(lining.restrict(self._lining_shape()), rows))
+        return self._responses[key]
 
     # -- solve -------------------------------------------------------------------------
     def solve(self, spec: CaseSpec) -> Solution:
@@ -320,13 +364,14 @@ class TunnelModel:
         """
         rows = rows or rows_of_model(spec.interface.model)
         loads = self.stage_loads(spec)
+        ground_response, lining_response = self._unit_responses(spec, rows)
+        v = ground_response @ load_coefficients(spec)  # K⁻¹ of the release (or of the loads)
         if loads.release is not None:
             ld = spec.excavation.deconfinement
-            v = self.ground.solve(loads.release, rows)
             u1, ug_f = ld * v, (1.0 - ld) * v
         else:
-            u1, ug_f = np.zeros(self.ground.body.n), self.ground.solve(loads.ground, rows)
-        ul_f = self.lining.solve(loads.lining, rows)
+            u1, ug_f = np.zeros(self.ground.body.n), v
+        ul_f = spec.lining.density * spec.loads.gravity * lining_response
         d = self.ground.B @ ug_f + self.lining.B @ ul_f
         return loads, u1, ug_f, ul_f, d, float(self.rigid @ loads.lining)
 

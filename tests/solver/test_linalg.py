@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from solver.linalg import InterfaceFactor
+from solver.linalg import InterfaceFactor, rotated
 
 
 def laplacian_2d(n: int) -> sp.csr_matrix:
@@ -45,6 +45,22 @@ def test_rotated_factor_matches_dense_inverse():
     np.testing.assert_allclose(f.flexibility(Bd), Bd @ Kr_inv[np.ix_(last, last)] @ Bd.T, rtol=1e-10, atol=1e-12)
     b = rng.standard_normal(n)
     np.testing.assert_allclose(f.solve(b), np.linalg.solve(K.toarray(), b), rtol=1e-10, atol=1e-12)
+
+
+def test_rotated_is_the_full_product():
+    """``rotated`` (K plus the rotated rows' and columns' correction) is TᵀKT, and the
+    unrotated unknowns' block is K's own, entry for entry."""
+    K = laplacian_2d(10)
+    n = K.shape[0]
+    T = sp.lil_matrix(sp.eye(n))
+    for node, a in ((3, 0.4), (17, 2.0), (40, -1.1)):
+        i, j = 2 * node, 2 * node + 1
+        T[i, i], T[i, j], T[j, i], T[j, j] = np.cos(a), -np.sin(a), np.sin(a), np.cos(a)
+    T = T.tocsr()
+    R = rotated(K, T)
+    np.testing.assert_allclose(R.toarray(), (T.T @ K @ T).toarray(), rtol=0, atol=1e-14)
+    keep = np.setdiff1d(np.arange(n), [6, 7, 34, 35, 80, 81])
+    np.testing.assert_array_equal(R[keep][:, keep].toarray(), K[keep][:, keep].toarray())
 
 
 def test_normal_and_full_factorizations_agree_on_a_model():

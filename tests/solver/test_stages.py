@@ -165,6 +165,34 @@ def test_a_shared_model_gives_the_result_of_a_fresh_one():
                 np.testing.assert_array_equal(together[name].values, var.values, err_msg=name)
 
 
+def test_unit_load_responses_superpose_to_the_case_loads():
+    """A model solves its unit loads once: K times each response is its load shape, the
+    case's K⁻¹f is their combination, and a model that forgot its factorizations gives the
+    same solution bit for bit after rebuilding them."""
+    from solver.model import TunnelModel, load_coefficients
+
+    spec = CaseSpec(mesh=dict(interface_size=0.2, far_size=6.0), boundaries=dict(side="pressure"),
+                    loads=dict(lateral_ratio=0.6, surface_load=5.0e4))
+    model = TunnelModel(spec)
+    ground, lining = model.ground, model.lining
+    responses, lining_response = model._unit_responses(spec, "normal")
+    shapes = ground.body.restrict(model._shapes(spec, "deconfinement"))
+    assert responses.shape == (ground.body.n, 4) and np.all(np.any(shapes != 0, axis=0))
+    K = ground.body.K
+    np.testing.assert_allclose(K @ responses, shapes, atol=1e-9 * np.abs(shapes).max())
+    np.testing.assert_allclose(model.stage_loads(spec).release, shapes @ load_coefficients(spec))
+    f_l = lining.body.restrict(model._lining_shape())
+    residual = lining.body.K @ lining_response - f_l  # the pinned DOF carries the lining's balance
+    assert np.sum(np.abs(residual) > 1e-9 * np.abs(f_l).max()) <= 1
+    before = model.solve(spec)
+    model.drop_factorizations()
+    assert not model._responses and not model._S and model.timings["factorization"] == 0.0
+    after = model.solve(spec)
+    np.testing.assert_array_equal(after.u_ground, before.u_ground)
+    np.testing.assert_array_equal(after.lam, before.lam)
+    assert model.timings["factorization"] > 0.0
+
+
 def test_volume_loss_integrates_the_settling_part_of_the_trough():
     from solver.dataset import volume_loss
 
