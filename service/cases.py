@@ -17,7 +17,7 @@ from workflows.artifacts import render_plot
 from .errors import responses
 from .guards import check_capacity, require_token
 from .params import NETCDF, CaseId, Offset, jobs_of, not_found, not_ready
-from .schemas import Case, CaseAccepted, CasePage, Status
+from .schemas import Case, CaseAccepted, CasePage, Status, json_response
 
 router = APIRouter(prefix="/cases", tags=["cases"])
 
@@ -33,8 +33,7 @@ RETRY_QUERY = Query(None, description="'failed': recompute the case(s) that fail
 
 @router.post("", status_code=202, response_model=CaseAccepted,
              dependencies=[Depends(require_token)], responses=responses(401, 413, 422, 429, 503))
-async def submit_case(spec: CaseSpec, request: Request, response: Response,
-                      retry: Optional[Retry] = RETRY_QUERY) -> CaseAccepted:
+async def submit_case(spec: CaseSpec, request: Request, retry: Optional[Retry] = RETRY_QUERY) -> Response:
     """Record a case and queue it; a case seen before is returned as it is, not recomputed
     (unless ``retry=failed`` and it failed)."""
     jobs = jobs_of(request)
@@ -53,8 +52,8 @@ async def submit_case(spec: CaseSpec, request: Request, response: Response,
         jobs.submit(record.id, spec_json)
     elif retry and await jobs.retry([record.id]):
         record = jobs.store.get_case(record.id)
-    response.headers["Location"] = f"/cases/{record.id}"
-    return CaseAccepted(**Case.of(record).model_dump(), created=created)
+    return json_response(CaseAccepted.of(record, created=created), status_code=202,
+                         headers={"Location": f"/cases/{record.id}"})
 
 
 @router.get("", response_model=CasePage, responses=responses(422))
@@ -70,8 +69,13 @@ async def list_cases(request: Request,
 
 
 @router.get("/{case_id}", response_model=Case, responses=responses(404))
-async def get_case(case_id: CaseId, request: Request) -> Case:
+async def get_case(case_id: CaseId, request: Request) -> Response:
     """A case's status, spec, summary scalars and error."""
+    return json_response(read_case(request, case_id))
+
+
+def read_case(request: Request, case_id: str) -> Case:
+    """The case ``case_id`` as the API shows it (404 if unknown)."""
     record = jobs_of(request).store.get_case(case_id)
     if record is None:
         raise not_found("case", case_id)

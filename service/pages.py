@@ -117,7 +117,7 @@ async def sweep_page(sweep_id: SweepId, request: Request) -> HTMLResponse:
 
 @router.get("/ui/cases/{case_id}", response_class=HTMLResponse)
 async def case_page(case_id: CaseId, request: Request) -> HTMLResponse:
-    case = await cases.get_case(case_id, request)  # an unknown case: the error page (service.errors)
+    case = cases.read_case(request, case_id)  # an unknown case: the error page (service.errors)
     values = {**(case.summary or {}), **{k: float(v) for k, v in case.non_finite.items()}}  # inf shown as inf
     columns = [scalar_column(n) for n in ordered_scalars(values)]
     return await _render(request, "case.html", case=case, values=values, columns=columns, plots=list(PLOTS))

@@ -23,7 +23,7 @@ import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Optional, Sequence
+from typing import Iterable, Mapping, Optional, Sequence
 
 logger = logging.getLogger(__name__)
 
@@ -105,7 +105,7 @@ def _json(text: Optional[str], default):
         return default if default is not None else {UNREADABLE: f"not JSON ({exc})"}
 
 
-def _case(row: sqlite3.Row) -> CaseRecord:
+def _case(row: Mapping) -> CaseRecord:
     spec = _json(row["spec"], None)
     summary = _json(row["summary"], {})
     return CaseRecord(
@@ -235,10 +235,16 @@ class JobStore:
 
     def add_case(self, case_id: str, spec_json: str) -> tuple[CaseRecord, bool]:
         """Record a case as queued unless it exists; return the record and whether it is new."""
+        now = time.time()
         created = self._write(
             "INSERT OR IGNORE INTO cases (id, spec, status, submitted_at) VALUES (?, ?, 'queued', ?)",
-            (case_id, spec_json, time.time())) == 1
-        return self.get_case(case_id), created
+            (case_id, spec_json, now)) == 1
+        if not created:
+            return self.get_case(case_id), False
+        # the row just inserted, without reading it back (the columns' defaults)
+        return _case({"id": case_id, "spec": spec_json, "status": "queued", "summary": None, "error": None,
+                      "submitted_at": now, "started_at": None, "finished_at": None, "submissions": 0,
+                      "warnings": None}), True
 
     def get_case(self, case_id: str) -> Optional[CaseRecord]:
         rows = self._read("SELECT * FROM cases WHERE id = ?", (case_id,))

@@ -100,7 +100,27 @@ def test_a_new_case_is_queued_and_created(client):
     body = response.json()
     assert body["created"] is True and body["status"] in ("queued", "running", "done")
     assert response.headers["location"] == f"/cases/{body['id']}"
+    assert response.headers["content-type"] == "application/json"
+    read = client.get(response.headers["location"]).json()
+    if read["status"] == body["status"]:
+        assert {k: v for k, v in body.items() if k != "created"} == read
     assert finished(client, body["id"])["status"] == "done"
+
+
+def test_a_new_case_answer_is_the_record_as_stored(tmp_path):
+    """``POST /cases`` answers a new case from the values it inserted (no read-back): the
+    same record the store then reads, and the same body ``GET /cases/{id}`` serves."""
+    from service.schemas import Case
+    from service.store import JobStore
+
+    store = JobStore(tmp_path / "jobs.sqlite")
+    try:
+        for i, spec_json in enumerate(('{"a": 1}', '{not json')):  # a damaged spec reads back alike
+            record, created = store.add_case(f"{i:016x}", spec_json)
+            assert created and record == store.get_case(record.id)
+            assert Case.of(record).model_dump_json() == Case.of(store.get_case(record.id)).model_dump_json()
+    finally:
+        store.close()
 
 
 def test_solver_failure_is_recorded_as_failed_with_its_error(client):
