@@ -12,7 +12,12 @@ and the same clients keep submitting new cases until they are refused; reported 
 cases were open at the first 429, how many submissions were accepted per second up to it, and
 the latency of the 429 answers.
 
+With ``--cpu``, only the API's CPU time per ``POST /cases`` and per ``GET /cases/{id}``
+(one sequential client): the figure to compare code by, since the host's noise moves
+the latencies above by a third from run to run.
+
     python -m bench.service [--json] [--clients 20] [--submissions 200] [--max-open 400] [--nice N] [--scheduler ADDR]
+    python -m bench.service --cpu
 """
 from __future__ import annotations
 
@@ -187,6 +192,37 @@ def load(url: str, clients: int, submissions: int) -> dict:
             "busy_before": busy_before, "busy_after": busy_after, "backlog": backlog_state}
 
 
+def api_cpu(url: str, requests: int = 1500) -> dict:
+    """CPU milliseconds the API process spends per ``POST /cases`` (a new case) and per
+    ``GET /cases/{id}``, from one sequential client: a figure the host's noise leaves
+    alone, unlike latency (CPU time of the process, read from the OS)."""
+    import psutil
+
+    port = f"--port {urlsplit(url).port}"
+    api = next(p for p in psutil.process_iter(["cmdline"])
+               if "serve" in (p.info["cmdline"] or []) and port in " ".join(p.info["cmdline"] or []))
+
+    def used() -> float:
+        times = api.cpu_times()
+        return times.user + times.system
+
+    client = LightClient(url)
+    try:
+        for i in range(100):  # warm-up
+            client.request("POST", "/cases", submission(20 * requests + i))
+        start = used()
+        locations = [client.request("POST", "/cases", submission(30 * requests + i))[1]["location"]
+                     for i in range(requests)]
+        posted = used()
+        for location in locations:
+            client.request("GET", location)
+        got = used()
+    finally:
+        client.close()
+    return {"requests": requests, "post_cpu_ms": 1e3 * (posted - start) / requests,
+            "get_cpu_ms": 1e3 * (got - posted) / requests}
+
+
 def percentiles(samples: list[float]) -> dict:
     ms = np.asarray(samples) * 1e3
     return {"n": int(ms.size), "p50_ms": float(np.percentile(ms, 50)), "p99_ms": float(np.percentile(ms, 99)),
@@ -201,6 +237,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--scheduler", default=None, help="use this scheduler instead of starting one")
     parser.add_argument("--workers", type=int, default=2, help="worker processes to start")
     parser.add_argument("--nice", type=int, default=0, help="CPU niceness of the started workers")
+    parser.add_argument("--cpu", action="store_true",
+                        help="only measure the API's CPU per request (one sequential client)")
     parser.add_argument("--max-open", type=int, default=400,
                         help="TUNNEL_CONTACT_MAX_OPEN_CASES of the service (the 429 threshold)")
     args = parser.parse_args(argv)
@@ -210,7 +248,14 @@ def main(argv: list[str] | None = None) -> int:
         scheduler = args.scheduler or stack.enter_context(running_cluster(args.workers, logs=work, nice=args.nice))
         url = stack.enter_context(running_service(work / "results", scheduler=scheduler,
                                                   log=work / "api.log", workers=1,
-                                                  env={"TUNNEL_CONTACT_MAX_OPEN_CASES": str(args.max_open)}))
+                                                  env={"TUNNEL_CONTACT_MAX_OPEN_CASES":
+                                                       str(10**6 if args.cpu else args.max_open)}))
+        if args.cpu:
+            cpu = api_cpu(url)
+            print(json.dumps(cpu, indent=1) if args.json else
+                  f"API CPU per request ({cpu['requests']} each, one client): POST /cases "
+                  f"{cpu['post_cpu_ms']:.3f} ms, GET /cases/{{id}} {cpu['get_cpu_ms']:.3f} ms")
+            return 0
         raw = load(url, args.clients, args.submissions)
         full = saturate(url, args.clients, offset=10 * args.submissions)
 

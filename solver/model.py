@@ -7,15 +7,20 @@ interface model, solver options or design inputs (SPEC §1.1-§1.3)::
 
     model = TunnelModel(spec)            # mesh, assembly, factorization: once
     for case in cases:                   # same model_key(case)
-        solution = model.solve(case)     # a few triangular solves + the contact solve
+        solution = model.solve(case)     # the contact solve + two triangular solves
 
 Stages (``excavation.method = "deconfinement"``, SPEC §1.1): the geostatic state σ0
 needs no solve (zero displacement); the excavation load is the discrete one, the
 nodal forces ``r = f_ext - ∫Bᵀσ0`` that σ0 leaves unbalanced on the ground with its
 hole (zero at every free node off the excavation boundary: the unexcavated discrete
-ground is in exact equilibrium). Stage 1 releases ``λd r`` on the ground alone (one
-more triangular solve with the ground factor); stage 2 releases ``(1 - λd) r`` with
-the lining in place and its weight, with contact on the increment.
+ground is in exact equilibrium). Stage 1 releases ``λd r`` on the ground alone; stage 2
+releases ``(1 - λd) r`` with the lining in place and its weight, with contact on the
+increment.
+
+Solves. Every load is linear in ρg, q, K0·q and K0·ρg (:data:`LOAD_TERMS`), so a model
+solves those four ground load shapes and the lining's unit weight once (one block solve
+per body); a case combines the responses, so neither stage costs it a solve, and only
+recovering the displacements from its contact tractions does (one solve per body).
 """
 from __future__ import annotations
 
@@ -359,8 +364,8 @@ class TunnelModel:
         """Loads, the stage-1 ground displacement, ``K⁺f`` of both bodies for the contact
         stage, ``d = B K⁺ f`` and the lining's vertical load F2.
 
-        Both stages release parts of one excavation load, so one solve serves both:
-        ``u1 = λd K⁻¹r`` and the contact stage's ``K⁻¹f = (1 - λd) K⁻¹r``.
+        Both stages release parts of one excavation load, ``K⁻¹r`` from the model's unit
+        responses: ``u1 = λd K⁻¹r`` and the contact stage's ``K⁻¹f = (1 - λd) K⁻¹r``.
         """
         rows = rows or rows_of_model(spec.interface.model)
         loads = self.stage_loads(spec)
