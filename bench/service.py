@@ -13,8 +13,9 @@ cases were open at the first 429, how many submissions were accepted per second 
 the latency of the 429 answers.
 
 With ``--cpu``, only the API's CPU time per ``POST /cases`` and per ``GET /cases/{id}``
-(one sequential client): the figure to compare code by, since the host's noise moves
-the latencies above by a third from run to run.
+(one sequential client), over HTTP and with the app called in process through ASGI (no
+server, no socket): the figures to compare code by, since the host's noise moves the
+latencies above by a third from run to run.
 
     python -m bench.service [--json] [--clients 20] [--submissions 200] [--max-open 400] [--nice N] [--scheduler ADDR]
     python -m bench.service --cpu
@@ -196,7 +197,7 @@ def api_cpu(url: str, requests: int = 1500) -> dict:
     """CPU milliseconds the API process spends per ``POST /cases`` (a new case) and per
     ``GET /cases/{id}``, from one sequential client: a figure the host's noise leaves
     alone, unlike latency (CPU time of the process, read from the OS)."""
-    import psutil
+    import psutil  # a dependency of distributed
 
     port = f"--port {urlsplit(url).port}"
     api = next(p for p in psutil.process_iter(["cmdline"])
@@ -221,6 +222,62 @@ def api_cpu(url: str, requests: int = 1500) -> dict:
         client.close()
     return {"requests": requests, "post_cpu_ms": 1e3 * (posted - start) / requests,
             "get_cpu_ms": 1e3 * (got - posted) / requests}
+
+
+async def _asgi(app, method: str, path: str, body: Optional[dict] = None) -> tuple[int, dict]:
+    """One request through the ASGI app itself (no server, no socket): status, headers."""
+    import asyncio
+
+    data = b"" if body is None else json.dumps(body).encode()
+    scope = {"type": "http", "asgi": {"version": "3.0"}, "http_version": "1.1", "method": method,
+             "scheme": "http", "path": path, "raw_path": path.encode(), "query_string": b"", "root_path": "",
+             "headers": [(b"host", b"127.0.0.1"), (b"content-type", b"application/json"),
+                         (b"content-length", str(len(data)).encode())],
+             "client": ("127.0.0.1", 1), "server": ("127.0.0.1", 80)}
+    messages = [{"type": "http.request", "body": data, "more_body": False}]
+    answer: dict = {}
+
+    async def receive() -> dict:
+        if messages:
+            return messages.pop()
+        await asyncio.Event().wait()  # the client never disconnects
+        return {}
+
+    async def send(message: dict) -> None:
+        if message["type"] == "http.response.start":
+            answer["status"], answer["headers"] = message["status"], dict(message["headers"])
+
+    await app(scope, receive, send)
+    return answer["status"], {k.decode(): v.decode() for k, v in answer["headers"].items()}
+
+
+def app_cpu(scheduler: str, root: Path, requests: int = 2000) -> dict:
+    """:func:`api_cpu` with the app called in this process through ASGI: the CPU of the
+    routes, FastAPI and the job records without uvicorn and the kernel's sockets."""
+    import asyncio
+
+    from service.app import create_app
+    from service.settings import Settings
+
+    async def run() -> dict:
+        app = create_app(Settings(scheduler=scheduler, results=root, max_open_cases=10**6))
+        async with app.router.lifespan_context(app):
+            for i in range(100):  # warm-up
+                await _asgi(app, "POST", "/cases", submission(40 * requests + i))
+            start = time.process_time()
+            locations = []
+            for i in range(requests):
+                locations.append((await _asgi(app, "POST", "/cases", submission(50 * requests + i)))[1]["location"])
+                if i % 20 == 19:
+                    await asyncio.sleep(0)  # let the batches go to the scheduler, as a server would
+            posted = time.process_time()
+            for location in locations:
+                await _asgi(app, "GET", location)
+            got = time.process_time()
+        return {"requests": requests, "post_cpu_ms": 1e3 * (posted - start) / requests,
+                "get_cpu_ms": 1e3 * (got - posted) / requests}
+
+    return asyncio.run(run())
 
 
 def percentiles(samples: list[float]) -> dict:
@@ -251,10 +308,12 @@ def main(argv: list[str] | None = None) -> int:
                                                   env={"TUNNEL_CONTACT_MAX_OPEN_CASES":
                                                        str(10**6 if args.cpu else args.max_open)}))
         if args.cpu:
-            cpu = api_cpu(url)
-            print(json.dumps(cpu, indent=1) if args.json else
-                  f"API CPU per request ({cpu['requests']} each, one client): POST /cases "
-                  f"{cpu['post_cpu_ms']:.3f} ms, GET /cases/{{id}} {cpu['get_cpu_ms']:.3f} ms")
+            cpu = {"http": api_cpu(url), "in_process": app_cpu(scheduler, work / "in-process")}
+            if args.json:
+                print(json.dumps(cpu, indent=1))
+            for how, c in cpu.items() if not args.json else ():
+                print(f"API CPU per request, {how.replace('_', ' ')} ({c['requests']} each, one client): "
+                      f"POST /cases {c['post_cpu_ms']:.3f} ms, GET /cases/{{id}} {c['get_cpu_ms']:.3f} ms")
             return 0
         raw = load(url, args.clients, args.submissions)
         full = saturate(url, args.clients, offset=10 * args.submissions)
