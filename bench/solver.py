@@ -17,11 +17,13 @@ from __future__ import annotations
 
 import os
 
-# One BLAS thread, as dask's nannies give every worker (set before numpy loads OpenBLAS).
-# Two threads on this machine's two cores made the contact solves 1.1-3x slower and
-# erratic (a dense solve's second thread waits for a core).
-for _var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")
+if __name__ == "__main__":
+    # One BLAS thread, as dask's nannies give every worker (set before numpy loads
+    # OpenBLAS; only when run, not when imported). Two threads on this machine's two cores
+    # made the contact solves 1.1-3x slower and erratic (a dense solve's second thread
+    # waits for a core).
+    for _var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+        os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
 import time  # noqa: E402

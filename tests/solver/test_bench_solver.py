@@ -1,0 +1,21 @@
+"""``python -m bench.solver`` runs through the one solver path and its ratios are what its
+table says they are (a smoke test at a coarse mesh; timings themselves are not asserted)."""
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from bench.solver import bench_size
+
+
+def test_solver_benchmark_row_is_consistent():
+    row = bench_size(0.3, 8.0, repeat=2)
+    for key in ("floor_s", "factorization_s", "flexibility_s", "first_contact_s", "next_contact_s",
+                "uzawa_contact_s", "run_case_s"):
+        assert math.isfinite(row[key]) and row[key] > 0.0, key
+    assert row["first_ratio"] == pytest.approx(
+        (row["factorization_s"] + row["flexibility_s"] + row["first_contact_s"]) / row["floor_s"])
+    assert row["next_ratio"] == pytest.approx((row["factorization_s"] + row["next_contact_s"]) / row["floor_s"])
+    assert row["dof"] > 0 and row["interface_nodes"] > 0 and row["active_set_iterations"] >= 1
+    assert 0.0 < row["max_abs_moment_kNm"] < 1e4
