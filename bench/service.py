@@ -340,7 +340,8 @@ def main(argv: list[str] | None = None) -> int:
             cpu = {"http": api_cpu(url), "in_process": app_cpu(scheduler, work / "in-process")}
             if args.json:
                 print(json.dumps(cpu, indent=1))
-            for how, c in cpu.items() if not args.json else ():
+                return 0
+            for how, c in cpu.items():
                 print(f"API CPU per request, {how.replace('_', ' ')} ({c['requests']} each, one client): "
                       f"POST /cases {c['post_cpu_ms']:.3f} ms, GET /cases/{{id}} {c['get_cpu_ms']:.3f} ms")
             return 0
