@@ -222,35 +222,48 @@ def load(url: str, clients: int, submissions: int) -> dict:
             "busy_before": busy_before, "busy_after": busy_after, "backlog": backlog_state}
 
 
+async def _cpu_per_request(request, cpu, requests: int, first: int) -> dict:
+    """CPU milliseconds per ``POST /cases`` (a new case) and per ``GET /cases/{id}``: after
+    100 warm-up posts, ``requests`` posts, then a read of each; ``request(method, path,
+    body)`` (a coroutine) answers ``(status, headers)``, ``cpu()`` is the process's CPU
+    seconds so far."""
+    import asyncio
+
+    for i in range(100):
+        await request("POST", "/cases", submission(first + i))
+    start = cpu()
+    locations = []
+    for i in range(requests):
+        locations.append((await request("POST", "/cases", submission(first + 100 + i)))[1]["location"])
+        if i % 20 == 19:
+            await asyncio.sleep(0)  # in process: let the batches go to the scheduler, as a server would
+    posted = cpu()
+    for location in locations:
+        await request("GET", location)
+    got = cpu()
+    return {"requests": requests, "post_cpu_ms": 1e3 * (posted - start) / requests,
+            "get_cpu_ms": 1e3 * (got - posted) / requests}
+
+
 def api_cpu(url: str, requests: int = 1500) -> dict:
-    """CPU milliseconds the API process spends per ``POST /cases`` (a new case) and per
-    ``GET /cases/{id}``, from one sequential client: a figure the host's noise leaves
-    alone, unlike latency (CPU time of the process, read from the OS)."""
+    """:func:`_cpu_per_request` of the API process from one sequential client: a figure the
+    host's noise leaves alone, unlike latency (CPU time of the process, read from the OS)."""
+    import asyncio
+
     import psutil  # a dependency of distributed
 
     port = f"--port {urlsplit(url).port}"
     api = next(p for p in psutil.process_iter(["cmdline"])
                if "serve" in (p.info["cmdline"] or []) and port in " ".join(p.info["cmdline"] or []))
-
-    def used() -> float:
-        times = api.cpu_times()
-        return times.user + times.system
-
     client = LightClient(url)
+
+    async def request(method: str, path: str, body: Optional[dict] = None) -> tuple[int, dict]:
+        return client.request(method, path, body)[:2]
+
     try:
-        for i in range(100):  # warm-up
-            client.request("POST", "/cases", submission(20 * requests + i))
-        start = used()
-        locations = [client.request("POST", "/cases", submission(30 * requests + i))[1]["location"]
-                     for i in range(requests)]
-        posted = used()
-        for location in locations:
-            client.request("GET", location)
-        got = used()
+        return asyncio.run(_cpu_per_request(request, lambda: sum(api.cpu_times()[:2]), requests, 20 * requests))
     finally:
         client.close()
-    return {"requests": requests, "post_cpu_ms": 1e3 * (posted - start) / requests,
-            "get_cpu_ms": 1e3 * (got - posted) / requests}
 
 
 async def _asgi(app, method: str, path: str, body: Optional[dict] = None) -> tuple[int, dict]:
@@ -281,8 +294,8 @@ async def _asgi(app, method: str, path: str, body: Optional[dict] = None) -> tup
 
 
 def app_cpu(scheduler: str, root: Path, requests: int = 2000) -> dict:
-    """:func:`api_cpu` with the app called in this process through ASGI: the CPU of the
-    routes, FastAPI and the job records without uvicorn and the kernel's sockets."""
+    """:func:`_cpu_per_request` with the app called in this process through ASGI: the CPU
+    of the routes, FastAPI and the job records without uvicorn and the kernel's sockets."""
     import asyncio
 
     from service.app import create_app
@@ -291,20 +304,8 @@ def app_cpu(scheduler: str, root: Path, requests: int = 2000) -> dict:
     async def run() -> dict:
         app = create_app(Settings(scheduler=scheduler, results=root, max_open_cases=10**6))
         async with app.router.lifespan_context(app):
-            for i in range(100):  # warm-up
-                await _asgi(app, "POST", "/cases", submission(40 * requests + i))
-            start = time.process_time()
-            locations = []
-            for i in range(requests):
-                locations.append((await _asgi(app, "POST", "/cases", submission(50 * requests + i)))[1]["location"])
-                if i % 20 == 19:
-                    await asyncio.sleep(0)  # let the batches go to the scheduler, as a server would
-            posted = time.process_time()
-            for location in locations:
-                await _asgi(app, "GET", location)
-            got = time.process_time()
-        return {"requests": requests, "post_cpu_ms": 1e3 * (posted - start) / requests,
-                "get_cpu_ms": 1e3 * (got - posted) / requests}
+            return await _cpu_per_request(lambda *args: _asgi(app, *args), time.process_time, requests,
+                                          40 * requests)
 
     return asyncio.run(run())
 

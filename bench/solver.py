@@ -3,14 +3,14 @@ solver path (:class:`solver.model.TunnelModel`).
 
 Per size: DOF, interface nodes, seconds for meshing, assembly, factorization, the
 *floor* (factorizing both bodies plus one solve each: the linear elastic problem, which
-no contact solve can beat), then the contact stage (stage loads, stage-1 solve, bolt
-search, recovery) three times on the one model: the first active-set solve (it also
-builds the interface flexibility and the responses to the unit loads), the *next* one,
+no contact solve can beat), the interface flexibility, then the contact stage (stage
+loads, bolt search, recovery) three times on the one model: the first active-set solve
+(it also solves the model's unit loads), the *next* one,
 a different case on the same model (K0 and deconfinement changed, as in a sweep), and
 an Uzawa solve; the ratios (factorization + contact) / floor; and the whole
 ``run_case``. All timings of one size come from the same run.
 
-    python -m bench.solver [--json] [--sizes h:far,h:far,...]
+    python -m bench.solver [--json] [--sizes h:far,h:far,...] [--repeat N]
 """
 
 from __future__ import annotations

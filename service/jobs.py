@@ -83,7 +83,6 @@ class Dispatcher:
         self.client: Optional[Client] = None
         self._tracked: dict[str, Future] = {}
         self._pending: dict[str, str] = {}
-        self._force: set[str] = set()  # pending cases to recompute over a stored file
         self._scrubbed: set[str] = set()
         self._rounds = 0
         self._flush_timer: Optional[asyncio.TimerHandle] = None
@@ -129,10 +128,12 @@ class Dispatcher:
 
     # -- submission ----------------------------------------------------------------------
 
-    def submit(self, case_id: str, spec_json: str, *, force: bool = False) -> bool:
+    def submit(self, case_id: str, spec_json: str) -> bool:
         """Queue ``case_id`` for the next batch to the scheduler; False if already on its way.
 
-        ``force``: recompute even over a stored result file (a broken one, or a retry).
+        The task reads a stored result back and computes the case again when there is none
+        or it cannot be read (:meth:`workflows.store.ResultStore.solve_or_read`), so a
+        broken file or a failed case needs nothing more than a submission.
 
         Batches go out ``batch_delay`` seconds after their first case, as one scheduler
         update (a sweep, or many clients posting at once, cost the scheduler one graph
@@ -142,8 +143,6 @@ class Dispatcher:
         if case_id in self._tracked or case_id in self._pending:
             return False
         self._pending[case_id] = spec_json
-        if force:
-            self._force.add(case_id)
         if self._flush_timer is None:
             self._flush_timer = asyncio.get_running_loop().call_later(self.batch_delay, self._flush)
         return True
@@ -152,7 +151,6 @@ class Dispatcher:
         """Send the pending cases to the scheduler, fire-and-forget, and watch them."""
         self._flush_timer = None
         batch, self._pending = self._pending, {}
-        force, self._force = self._force, set()
         if not batch:
             return
         if not self.connected:
@@ -161,7 +159,7 @@ class Dispatcher:
         ids = list(batch)
         try:
             futures = self.client.map(solve_and_store, [batch[c] for c in ids], [str(self.root)] * len(ids),
-                                      [c in force for c in ids], key=[task_key(c) for c in ids], pure=False)
+                                      key=[task_key(c) for c in ids], pure=False)
             fire_and_forget(futures)
         except Exception:
             logger.exception("could not submit %d cases; they stay queued", len(ids))
@@ -181,7 +179,7 @@ class Dispatcher:
         records = self.store.get_cases(case_ids)
         _, broken = await self._recompute_unreadable([c for c, r in records.items() if r.status == "done"])
         failed = [c for c, r in records.items() if r.status == "failed"]
-        again = self._requeue({c: records[c] for c in failed}, statuses=("failed",), force=lambda c: True)
+        again = self._requeue({c: records[c] for c in failed}, statuses=("failed",))
         if again:
             logger.info("recomputing %d failed cases", len(again))
         return again + broken
@@ -207,20 +205,17 @@ class Dispatcher:
         unreadable = [c for c, state in states.items() if state != "readable"]
         if not unreadable:
             return states, []
-        again = self._requeue(self.store.get_cases(unreadable), statuses=("done",),
-                              force=lambda c: states[c] == "broken")
+        again = self._requeue(self.store.get_cases(unreadable), statuses=("done",))
         for case_id in again:
             logger.warning("result of case %s is %s: recomputing it", case_id, states[case_id])
         return states, again
 
-    def _requeue(self, records: dict[str, CaseRecord], *, statuses: tuple[str, ...],
-                 force: Callable[[str], bool]) -> list[str]:
+    def _requeue(self, records: dict[str, CaseRecord], *, statuses: tuple[str, ...]) -> list[str]:
         """Move the ``records`` still in one of ``statuses`` back to ``queued`` and submit
-        them (``force(case_id)``: over a stored file); return their ids."""
+        them; return their ids."""
         again = self.store.requeue(list(records), statuses=statuses)
         for case_id in again:
-            self.submit(case_id, CaseSpec.model_validate(records[case_id].spec).canonical_json(),
-                        force=force(case_id))
+            self.submit(case_id, CaseSpec.model_validate(records[case_id].spec).canonical_json())
         return again
 
     async def _watch(self, case_id: str, future: Future) -> None:
@@ -312,7 +307,7 @@ class Dispatcher:
             if spec is None:
                 continue
             self.store.mark_queued(case_id)
-            if self.submit(case_id, spec.canonical_json(), force=state == "broken"):
+            if self.submit(case_id, spec.canonical_json()):
                 logger.info("case %s resubmitted", case_id)
         await self._check_done_results()
         if self._rounds % 60 == 0:

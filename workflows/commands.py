@@ -29,7 +29,6 @@ from .store import ResultStore, StoreLike, as_store, case_warnings, check_case_i
 from .summary import summarize
 from .sweep import Sweep, SweepError, run_sweep
 
-logger = logging.getLogger(__name__)
 
 #: Columns of the comparison table: (summary scalar, header, unit, divisor to the shown unit).
 TABLE_COLUMNS: tuple[tuple[str, str, str, float], ...] = (
@@ -106,23 +105,16 @@ def run_command(case_file: str | None, results: str, *, force: bool = False, ret
     """
     spec = load_case(case_file)
     store = ResultStore(results)
-    summary = None
-    if not force and store.is_stored(spec.case_id):
-        try:
-            summary = store.read_summary(spec.case_id)
-        except Exception as exc:  # truncated or corrupted: never shown, computed again
-            logger.warning("stored result of case %s is unreadable (%s); recomputing", spec.case_id, exc)
-    elif not force and not retry_failed:
+    if not force and not retry_failed and not store.is_stored(spec.case_id):
         error = store.read_error(spec.case_id)
         if error is not None:
             print(f"case {spec.case_id} failed before: {error['error']} (--retry-failed recomputes it)", file=out)
             return 1
-    if summary is None:
-        try:  # the summary of the new result, from memory
-            summary = store.solve_and_store(spec, force=True)
-        except SolverError as exc:
-            print(f"case {spec.case_id} failed: {exc}", file=out)
-            return 1
+    try:  # a stored result that cannot be read is computed again, never shown
+        summary, _, _ = store.solve_or_read(spec, force=force)
+    except SolverError as exc:
+        print(f"case {spec.case_id} failed: {exc}", file=out)
+        return 1
     print(f"case {spec.case_id} stored in {store.case_path(spec.case_id)}", file=out)
     print(format_summary(summary), file=out)
     return 0

@@ -195,22 +195,24 @@ class ResultStore:
         """The stored cases of ``case_ids`` whose file cannot be read (truncated, corrupted):
         to recompute, never to serve. Files the index vouches for are not opened; the rest
         are read once."""
-        broken = []
-        for case_id in self.index.unverified(case_ids):
-            try:
-                self.read_summary(case_id)
-            except FileNotFoundError:
-                continue
-            except Exception as exc:
-                logger.warning("stored result of case %s is unreadable (%s: %s); recomputing it",
-                               case_id, type(exc).__name__, exc)
-                broken.append(case_id)
-        return broken
+        return [c for c in self.index.unverified(case_ids) if self._readable_outcome(c) is None]
 
     def read_outcome(self, case_id: str) -> tuple[dict[str, float], list[str]]:
         """The scalars and the warnings (:func:`case_warnings`) of a stored case, one read."""
         with self.opened(case_id) as ds:
             return summarize(ds), case_warnings(ds)
+
+    def _readable_outcome(self, case_id: str) -> tuple[dict[str, float], list[str]] | None:
+        """:meth:`read_outcome`, or None when the file is gone or cannot be read (a truncated
+        or corrupted file is logged: it is to be recomputed, never served)."""
+        try:
+            return self.read_outcome(case_id)
+        except FileNotFoundError:
+            return None
+        except Exception as exc:
+            logger.warning("stored result of case %s is unreadable (%s: %s); recomputing it",
+                           case_id, type(exc).__name__, exc)
+            return None
 
     def read_error(self, case_id: str) -> dict[str, Any] | None:
         """The error record of ``case_id``, or None if it has none."""
@@ -246,17 +248,26 @@ class ResultStore:
     def solve_and_store(self, spec: CaseSpec, *, force: bool = False) -> dict[str, float] | None:
         """:meth:`run_and_store` returning the new result's scalars (from memory, not read
         back), or None when the case was already stored and not recomputed."""
-        return self.solve_and_report(spec, force=force)[0]
+        if not force and self.is_stored(spec.case_id):
+            logger.info("case %s already stored, not recomputed", spec.case_id)
+            return None
+        return self._solve(spec)[0]
 
-    def solve_and_report(self, spec: CaseSpec, *, force: bool = False
-                         ) -> tuple[dict[str, float] | None, list[str]]:
-        """:meth:`solve_and_store` and the new result's warnings (:func:`case_warnings`):
-        ``(None, [])`` when the case was already stored and not recomputed."""
-        case_id = spec.case_id
-        if not force and self.is_stored(case_id):
-            logger.info("case %s already stored, not recomputed", case_id)
-            return None, []
-        logger.info("solving case %s", case_id)
+    def solve_or_read(self, spec: CaseSpec, *, force: bool = False
+                      ) -> tuple[dict[str, float], list[str], bool]:
+        """The scalars and warnings (:func:`case_warnings`) of ``spec``'s result and whether
+        they were computed now: read from the stored file unless ``force``, computed (and
+        stored) when there is none or it cannot be read."""
+        if not force and self.is_stored(spec.case_id):
+            outcome = self._readable_outcome(spec.case_id)
+            if outcome is not None:
+                return (*outcome, False)
+        return (*self._solve(spec), True)
+
+    def _solve(self, spec: CaseSpec) -> tuple[dict[str, float], list[str]]:
+        """Solve and store ``spec``; its scalars and warnings, from memory. A solver failure
+        is recorded (:meth:`write_error`) and re-raised."""
+        logger.info("solving case %s", spec.case_id)
         try:
             # cases sharing geometry, mesh and materials reuse one factorized model per process
             ds = solver.run_case(spec, model=shared_model(spec))

@@ -202,8 +202,7 @@ def run_sweep(sweep: Sweep | dict[str, Any], root: StoreLike, client=None, *, pr
         return ids
     store = ResultStore(os.path.abspath(store.root))
     with _client_or_local(client) as c:
-        submitted = submit_cases(c, [s for s in todo if s.case_id not in broken], store, force=force)
-        submitted.update(submit_cases(c, [s for s in todo if s.case_id in broken], store, force=True))
+        submitted = submit_cases(c, todo, store, force=force)  # a task computes an unreadable file again
         bar = tqdm(total=len(todo), desc=f"sweep {sweep.name}", unit="case") if progress else None
         try:
             for future in as_completed(submitted):

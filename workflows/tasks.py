@@ -32,7 +32,8 @@ def case_id_of_key(key: object) -> str | None:
 
 
 def solve_and_store(spec_json: str, root: StoreLike, force: bool = False) -> dict:
-    """Solve the case ``spec_json`` into the store at ``root`` unless it is stored.
+    """Solve the case ``spec_json`` into the store at ``root`` unless it is stored and
+    readable (:meth:`ResultStore.solve_or_read`: a truncated file is computed again).
 
     A pure function of its arguments (the same case always gives the same file), so
     it is safe to run on any worker that sees ``root``.
@@ -41,7 +42,7 @@ def solve_and_store(spec_json: str, root: StoreLike, force: bool = False) -> dic
     ----------
     spec_json : the case as JSON (validated here again).
     root : the result store (or its folder), as seen by the worker.
-    force : recompute even if the result exists.
+    force : recompute even if a readable result exists.
 
     Returns
     -------
@@ -62,13 +63,10 @@ def solve_and_store(spec_json: str, root: StoreLike, force: bool = False) -> dic
     case_id = spec.case_id
     start = time.perf_counter()
     try:
-        summary, warnings = store.solve_and_report(spec, force=force)
-    except Exception as exc:  # recorded in the store by solve_and_store; the sweep goes on
+        summary, warnings, computed = store.solve_or_read(spec, force=force)
+    except Exception as exc:  # recorded in the store by solve_or_read; the sweep goes on
         return {"case_id": case_id, "status": "failed", "error": f"{type(exc).__name__}: {exc}",
                 "summary": {}, "warnings": [], "computed": True, "seconds": time.perf_counter() - start}
-    computed = summary is not None
-    if not computed:  # stored before: its file says both
-        summary, warnings = store.read_outcome(case_id)
     return {"case_id": case_id, "status": "done", "error": None, "summary": summary, "warnings": warnings,
             "computed": computed, "seconds": time.perf_counter() - start}
 

@@ -118,6 +118,15 @@ def test_task_function(tmp_path):
     assert computed["warnings"] and stored["warnings"] == computed["warnings"]
     assert any("small-displacement" in w or "displacement" in w for w in computed["warnings"]), computed["warnings"]
 
+    # a stored file that cannot be read is computed again, not reported as stored
+    path = case_path(tmp_path, spec.case_id)
+    path.write_bytes(path.read_bytes()[:1000])
+    healed = solve_and_store(spec.canonical_json(), str(tmp_path))
+    assert healed["status"] == "done" and healed["computed"]
+    physics = {k: v for k, v in first["summary"].items() if k != "solve_seconds"}
+    assert {k: healed["summary"][k] for k in physics} == physics
+    assert float(open_case(tmp_path, spec.case_id)["max_thrust"]) == float(ds["max_thrust"])
+
     failing = CaseSpec.model_validate({**COARSE, "solver": {"inner": "uzawa", "max_iterations": 1}})
     result = solve_and_store(failing.canonical_json(), str(tmp_path))
     assert result["status"] == "failed" and result["summary"] == {}
