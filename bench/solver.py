@@ -41,8 +41,8 @@ SIZES = [(0.1, 4.0), (0.05, 2.0), (0.025, 1.0)]
 def _floor(model: TunnelModel) -> float:
     t0 = time.perf_counter()
     for fb in (model.ground, model.lining):
-        K, groups = fb.matrix()  # what the model factorizes, with nothing ordered last
-        InterfaceFactor(K, np.array([], dtype=np.int64), groups).solve(np.ones(K.shape[0]))
+        K, order = fb.matrix()  # what the model factorizes and its ordering, nothing ordered last
+        InterfaceFactor(K, np.array([], dtype=np.int64), order).solve(np.ones(K.shape[0]))
     return time.perf_counter() - t0
 
 

@@ -22,7 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .assembly import Body
-from .linalg import InterfaceFactor
+from .linalg import InterfaceFactor, nested_dissection
 from .mesh import Interface
 
 
@@ -95,43 +95,67 @@ class FactoredBody:
 
     def matrix(self) -> tuple[sp.spmatrix, np.ndarray]:
         """The matrix every factorization of this body is of (``K`` without the pinned DOF)
-        and the mesh node of each of its unknowns."""
-        groups = self.body.node_of_dof()
-        return self._restrict(self.body.K), groups if self._keep is None else groups[self._keep]
+        and its fill-reducing ordering (computed on each call)."""
+        nodes = self.body.node_of_dof()
+        nodes = nodes if self._keep is None else nodes[self._keep]
+        return self._restrict(self.body.K), nested_dissection(self.body.basis.mesh, nodes)
 
     def factor(self, rows: Rows) -> tuple[InterfaceFactor, sp.csr_matrix]:
         """The factorization serving ``rows`` and those rows of ``B`` in its unknowns (built
         on first use)."""
         if rows not in self._factors:
-            K, groups = self.matrix()
+            K, order = self.matrix()
             if rows == "normal":
                 T, B = normal_rotation(self.body, self.B[: self.m])
                 T, B = self._restrict(T), self._columns(B)
-                factor = InterfaceFactor(K, np.unique(B.indices), groups, rotation=T)
+                factor = InterfaceFactor(K, np.unique(B.indices), order, rotation=T)
             else:
                 B = self._columns(self.B)
-                factor = InterfaceFactor(K, np.unique(B.indices), groups)
-            self._factors[rows] = (factor, B)
+                factor = InterfaceFactor(K, np.unique(B.indices), order)
+            on_last = B[:, factor.last].tocsr()
+            if on_last.nnz != B.nnz:
+                raise AssertionError("interface rows reach beyond the trailing block")
+            self._factors[rows] = (factor, on_last)
         return self._factors[rows]
-
-    def solve(self, rhs: np.ndarray, rows: Rows = "normal") -> np.ndarray:
-        """``K⁺ rhs`` on the free DOFs (the pinned DOF, if any, is zero)."""
-        factor, _ = self.factor(rows)
-        if self._keep is None:
-            return factor.solve(rhs)
-        x = np.zeros_like(rhs)
-        x[self._keep] = factor.solve(rhs[self._keep])
-        return x
 
     def flexibility(self, rows: Rows) -> np.ndarray:
         """Dense ``B K⁺ Bᵀ`` of the normal rows or of all rows, by one triangular solve on the
         trailing factor block."""
-        factor, B = self.factor(rows)
-        last = factor.perm[factor.n - factor.k:]
-        on_last = B[:, last]
-        if on_last.nnz != B.nnz:
-            raise AssertionError("interface rows reach beyond the trailing block")
+        factor, on_last = self.factor(rows)
         return factor.flexibility(on_last.toarray())
+
+    # A load case in two halves around the contact solve: ``forward`` its load, read the
+    # interface jumps ``B K⁺ f`` it gives, solve the contact problem, then ``backward`` with
+    # the interface tractions: one forward and one backward triangular solve in all.
+    def forward(self, f: np.ndarray, rows: Rows) -> np.ndarray:
+        """The first half of ``K⁺ f`` (``f`` on the free DOFs), for :meth:`jumps` and
+        :meth:`backward`."""
+        factor, _ = self.factor(rows)
+        return factor.forward(f if self._keep is None else f[self._keep])
+
+    def jumps(self, y: np.ndarray, rows: Rows) -> np.ndarray:
+        """``B K⁺ f`` at the rows the factorization serves (the m normal rows for
+        ``"normal"``, all rows for ``"all"``), from ``y = forward(f)``."""
+        factor, on_last = self.factor(rows)
+        return on_last @ factor.interface(y)
+
+    def backward(self, y: np.ndarray, rows: Rows, Wt: np.ndarray | None = None) -> np.ndarray:
+        """``K⁺ (f - Bᵀ Wt)`` on the free DOFs (the pinned DOF, if any, is zero) from
+        ``y = forward(f)``; ``Wt`` (R,) weighted interface tractions, zero on the rows the
+        factorization does not serve."""
+        factor, on_last = self.factor(rows)
+        if Wt is not None:
+            y = y - factor.lift(on_last.T @ Wt[: on_last.shape[0]])
+        x = factor.backward(y)
+        if self._keep is None:
+            return x
+        u = np.zeros((self.body.n,) + x.shape[1:])
+        u[self._keep] = x
+        return u
+
+    def solve(self, rhs: np.ndarray, rows: Rows = "normal") -> np.ndarray:
+        """``K⁺ rhs`` on the free DOFs (the pinned DOF, if any, is zero)."""
+        return self.backward(self.forward(rhs, rows), rows)
 
 
 def normal_rotation(body: Body, B_normal: sp.csr_matrix) -> tuple[sp.csr_matrix, sp.csr_matrix]:
@@ -144,30 +168,26 @@ def normal_rotation(body: Body, B_normal: sp.csr_matrix) -> tuple[sp.csr_matrix,
     symmetry line keeps its one free DOF, which its normal row already is.
     """
     n = body.n
-    node_of_dof = body.node_of_dof()
+    B = sp.csr_matrix(B_normal)
+    rows = np.flatnonzero(np.diff(B.indptr) > 0)
+    dx, dy = body.free_of[:, body.node_of_dof()[B.indices[B.indptr[rows]]]]
+    both = (dx >= 0) & (dy >= 0)
+    rows, dx, dy = rows[both], dx[both], dy[both]
+    c = np.vstack([np.asarray(B[rows, dx]).ravel(), np.asarray(B[rows, dy]).ravel()])
+    length = np.hypot(*c)
+    nx, ny = c / length
+    # columns: T[:, dx] = (nx, ny) (normal), T[:, dy] = (-ny, nx) (tangent)
     diag = np.ones(n)
-    rows, cols, vals = [np.arange(n)], [np.arange(n)], [diag]
-    rotated = B_normal.tolil(copy=True)
-    for i in range(B_normal.shape[0]):
-        span = slice(B_normal.indptr[i], B_normal.indptr[i + 1])
-        dofs, coefficients = B_normal.indices[span], B_normal.data[span]
-        if dofs.size == 0:
-            continue
-        dx, dy = body.free_of[:, node_of_dof[dofs[0]]]
-        if dx < 0 or dy < 0:
-            continue
-        c = np.zeros(2)
-        c[(dofs == dy).astype(int)] = coefficients
-        length = np.hypot(*c)
-        nx, ny = c / length
-        # columns: T[:, dx] = (nx, ny) (normal), T[:, dy] = (-ny, nx) (tangent)
-        diag[dx] = diag[dy] = nx
-        rows.append(np.array([dy, dx]))
-        cols.append(np.array([dx, dy]))
-        vals.append(np.array([ny, -ny]))
-        rotated.rows[i], rotated.data[i] = [int(dx)], [float(length)]
-    T = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
-    return T, rotated.tocsr()
+    diag[dx] = diag[dy] = nx
+    T = sp.csr_matrix((np.concatenate([diag, ny, -ny]),
+                       (np.concatenate([np.arange(n), dy, dx]), np.concatenate([np.arange(n), dx, dy]))),
+                      shape=(n, n))
+    coo = B.tocoo()
+    keep = ~np.isin(coo.row, rows)
+    rotated = sp.csr_matrix((np.concatenate([coo.data[keep], length]),
+                             (np.concatenate([coo.row[keep], rows]), np.concatenate([coo.col[keep], dx]))),
+                            shape=B.shape)
+    return T, rotated
 
 
 def lining_pin(body: Body, interface_nodes: np.ndarray) -> int:

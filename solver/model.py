@@ -17,10 +17,14 @@ ground is in exact equilibrium). Stage 1 releases ``λd r`` on the ground alone;
 releases ``(1 - λd) r`` with the lining in place and its weight, with contact on the
 increment.
 
-Solves. Every load is linear in ρg, q, K0·q and K0·ρg (:data:`LOAD_TERMS`), so a model
-solves those four ground load shapes and the lining's unit weight once (one block solve
-per body); a case combines the responses, so neither stage costs it a solve, and only
-recovering the displacements from its contact tractions does (one solve per body).
+Loads. Every load is linear in ρg, q, K0·q and K0·ρg (:data:`LOAD_TERMS`), so a model
+assembles those four ground load shapes and the lining's unit weight once; a case
+combines them. Solves. Each body's factorization has the interface unknowns last, so a
+case's solve splits around the contact problem: a forward solve of its load gives the
+interface jumps ``B K⁺ f``, and one backward solve with the contact tractions the
+displacements (:meth:`FactoredBody.forward`, :meth:`~FactoredBody.backward`): the
+triangular solves of one elastic solve per body, and one more backward solve on the
+ground for the stage-1 displacement of a staged excavation.
 """
 from __future__ import annotations
 
@@ -105,6 +109,17 @@ class StageLoads:
     release: np.ndarray | None
 
 
+@dataclass(frozen=True)
+class Forward:
+    """A case's loads solved forward (:meth:`FactoredBody.forward`): the contact stage's
+    ground and lining loads and, for a staged excavation, the whole release r and λd."""
+
+    ground: np.ndarray
+    lining: np.ndarray
+    release: np.ndarray | None = None
+    deconfinement: float = 0.0
+
+
 @dataclass
 class Solution:
     """The solved contact stage of one case, in SI units.
@@ -182,7 +197,6 @@ class TunnelModel:
         self.timings = {"mesh": t1 - t0, "assembly": t2 - t1, "factorization": 0.0}
         self._factorize(rows_of_model(spec.interface.model))
         self._units: dict[str, np.ndarray] = {}
-        self._responses: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]] = {}
         self._point_bases: dict = {}
 
     @property
@@ -190,13 +204,11 @@ class TunnelModel:
         return self.mesh.interface.size
 
     def drop_factorizations(self) -> None:
-        """Forget both bodies' factorizations and what was solved with them (flexibilities,
-        unit-load responses): their memory is freed and they are rebuilt, and timed, on
-        next use (``python -m bench.solver`` times them repeatedly this way)."""
+        """Forget both bodies' factorizations and the flexibilities computed with them:
+        their memory is freed and they are rebuilt, and timed, on next use (``python -m bench.solver`` times them repeatedly this way)."""
         for fb in (self.ground, self.lining):
             fb.drop()
         self._S.clear()
-        self._responses.clear()
         self.timings["factorization"] = 0.0
         self.timings.pop("flexibility", None)
 
@@ -287,23 +299,6 @@ class TunnelModel:
     def _lining_shape(self) -> np.ndarray:
         return self._unit("lining_gravity", lambda: gravity_load(self.lining.body.basis, 1.0, 1.0))
 
-    def _unit_responses(self, spec: CaseSpec, rows: Rows) -> tuple[np.ndarray, np.ndarray]:
-        """``K⁺`` of the ground's load shapes, (n, 4), and of the lining's unit weight, (n,),
-        on the free DOFs, with the factorization serving ``rows``: solved once per model
-        (all shapes in one block solve), so a case's loads cost no solve, only the
-        recovery of its contact tractions does."""
-        key = (spec.excavation.method, rows)
-        if key not in self._responses:
-            ground, lining = self.ground.body, self.lining.body
-            shapes = ground.restrict(self._shapes(spec, spec.excavation.method))
-            used = np.flatnonzero(np.any(shapes != 0.0, axis=0))
-            responses = np.zeros_like(shapes)
-            if used.size:
-                responses[:, used] = self.ground.solve(shapes[:, used], rows)
-            self._responses[key] = (responses,
-                                    self.lining.solve(lining.restrict(self._lining_shape()), rows))
-        return self._responses[key]
-
     # -- solve -------------------------------------------------------------------------
     def solve(self, spec: CaseSpec) -> Solution:
         """Solve ``spec`` (which must share this model's :func:`model_key`)."""
@@ -312,7 +307,7 @@ class TunnelModel:
         t0 = time.perf_counter()
         rows = rows_of_model(spec.interface.model)
         self._factorize(rows)
-        loads, u1, ug_f, ul_f, d, F2 = self._contact_stage(spec, rows)
+        loads, stage, d, F2 = self._contact_stage(spec, rows)
         ground, lining = self.ground, self.lining
         iface = self.mesh.interface
         m, g0, sv = self.m, spec.geometry.gap, spec.solver
@@ -333,8 +328,10 @@ class TunnelModel:
             t = sol.t
         t_solve = time.perf_counter()
         Wt = self.w * t
-        u_g = ug_f - ground.solve(ground.B.T @ Wt, rows)
-        u_l = ul_f - lining.solve(lining.B.T @ Wt, rows) + sol.a * self.rigid
+        u_g = ground.backward(stage.ground, rows, Wt)
+        u_l = lining.backward(stage.lining, rows, Wt) + sol.a * self.rigid
+        u1 = (stage.deconfinement * ground.backward(stage.release, rows) if stage.release is not None
+              else np.zeros_like(u_g))
         J = ground.B @ u_g + lining.B @ u_l
         lam = t[:m]
         shear = np.zeros(m)
@@ -361,24 +358,24 @@ class TunnelModel:
                         timings={"contact": t_solve - t0, "recovery": time.perf_counter() - t_solve})
 
     def _contact_stage(self, spec: CaseSpec, rows: Rows | None = None):
-        """Loads, the stage-1 ground displacement, ``K⁺f`` of both bodies for the contact
-        stage, ``d = B K⁺ f`` and the lining's vertical load F2.
+        """Loads, both bodies' loads of the contact stage solved forward (:class:`Forward`),
+        ``d = B K⁺ f`` at the rows the factorization serves and the lining's vertical load F2.
 
-        Both stages release parts of one excavation load, ``K⁻¹r`` from the model's unit
-        responses: ``u1 = λd K⁻¹r`` and the contact stage's ``K⁻¹f = (1 - λd) K⁻¹r``.
+        Both stages release parts of one excavation load r: stage 1 ``λd r`` on the ground
+        alone, the contact stage ``(1 - λd) r``; one forward solve of r serves both.
         """
         rows = rows or rows_of_model(spec.interface.model)
         loads = self.stage_loads(spec)
-        ground_response, lining_response = self._unit_responses(spec, rows)
-        v = ground_response @ load_coefficients(spec)  # K⁻¹ of the release (or of the loads)
+        ground, lining = self.ground, self.lining
+        y_l = lining.forward(loads.lining, rows)
         if loads.release is not None:
             ld = spec.excavation.deconfinement
-            u1, ug_f = ld * v, (1.0 - ld) * v
+            y_r = ground.forward(loads.release, rows)
+            stage = Forward(ground=(1.0 - ld) * y_r, lining=y_l, release=y_r, deconfinement=ld)
         else:
-            u1, ug_f = np.zeros(self.ground.body.n), v
-        ul_f = spec.lining.density * spec.loads.gravity * lining_response
-        d = self.ground.B @ ug_f + self.lining.B @ ul_f
-        return loads, u1, ug_f, ul_f, d, float(self.rigid @ loads.lining)
+            stage = Forward(ground=ground.forward(loads.ground, rows), lining=y_l)
+        d = ground.jumps(stage.ground, rows) + lining.jumps(y_l, rows)
+        return loads, stage, d, float(self.rigid @ loads.lining)
 
     def _dual(self, d: np.ndarray, F2: float, g0: float) -> DualProblem:
         m, iface = self.m, self.mesh.interface
@@ -387,7 +384,7 @@ class TunnelModel:
 
     def dual_problem(self, spec: CaseSpec) -> DualProblem:
         """The frictionless contact stage of ``spec`` in interface form (:class:`DualProblem`)."""
-        d, F2 = self._contact_stage(spec, "normal")[4:]
+        d, F2 = self._contact_stage(spec, "normal")[2:]
         return self._dual(d, F2, spec.geometry.gap)
 
     def _tie(self, d: np.ndarray, F2: float) -> tuple[np.ndarray, float]:

@@ -16,8 +16,7 @@ def test_flexibility_and_solve_match_dense_inverse():
     K = laplacian_2d(14)  # 196 unknowns, SPD
     rng = np.random.default_rng(0)
     last = np.sort(rng.choice(K.shape[0], 23, replace=False))
-    groups = np.arange(K.shape[0]) // 2
-    f = InterfaceFactor(K, last, groups)
+    f = InterfaceFactor(K, last, rng.permutation(K.shape[0]))  # any ordering of the rest
     Kinv = np.linalg.inv(K.toarray())
     Bd = rng.standard_normal((9, last.size))
     np.testing.assert_allclose(f.flexibility(Bd), Bd @ Kinv[np.ix_(last, last)] @ Bd.T, rtol=1e-10, atol=1e-12)
@@ -39,7 +38,7 @@ def test_rotated_factor_matches_dense_inverse():
         T[i, i], T[i, j], T[j, i], T[j, j] = np.cos(a), -np.sin(a), np.sin(a), np.cos(a)
     T = T.tocsr()
     last = 2 * nodes  # the first rotated unknown of each node
-    f = InterfaceFactor(K, last, np.arange(n) // 2, rotation=T)
+    f = InterfaceFactor(K, last, rotation=T)
     Kr_inv = np.linalg.inv((T.T @ K @ T).toarray())
     Bd = rng.standard_normal((5, last.size))
     np.testing.assert_allclose(f.flexibility(Bd), Bd @ Kr_inv[np.ix_(last, last)] @ Bd.T, rtol=1e-10, atol=1e-12)
@@ -80,3 +79,32 @@ def test_normal_and_full_factorizations_agree_on_a_model():
         normal, _ = body.factor("normal")
         full, _ = body.factor("all")
         assert normal.k == m and full.k > 1.9 * m  # one unknown per node, against two
+
+
+def test_nested_dissection_of_a_p2_body():
+    """The mesh ordering is a permutation of the body's unknowns; a node's unknowns stay
+    together; the node of edge f is ``nv + f`` (on its edge, up to the curved interface's
+    sagitta), ordered before both of its vertices."""
+    from solver import CaseSpec
+    from solver.linalg import nested_dissection
+    from solver.model import TunnelModel
+
+    model = TunnelModel(CaseSpec(mesh=dict(interface_size=0.2, far_size=6.0)))
+    for fb in (model.ground, model.lining):
+        mesh, nodes = fb.body.basis.mesh, fb.body.node_of_dof()
+        a, b = mesh.facets
+        nv = int(mesh.t.max()) + 1
+        assert mesh.doflocs.shape[1] == nv + a.size
+        length = np.hypot(*(mesh.doflocs[:, a] - mesh.doflocs[:, b]))
+        off = np.hypot(*(mesh.doflocs[:, nv:] - 0.5 * (mesh.doflocs[:, a] + mesh.doflocs[:, b])))
+        assert np.all(off < 0.05 * length)
+        order = nested_dissection(mesh, nodes)
+        assert np.array_equal(np.sort(order), np.arange(nodes.size))
+        node_order = nodes[order]
+        changes = np.flatnonzero(np.diff(node_order)) + 1
+        assert np.unique(node_order).size == changes.size + 1  # each node's unknowns contiguous
+        first = np.full(mesh.doflocs.shape[1], np.inf)
+        np.minimum.at(first, node_order, np.arange(order.size))
+        edge = first[nv:]
+        ok = np.isfinite(edge) & np.isfinite(first[a]) & np.isfinite(first[b])
+        assert np.all(edge[ok] < np.minimum(first[a], first[b])[ok])

@@ -165,28 +165,41 @@ def test_a_shared_model_gives_the_result_of_a_fresh_one():
                 np.testing.assert_array_equal(together[name].values, var.values, err_msg=name)
 
 
-def test_unit_load_responses_superpose_to_the_case_loads():
-    """A model solves its unit loads once: K times each response is its load shape, the
-    case's K⁻¹f is their combination, and a model that forgot its factorizations gives the
-    same solution bit for bit after rebuilding them."""
+def test_split_solves_and_load_shapes():
+    """A case's loads are the model's load shapes times its coefficients; a solve split
+    around the interface (forward, interface jumps, backward with tractions) answers
+    ``B K⁺f`` and ``K u = f - BᵀWt`` for both bodies and both factorizations; a model that
+    forgot its factorizations gives the same solution bit for bit after rebuilding them."""
     from solver.model import TunnelModel, load_coefficients
 
     spec = CaseSpec(mesh=dict(interface_size=0.2, far_size=6.0), boundaries=dict(side="pressure"),
                     loads=dict(lateral_ratio=0.6, surface_load=5.0e4))
     model = TunnelModel(spec)
-    ground, lining = model.ground, model.lining
-    responses, lining_response = model._unit_responses(spec, "normal")
-    shapes = ground.body.restrict(model._shapes(spec, "deconfinement"))
-    assert responses.shape == (ground.body.n, 4) and np.all(np.any(shapes != 0, axis=0))
-    K = ground.body.K
-    np.testing.assert_allclose(K @ responses, shapes, atol=1e-9 * np.abs(shapes).max())
+    shapes = model.ground.body.restrict(model._shapes(spec, "deconfinement"))
+    assert np.all(np.any(shapes != 0, axis=0))
     np.testing.assert_allclose(model.stage_loads(spec).release, shapes @ load_coefficients(spec))
-    f_l = lining.body.restrict(model._lining_shape())
-    residual = lining.body.K @ lining_response - f_l  # the pinned DOF carries the lining's balance
-    assert np.sum(np.abs(residual) > 1e-9 * np.abs(f_l).max()) <= 1
+    rng = np.random.default_rng(3)
+    m, R = model.m, model.ground.B.shape[0]
+    for fb, f in ((model.ground, model.stage_loads(spec).release),
+                  (model.lining, model.lining.body.restrict(model._lining_shape()))):
+        for rows in ("normal", "all"):
+            Wt = rng.standard_normal(R) * np.abs(f).max()
+            if rows == "normal":
+                Wt[m:] = 0.0  # a frictionless case has no shear
+            y = fb.forward(f, rows)
+            u0 = fb.backward(y, rows)
+            served = slice(0, m) if rows == "normal" else slice(0, R)
+            np.testing.assert_allclose(fb.jumps(y, rows), (fb.B @ u0)[served], rtol=1e-10,
+                                       atol=1e-12 * np.abs(fb.B @ u0).max())
+            u = fb.backward(y, rows, Wt)
+            load = f - fb.B.T @ Wt
+            residual = fb.body.K @ u - load
+            scale = np.abs(load).max()
+            # the lining's pinned DOF carries its unbalanced vertical load
+            assert np.sum(np.abs(residual) > 1e-9 * scale) <= (1 if fb is model.lining else 0), (rows, fb)
     before = model.solve(spec)
     model.drop_factorizations()
-    assert not model._responses and not model._S and model.timings["factorization"] == 0.0
+    assert not model._S and model.timings["factorization"] == 0.0
     after = model.solve(spec)
     np.testing.assert_array_equal(after.u_ground, before.u_ground)
     np.testing.assert_array_equal(after.lam, before.lam)
