@@ -10,7 +10,7 @@ both bodies hold, so s = 0 there by symmetry). The force on the lining at node i
 ground, -1 lining), so the jumps ``J = [[u]ν; [u]τ] = B' u' + B'' u''``. Each body is
 factorized once with the interface unknowns its contact model needs ordered last
 (:class:`FactoredBody`, :mod:`solver.linalg`); the dense flexibility ``S = B K⁺ Bᵀ``
-then costs one triangular solve, and for loads
+then comes from the factor's trailing block, and for loads
 ``f`` the jumps are ``J = d - S W t - a r`` with ``d = B K⁺ f`` and ``r = [ν2; τ2]``
 the jumps of a unit rigid upward translation ``a`` of the lining.
 """
@@ -64,9 +64,8 @@ class FactoredBody:
     Two factorizations can serve the interface. ``"all"`` orders both DOFs of every
     interface node last. ``"normal"`` first turns each interface node's DOFs into normal
     and tangential components (an orthogonal ``T``, :func:`normal_rotation`) and orders
-    only the normal ones last: half the trailing block, and at the default case's mesh
-    the lining factorizes in about half the time (the ground: a quarter less at 166k DOF).
-    A result is always computed with the factorization its interface model needs, so it
+    only the normal ones last: half the trailing block, an eighth of its dense
+    factorization. A result is always computed with the factorization its interface model needs, so it
     never depends on which the model built before.
 
     Parameters
@@ -79,6 +78,7 @@ class FactoredBody:
 
     def __init__(self, body: Body, B: sp.csr_matrix, m: int, pin: int | None = None):
         self.body, self.B, self.m = body, B, m
+        #: per ``Rows``: the factorization and ``B``'s rows it serves, on its ``last`` unknowns
         self._factors: dict[str, tuple[InterfaceFactor, sp.csr_matrix]] = {}
         n = body.n
         self._keep = np.flatnonzero(np.arange(n) != pin) if pin is not None else None
@@ -101,8 +101,8 @@ class FactoredBody:
         return self._restrict(self.body.K), nested_dissection(self.body.basis.mesh, nodes)
 
     def factor(self, rows: Rows) -> tuple[InterfaceFactor, sp.csr_matrix]:
-        """The factorization serving ``rows`` and those rows of ``B`` in its unknowns (built
-        on first use)."""
+        """The factorization serving ``rows`` and those rows of ``B`` in its unknowns, as
+        columns of its ``last`` unknowns (built on first use)."""
         if rows not in self._factors:
             K, order = self.matrix()
             if rows == "normal":

@@ -85,7 +85,8 @@ def rotated(K: sp.csr_matrix, T: sp.spmatrix) -> sp.csr_matrix:
     """
     D = sp.csr_matrix(T - sp.identity(K.shape[0], format="csr"))
     D.eliminate_zeros()
-    KD = K @ D
+    R = np.flatnonzero(np.diff(D.indptr))  # the rotated unknowns
+    KD = sp.csr_matrix(K[R].T @ D[R])  # K D = K[:, R] D[R] = K[R]ᵀ D[R] for a symmetric K
     return sp.csr_matrix(K + (KD + KD.T + D.T @ KD))
 
 
