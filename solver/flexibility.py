@@ -122,7 +122,7 @@ class FactoredBody:
         """Dense ``B K⁺ Bᵀ`` of the normal rows or of all rows, by one triangular solve on the
         trailing factor block."""
         factor, on_last = self.factor(rows)
-        return factor.flexibility(on_last.toarray())
+        return factor.flexibility(on_last)
 
     # A load case in two halves around the contact solve: ``forward`` its load, read the
     # interface jumps ``B K⁺ f`` it gives, solve the contact problem, then ``backward`` with

@@ -130,17 +130,22 @@ def _trailing_block(F, n: int, k: int) -> tuple[np.ndarray, np.ndarray]:
     ns = f.nsuper
     sup, pi, px = (_view(a, ns + 1, it) for a in (f.super, f.pi, f.px))
     rows_of, x = _view(f.s, f.ssize, it), _view(f.x, f.xsize, ctypes.c_double)
-    Ltt = np.zeros((k, k))
     start = n - k
     s = ns - 1
-    while s >= 0 and sup[s + 1] > start:
-        c0, c1 = int(sup[s]), int(sup[s + 1])
-        nr = int(pi[s + 1] - pi[s])
-        block = x[px[s]: px[s] + nr * (c1 - c0)].reshape(c1 - c0, nr).T
-        rows = rows_of[pi[s]: pi[s + 1]]
-        r, c = rows >= start, np.arange(c0, c1) >= start
-        Ltt[np.ix_(rows[r] - start, np.arange(c0, c1)[c] - start)] = block[np.ix_(r, c)]
-        s -= 1
+    c0, nr = int(sup[s]), int(pi[s + 1] - pi[s])
+    if c0 <= start and nr == n - c0:
+        # one dense supernode holds the trailing columns (as for any connected interface)
+        Ltt = x[px[s]: px[s] + nr * nr].reshape(nr, nr).T[start - c0:, start - c0:].copy()
+    else:
+        Ltt = np.zeros((k, k))
+        while s >= 0 and sup[s + 1] > start:
+            c0, c1 = int(sup[s]), int(sup[s + 1])
+            nr = int(pi[s + 1] - pi[s])
+            block = x[px[s]: px[s] + nr * (c1 - c0)].reshape(c1 - c0, nr).T
+            rows = rows_of[pi[s]: pi[s + 1]]
+            r, c = rows >= start, np.arange(c0, c1) >= start
+            Ltt[np.ix_(rows[r] - start, np.arange(c0, c1)[c] - start)] = block[np.ix_(r, c)]
+            s -= 1
     diag = np.asarray(cholmod.diag(F)).ravel()[start:]
     if not np.array_equal(np.diag(Ltt), diag):
         raise RuntimeError("the CHOLMOD factor read in place disagrees with cholmod.diag")
@@ -195,7 +200,7 @@ class InterfaceFactor:
 
     # -- the interface -----------------------------------------------------------------
     def flexibility(self, Bd: np.ndarray) -> np.ndarray:
-        """``Bd (K^-1)[last, last] Bd^T`` for an (m, k) ``Bd`` acting on ``last`` (with a
+        """``Bd (K^-1)[last, last] Bd^T`` for an (m, k) ``Bd`` (sparse or dense) acting on ``last`` (with a
         ``rotation``: ``K`` is ``Tᵀ K T`` here and ``Bd`` acts in its basis): ``S⁻¹`` from
         ``L_ΓΓ`` (LAPACK ``dpotri``), seen through the few entries per row of ``Bd``."""
         if self.k == 0:
@@ -204,7 +209,12 @@ class InterfaceFactor:
         if info != 0:
             raise FactorizationError(f"the interface Schur complement is singular (dpotri info {info})")
         inverse = np.tril(inverse) + np.tril(inverse, -1).T
-        Bp = sp.csr_matrix(Bd)[:, np.argsort(self._pos)]  # columns in trailing-block order
+        Bd = sp.csr_matrix(Bd)
+        if np.all(np.diff(Bd.indptr) == 1):
+            # one unknown per row (normal rows in the rotated basis): entries of S⁻¹, scaled
+            at = self._pos[Bd.indices]
+            return Bd.data[:, None] * inverse[np.ix_(at, at)] * Bd.data[None, :]
+        Bp = Bd[:, np.argsort(self._pos)]  # columns in trailing-block order
         return np.asarray(Bp @ (Bp @ inverse).T)
 
     # -- solves, whole or in halves --------------------------------------------------------
