@@ -265,12 +265,18 @@ def solve_on_set(dual: DualProblem, active: np.ndarray, WSW: np.ndarray | None =
         rhs_full = w * (dual.d - dual.g0)
     idx = np.flatnonzero(active)
     n = idx.size
-    A = np.zeros((n + 1, n + 1))
-    A[:n, :n] = WSW[np.ix_(idx, idx)]
-    A[:n, n] = A[n, :n] = (w * dual.nu2)[idx]
-    sol = la.solve(A, np.r_[rhs_full[idx], -dual.F2], assume_a="sym")
+    A, c, r = WSW[np.ix_(idx, idx)], (w * dual.nu2)[idx], rhs_full[idx]
     lam = np.zeros(dual.m)
-    lam[idx] = sol[:n]
+    try:
+        # [[A, c], [cᵀ, 0]] [λ; μ] = [r; -F2] with A SPD (a flexibility block): by A's
+        # Cholesky factor, half the work of a symmetric indefinite solve of the whole
+        X = la.cho_solve(la.cho_factor(A, check_finite=False), np.column_stack([r, c]), check_finite=False)
+        mu = (c @ X[:, 0] + dual.F2) / (c @ X[:, 1])
+        lam[idx] = X[:, 0] - mu * X[:, 1]
+    except la.LinAlgError:  # A singular to working precision: the bordered system as a whole
+        B = np.zeros((n + 1, n + 1))
+        B[:n, :n], B[:n, n], B[n, :n] = A, c, c
+        lam[idx] = la.solve(B, np.r_[r, -dual.F2], assume_a="sym")[:n]
     return lam
 
 

@@ -31,8 +31,8 @@ from cvxopt import cholmod
 from cvxopt import matrix as cvx_matrix
 from cvxopt import spmatrix as cvx_spmatrix
 
-# Supernodal LLᵀ; use exactly the permutation given (no ordering of CHOLMOD's own on top).
-cholmod.options.update({"supernodal": 2, "nmethods": 1})
+# Supernodal LLᵀ; the permutation given (no ordering of CHOLMOD's own on top).
+cholmod.options.update({"supernodal": 2, "nmethods": 1, "postorder": True})
 
 
 class FactorizationError(ArithmeticError):
@@ -114,19 +114,40 @@ def _view(address: int, size: int, ctype) -> np.ndarray:
     return np.ctypeslib.as_array(ctypes.cast(address, ctypes.POINTER(ctype)), (size,))
 
 
-def _trailing_block(F, n: int, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """CHOLMOD's final permutation (factor position -> unknown) and the dense lower
-    trailing ``k x k`` block of a supernodal ``L``, copied out of the factor.
+def _factor_struct(F, n: int) -> _CholmodFactor:
+    f = _CholmodFactor.from_address(_capsule_pointer(F, _capsule_name(F)))
+    if not (f.n == n and f.is_super and f.is_ll and f.itype == _CHOLMOD_LONG and f.xtype == _CHOLMOD_REAL):
+        raise RuntimeError("unexpected CHOLMOD factor layout (cvxopt's CHOLMOD changed)")
+    return f
+
+
+def _factorize(A: cvx_spmatrix, perm: np.ndarray, postorder: bool):
+    """CHOLMOD's supernodal ``P A Pᵀ = L Lᵀ`` of the lower triangle ``A``, ``P`` from ``perm``."""
+    cholmod.options["postorder"] = postorder
+    try:
+        F = cholmod.symbolic(A, p=cvx_matrix(perm), uplo="L")
+        cholmod.numeric(A, F)
+    except ArithmeticError as exc:
+        raise FactorizationError(f"the stiffness matrix is not positive definite ({exc})") from None
+    finally:
+        cholmod.options["postorder"] = True
+    return F
+
+
+def _permutation(F, n: int) -> np.ndarray:
+    """CHOLMOD's final permutation: the unknown at each factor position."""
+    return _view(_factor_struct(F, n).Perm, n, ctypes.c_int64).copy()
+
+
+def _trailing_block(F, n: int, k: int) -> np.ndarray:
+    """The dense lower trailing ``k x k`` block of a supernodal ``L``, copied out of the factor.
 
     Each supernode stores its columns ``super[s]:super[s+1]`` as a dense column-major
     block of the rows ``s[pi[s]:pi[s+1]]`` at ``x[px[s]:]``; the supernodes covering the
     last k columns hold ``L_ΓΓ``.
     """
-    f = _CholmodFactor.from_address(_capsule_pointer(F, _capsule_name(F)))
-    if not (f.n == n and f.is_super and f.is_ll and f.itype == _CHOLMOD_LONG and f.xtype == _CHOLMOD_REAL):
-        raise RuntimeError("unexpected CHOLMOD factor layout (cvxopt's CHOLMOD changed)")
+    f = _factor_struct(F, n)
     it = ctypes.c_int64
-    perm = _view(f.Perm, n, it).copy()
     ns = f.nsuper
     sup, pi, px = (_view(a, ns + 1, it) for a in (f.super, f.pi, f.px))
     rows_of, x = _view(f.s, f.ssize, it), _view(f.x, f.xsize, ctypes.c_double)
@@ -146,10 +167,9 @@ def _trailing_block(F, n: int, k: int) -> tuple[np.ndarray, np.ndarray]:
             r, c = rows >= start, np.arange(c0, c1) >= start
             Ltt[np.ix_(rows[r] - start, np.arange(c0, c1)[c] - start)] = block[np.ix_(r, c)]
             s -= 1
-    diag = np.asarray(cholmod.diag(F)).ravel()[start:]
-    if not np.array_equal(np.diag(Ltt), diag):
+    if k and not np.array_equal(np.diag(Ltt), np.asarray(cholmod.diag(F)).ravel()[start:]):
         raise RuntimeError("the CHOLMOD factor read in place disagrees with cholmod.diag")
-    return perm, np.tril(Ltt)
+    return np.tril(Ltt)
 
 
 class InterfaceFactor:
@@ -182,17 +202,16 @@ class InterfaceFactor:
         if self.rotation is not None:
             K = rotated(K, self.rotation)
         A = _cvx_lower(K)
-        self._F = cholmod.symbolic(A, p=cvx_matrix(perm), uplo="L")
-        try:
-            cholmod.numeric(A, self._F)
-        except ArithmeticError as exc:
-            raise FactorizationError(f"the stiffness matrix is not positive definite ({exc})") from None
         self.n, self.k = n, self.last.size
-        # CHOLMOD postorders: the factor's own order (a permutation of ours within each
-        # subtree; the interface block stays trailing)
-        self._perm, self._Ltt = _trailing_block(self._F, n, self.k)
-        if not np.array_equal(np.sort(self._perm[n - self.k:]), np.sort(self.last)):
-            raise RuntimeError("CHOLMOD moved interface unknowns out of the trailing block")
+        # CHOLMOD postorders the elimination tree (4 % less factorization time at 128k
+        # unknowns): a permutation of ours that keeps a connected interface block trailing.
+        # An interface in several unconnected parts could be moved apart: then ours as given.
+        for postorder in (True, False):
+            self._F = _factorize(A, perm, postorder)
+            self._perm = _permutation(self._F, n)
+            if np.array_equal(np.sort(self._perm[n - self.k:]), np.sort(self.last)):
+                break
+        self._Ltt = _trailing_block(self._F, n, self.k)
         where = np.empty(n, np.int64)
         where[self._perm[n - self.k:]] = np.arange(self.k)
         #: trailing-block position of each of ``last``

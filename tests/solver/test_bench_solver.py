@@ -19,3 +19,18 @@ def test_solver_benchmark_row_is_consistent():
     assert row["next_ratio"] == pytest.approx((row["factorization_s"] + row["next_contact_s"]) / row["floor_s"])
     assert row["dof"] > 0 and row["interface_nodes"] > 0 and row["active_set_iterations"] >= 1
     assert 0.0 < row["max_abs_moment_kNm"] < 1e4
+
+
+def test_ordering_benchmark_rows(capsys):
+    """``python -m bench.ordering`` runs its three orderings through CHOLMOD; ordering the
+    interface last never shrinks the factor."""
+    import json
+
+    from bench.ordering import main
+
+    main(["--size", "0.3:8", "--repeat", "1", "--json"])
+    rows = json.loads(capsys.readouterr().out)
+    assert [r["ordering"] for r in rows] == ["vertex-nd", "node-nd", "amd"]
+    for r in rows:
+        assert r["last_nnz_L"] >= r["free_nnz_L"] > r["dof"]
+        assert r["free_total_s"] == pytest.approx(r["order_s"] + r["free_symbolic_s"] + r["free_numeric_s"])
