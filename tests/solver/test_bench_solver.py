@@ -17,6 +17,8 @@ def test_solver_benchmark_row_is_consistent():
     assert row["first_ratio"] == pytest.approx(
         (row["factorization_s"] + row["flexibility_s"] + row["first_contact_s"]) / row["floor_s"])
     assert row["next_ratio"] == pytest.approx((row["factorization_s"] + row["next_contact_s"]) / row["floor_s"])
+    for key in ("first_ratio_median", "next_ratio_median"):  # ratios within a repeat, median
+        assert math.isfinite(row[key]) and row[key] > 0.0, key
     assert row["dof"] > 0 and row["interface_nodes"] > 0 and row["active_set_iterations"] >= 1
     assert 0.0 < row["max_abs_moment_kNm"] < 1e4
 
