@@ -7,7 +7,7 @@ interface model, solver options or design inputs (SPEC §1.1-§1.3)::
 
     model = TunnelModel(spec)            # mesh, assembly, factorization: once
     for case in cases:                   # same model_key(case)
-        solution = model.solve(case)     # the contact solve + two triangular solves
+        solution = model.solve(case)     # forward solves, the contact solve, backward solves
 
 Stages (``excavation.method = "deconfinement"``, SPEC §1.1): the geostatic state σ0
 needs no solve (zero displacement); the excavation load is the discrete one, the
