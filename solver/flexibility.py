@@ -65,8 +65,8 @@ class FactoredBody:
     interface node last. ``"normal"`` first turns each interface node's DOFs into normal
     and tangential components (an orthogonal ``T``, :func:`normal_rotation`) and orders
     only the normal ones last: half the trailing block, an eighth of its dense
-    factorization. A result is always computed with the factorization its interface model needs, so it
-    never depends on which the model built before.
+    factorization. A result is always computed with the factorization its interface
+    model needs, so it never depends on which the model built before.
 
     Parameters
     ----------
@@ -119,8 +119,8 @@ class FactoredBody:
         return self._factors[rows]
 
     def flexibility(self, rows: Rows) -> np.ndarray:
-        """Dense ``B K⁺ Bᵀ`` of the normal rows or of all rows, by one triangular solve on the
-        trailing factor block."""
+        """Dense ``B K⁺ Bᵀ`` of the normal rows or of all rows, from the trailing factor
+        block (:meth:`InterfaceFactor.flexibility`)."""
         factor, on_last = self.factor(rows)
         return factor.flexibility(on_last)
 

@@ -5,7 +5,7 @@ The contact problem only needs the stiffness inverse on the interface DOFs,
 by nested dissection) makes the trailing block ``L_ΓΓ`` of the Cholesky factor
 ``P K Pᵀ = L Lᵀ`` the factor of the Schur complement ``S_Γ = K_ΓΓ - K_ΓI K_II^-1 K_IΓ``,
 so ``(K^-1)[Γ, Γ] = S_Γ^-1 = L_ΓΓ^-ᵀ L_ΓΓ^-1`` costs one factorization plus one small
-dense triangular solve instead of one sparse solve per interface DOF.
+dense inversion instead of one sparse solve per interface DOF.
 
 It also splits a solve in two halves around the interface, so a contact case costs the
 same triangular solves as one elastic solve (:meth:`InterfaceFactor.forward`,
@@ -59,8 +59,8 @@ def nested_dissection(mesh, node_of_unknown: np.ndarray) -> np.ndarray:
     goes just before the earlier of its two vertices, so a separator's edge nodes stay in
     the separator and a subdomain's in the subdomain, and a node's unknowns stay together.
     Measured at 128k unknowns (``python -m bench.ordering``) against METIS on the whole
-    node graph and against AMD: 0.07 s to find against 0.41 and 0.10 s, and the cheapest
-    factorization of the three.
+    node graph and against AMD: 0.07 s to find against 0.45 and 0.10 s, and the smallest
+    factor of the three.
     """
     import pymetis
 
@@ -211,6 +211,8 @@ class InterfaceFactor:
             self._perm = _permutation(self._F, n)
             if np.array_equal(np.sort(self._perm[n - self.k:]), np.sort(self.last)):
                 break
+        else:
+            raise RuntimeError("CHOLMOD did not keep the interface unknowns last")
         self._Ltt = _trailing_block(self._F, n, self.k)
         where = np.empty(n, np.int64)
         where[self._perm[n - self.k:]] = np.arange(self.k)

@@ -205,7 +205,8 @@ class TunnelModel:
 
     def drop_factorizations(self) -> None:
         """Forget both bodies' factorizations and the flexibilities computed with them:
-        their memory is freed and they are rebuilt, and timed, on next use (``python -m bench.solver`` times them repeatedly this way)."""
+        their memory is freed and they are rebuilt, and timed, on next use
+        (``python -m bench.solver`` times them repeatedly this way)."""
         for fb in (self.ground, self.lining):
             fb.drop()
         self._S.clear()
@@ -330,8 +331,8 @@ class TunnelModel:
         Wt = self.w * t
         u_g = ground.backward(stage.ground, rows, Wt)
         u_l = lining.backward(stage.lining, rows, Wt) + sol.a * self.rigid
-        u1 = (stage.deconfinement * ground.backward(stage.release, rows) if stage.release is not None
-              else np.zeros_like(u_g))
+        u1 = (stage.deconfinement * ground.backward(stage.release, rows)
+              if stage.release is not None and stage.deconfinement > 0.0 else np.zeros_like(u_g))
         J = ground.B @ u_g + lining.B @ u_l
         lam = t[:m]
         shear = np.zeros(m)

@@ -48,7 +48,7 @@ def test_interface_split_over_several_supernodes():
     factor in separate supernodes, which the trailing block is read from."""
     K1, K2 = laplacian_2d(9), laplacian_2d(8)
     K = sp.block_diag([K1, K2], format="csr")
-    n1, n = K1.shape[0], K1.shape[0] + K2.shape[0]
+    n1 = K1.shape[0]
     last = np.r_[3, 40, 41, 70, n1 + 5, n1 + 30, n1 + 31]
     f = InterfaceFactor(K, last)
     Kinv = np.linalg.inv(K.toarray())
