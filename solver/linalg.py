@@ -103,7 +103,7 @@ class _CholmodFactor(ctypes.Structure):
                                               "itype", "xtype", "dtype", "useGPU")]
 
 
-_CHOLMOD_LONG, _CHOLMOD_REAL = 2, 1
+_CHOLMOD_LONG, _CHOLMOD_REAL, _CHOLMOD_DOUBLE = 2, 1, 0  # cholmod.h
 _capsule_pointer = ctypes.pythonapi.PyCapsule_GetPointer
 _capsule_pointer.restype, _capsule_pointer.argtypes = ctypes.c_void_p, [ctypes.py_object, ctypes.c_char_p]
 _capsule_name = ctypes.pythonapi.PyCapsule_GetName
@@ -116,7 +116,8 @@ def _view(address: int, size: int, ctype) -> np.ndarray:
 
 def _factor_struct(F, n: int) -> _CholmodFactor:
     f = _CholmodFactor.from_address(_capsule_pointer(F, _capsule_name(F)))
-    if not (f.n == n and f.is_super and f.is_ll and f.itype == _CHOLMOD_LONG and f.xtype == _CHOLMOD_REAL):
+    if not (f.n == n and f.is_super and f.is_ll and f.itype == _CHOLMOD_LONG and f.xtype == _CHOLMOD_REAL
+            and f.dtype == _CHOLMOD_DOUBLE):
         raise RuntimeError("unexpected CHOLMOD factor layout (cvxopt's CHOLMOD changed)")
     return f
 
