@@ -16,11 +16,10 @@ Each figure is the least of ``--repeat`` timings, the orderings alternating.
 """
 from __future__ import annotations
 
-import os
-
 if __name__ == "__main__":
-    for _var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
-        os.environ.setdefault(_var, "1")
+    from bench import one_blas_thread
+
+    one_blas_thread()
 
 import argparse  # noqa: E402
 import time  # noqa: E402

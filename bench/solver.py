@@ -16,15 +16,10 @@ the repeats (each repeat times the floor and the solve back to back); and the wh
 
 from __future__ import annotations
 
-import os
-
 if __name__ == "__main__":
-    # One BLAS thread, as dask's nannies give every worker (set before numpy loads
-    # OpenBLAS; only when run, not when imported). Two threads on this machine's two cores
-    # made the contact solves 1.1-3x slower and erratic (a dense solve's second thread
-    # waits for a core).
-    for _var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
-        os.environ.setdefault(_var, "1")
+    from bench import one_blas_thread
+
+    one_blas_thread()
 
 import argparse  # noqa: E402
 import time  # noqa: E402
@@ -57,6 +52,14 @@ def _variant(spec: CaseSpec, k0: float, deconfinement: float) -> CaseSpec:
         "excavation": spec.excavation.model_copy(update={"deconfinement": deconfinement})})
 
 
+def _ratios(t: dict[str, float]) -> dict[str, float]:
+    """(factorization + contact) / floor: a case alone (with the flexibility), a case on a
+    built model, an Uzawa case on it."""
+    fact, floor = t["factorization"], t["floor"]
+    return {"first": (fact + t["flexibility"] + t["first_contact"]) / floor,
+            "next": (fact + t["next_contact"]) / floor, "uzawa": (fact + t["uzawa_contact"]) / floor}
+
+
 def bench_size(h: float, far: float, repeat: int) -> dict:
     """One mesh size; the factorization, the floor and the contact solves are each timed
     ``repeat`` times, alternating, and the least of each is reported."""
@@ -69,7 +72,7 @@ def bench_size(h: float, far: float, repeat: int) -> dict:
     row["stage_loads_s"] = time.perf_counter() - t0
     uzawa = spec.model_copy(update={"solver": spec.solver.model_copy(update={"inner": "uzawa"})})
     best: dict[str, float] = {}
-    ratios: dict[str, list[float]] = {"first": [], "next": []}
+    per_repeat = []
     for _ in range(repeat):
         times = {"floor": _floor(model)}
         model.drop_factorizations()
@@ -88,18 +91,12 @@ def bench_size(h: float, far: float, repeat: int) -> dict:
         slow = model.solve(uzawa)
         times["uzawa_contact"] = time.perf_counter() - t0
         best = {k: min(v, best.get(k, np.inf)) for k, v in times.items()}
-        ratios["first"].append(
-            (times["factorization"] + times["flexibility"] + times["first_contact"]) / times["floor"])
-        ratios["next"].append((times["factorization"] + times["next_contact"]) / times["floor"])
+        per_repeat.append(_ratios(times))
     row.update({f"{k}_s": v for k, v in best.items()})
     row["active_set_iterations"], row["uzawa_iterations"] = first.iterations, slow.iterations
-    fact = best["factorization"]
-    row["first_ratio"] = (fact + best["flexibility"] + best["first_contact"]) / best["floor"]
-    row["next_ratio"] = (fact + best["next_contact"]) / best["floor"]
-    row["uzawa_ratio"] = (fact + best["uzawa_contact"]) / best["floor"]
+    row.update({f"{k}_ratio": v for k, v in _ratios(best).items()})
     # the same ratios within each repeat (floor and solve timed back to back), median
-    row["first_ratio_median"] = float(np.median(ratios["first"]))
-    row["next_ratio_median"] = float(np.median(ratios["next"]))
+    row.update({f"{k}_ratio_median": float(np.median([r[k] for r in per_repeat])) for k in ("first", "next")})
     t0 = time.perf_counter()
     ds = run_case(spec)
     row["run_case_s"] = time.perf_counter() - t0

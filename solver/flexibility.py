@@ -153,10 +153,6 @@ class FactoredBody:
         u[self._keep] = x
         return u
 
-    def solve(self, rhs: np.ndarray, rows: Rows = "normal") -> np.ndarray:
-        """``K⁺ rhs`` on the free DOFs (the pinned DOF, if any, is zero)."""
-        return self.backward(self.forward(rhs, rows), rows)
-
 
 def normal_rotation(body: Body, B_normal: sp.csr_matrix) -> tuple[sp.csr_matrix, sp.csr_matrix]:
     """Orthogonal ``T`` (n, n) and the normal rows in its unknowns, ``B_normal T``.

@@ -31,12 +31,15 @@ from cvxopt import cholmod
 from cvxopt import matrix as cvx_matrix
 from cvxopt import spmatrix as cvx_spmatrix
 
+from .contact import SolverError
+
 # Supernodal LLᵀ; the permutation given (no ordering of CHOLMOD's own on top).
 cholmod.options.update({"supernodal": 2, "nmethods": 1, "postorder": True})
 
 
-class FactorizationError(ArithmeticError):
-    """A stiffness matrix that is not positive definite (a body not held)."""
+class FactorizationError(SolverError):
+    """A stiffness matrix that is not positive definite (a body not held): a solver failure
+    like any other, recorded with the case and reported by the CLI and the service."""
 
 
 def _cvx_lower(A: sp.spmatrix) -> cvx_spmatrix:
@@ -45,7 +48,7 @@ def _cvx_lower(A: sp.spmatrix) -> cvx_spmatrix:
     L.sort_indices()
     n = A.shape[0]
     cols = np.repeat(np.arange(n, dtype=np.int64), np.diff(L.indptr))
-    return cvx_spmatrix(cvx_matrix(L.data.astype(float)), cvx_matrix(L.indices.astype(np.int64)),
+    return cvx_spmatrix(cvx_matrix(np.asarray(L.data, dtype=float)), cvx_matrix(L.indices.astype(np.int64)),
                         cvx_matrix(cols), (n, n))
 
 
@@ -222,9 +225,9 @@ class InterfaceFactor:
 
     # -- the interface -----------------------------------------------------------------
     def flexibility(self, Bd: np.ndarray) -> np.ndarray:
-        """``Bd (K^-1)[last, last] Bd^T`` for an (m, k) ``Bd`` (sparse or dense) acting on ``last`` (with a
-        ``rotation``: ``K`` is ``Tᵀ K T`` here and ``Bd`` acts in its basis): ``S⁻¹`` from
-        ``L_ΓΓ`` (LAPACK ``dpotri``), seen through the few entries per row of ``Bd``."""
+        """``Bd (K^-1)[last, last] Bd^T`` for an (m, k) ``Bd`` (sparse or dense) acting on
+        ``last`` (with a ``rotation``: ``K`` is ``Tᵀ K T`` here and ``Bd`` acts in its basis):
+        ``S⁻¹`` from ``L_ΓΓ`` (LAPACK ``dpotri``), seen through the few entries per row of ``Bd``."""
         if self.k == 0:
             return np.zeros((Bd.shape[0], Bd.shape[0]))
         inverse, info = la.lapack.dpotri(self._Ltt, lower=1)  # S⁻¹ from its Cholesky factor

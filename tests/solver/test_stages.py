@@ -166,18 +166,23 @@ def test_a_shared_model_gives_the_result_of_a_fresh_one():
 
 
 def test_split_solves_and_load_shapes():
-    """A case's loads are the model's load shapes times its coefficients; a solve split
-    around the interface (forward, interface jumps, backward with tractions) answers
-    ``B K⁺f`` and ``K u = f - BᵀWt`` for both bodies and both factorizations; a model that
-    forgot its factorizations gives the same solution bit for bit after rebuilding them."""
-    from solver.model import TunnelModel, load_coefficients
+    """A case's excavation load, combined from the model's four load shapes, is the one
+    assembled directly for its ρg, q and K0; a solve split around the interface (forward,
+    interface jumps, backward with tractions) answers ``B K⁺f`` and ``K u = f - BᵀWt`` for
+    both bodies and both factorizations; a model that forgot its factorizations gives the
+    same solution bit for bit after rebuilding them."""
+    from solver.assembly import gravity_load, initial_stress_forces, side_pressure_load, surface_load
 
     spec = CaseSpec(mesh=dict(interface_size=0.2, far_size=6.0), boundaries=dict(side="pressure"),
                     loads=dict(lateral_ratio=0.6, surface_load=5.0e4))
     model = TunnelModel(spec)
-    shapes = model.ground.body.restrict(model._shapes(spec, "deconfinement"))
-    assert np.all(np.any(shapes != 0, axis=0))
-    np.testing.assert_allclose(model.stage_loads(spec).release, shapes @ load_coefficients(spec))
+    basis, g = model.ground.body.basis, spec.geometry
+    rho_g, q, k0 = spec.ground.density * spec.loads.gravity, spec.loads.surface_load, spec.loads.lateral_ratio
+    scale = max(g.width, g.height)
+    direct = (gravity_load(basis, spec.ground.density, spec.loads.gravity) + surface_load(basis, q, scale=scale)
+              + side_pressure_load(basis, q=q, rho_g=rho_g, k0=k0, width=g.width, scale=scale)
+              - initial_stress_forces(basis, q=q, rho_g=rho_g, k0=k0))
+    np.testing.assert_allclose(model.excavation_load(spec), direct, rtol=0, atol=1e-9 * np.abs(direct).max())
     rng = np.random.default_rng(3)
     m, R = model.m, model.ground.B.shape[0]
     for fb, f in ((model.ground, model.stage_loads(spec).release),
