@@ -57,21 +57,20 @@ def node_nd(K, nodes):
 
 def node_amd(K, nodes):
     from cvxopt import amd
-
-    from solver.linalg import _cvx_lower
+    from cvxopt import matrix as cvx_matrix
+    from cvxopt import spmatrix as cvx_spmatrix
 
     G, g = _node_graph(K, nodes)
-    G = G + sp.identity(G.shape[0])
-    return _expand(np.asarray(amd.order(_cvx_lower(G), "L")).ravel(), g)
+    L = sp.tril(G + sp.identity(G.shape[0]), format="coo")
+    pattern = cvx_spmatrix(cvx_matrix(L.data), cvx_matrix(L.row.astype(np.int64)), cvx_matrix(L.col.astype(np.int64)),
+                           L.shape)
+    return _expand(np.asarray(amd.order(pattern, "L")).ravel(), g)
 
 
 def main(argv=None) -> None:
-    from cvxopt import cholmod
-    from cvxopt import matrix as cvx_matrix
-
     from solver import CaseSpec
     from solver.flexibility import normal_rotation
-    from solver.linalg import _cvx_lower, nested_dissection, rotated
+    from solver.linalg import Cholesky, nested_dissection
     from solver.model import TunnelModel
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -84,11 +83,11 @@ def main(argv=None) -> None:
     fb = model.ground
     K = fb.body.K
     nodes = fb.body.node_of_dof()
-    T, B = normal_rotation(fb.body, fb.B[: fb.m])
+    T, B = normal_rotation(fb.B[: fb.m])
     last = np.unique(B.indices)
     at_end = np.zeros(K.shape[0], dtype=bool)
     at_end[last] = True
-    free, constrained = _cvx_lower(K), _cvx_lower(rotated(K, T))
+    free, constrained = K, T.congruence(K)
     orderings = {"vertex-nd": lambda: nested_dissection(fb.body.basis.mesh, nodes),
                  "node-nd": lambda: node_nd(K, nodes), "amd": lambda: node_amd(K, nodes)}
     best: dict[tuple[str, str], float] = {}
@@ -100,12 +99,10 @@ def main(argv=None) -> None:
             times = {"order": time.perf_counter() - t0}
             for kind, A, p in (("free", free, order),
                                ("last", constrained, np.concatenate([order[~at_end[order]], last]))):
-                t0 = time.perf_counter()
-                F = cholmod.symbolic(A, p=cvx_matrix(p), uplo="L")
-                t1 = time.perf_counter()
-                cholmod.numeric(A, F)
-                times[f"{kind}_symbolic"], times[f"{kind}_numeric"] = t1 - t0, time.perf_counter() - t1
-                size[(name, kind)] = len(cholmod.getfactor(F).V)
+                factor = Cholesky(A, p)
+                times[f"{kind}_symbolic"], times[f"{kind}_numeric"] = (factor.seconds["symbolic"],
+                                                                       factor.seconds["numeric"])
+                size[(name, kind)] = factor.entries
             for key, value in times.items():
                 best[(name, key)] = min(value, best.get((name, key), np.inf))
     rows = []

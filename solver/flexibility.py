@@ -22,7 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .assembly import Body
-from .linalg import InterfaceFactor, nested_dissection
+from .linalg import InterfaceFactor, PairRotation, nested_dissection
 from .mesh import Interface
 
 
@@ -106,12 +106,11 @@ class FactoredBody:
         if rows not in self._factors:
             K, order = self.matrix()
             if rows == "normal":
-                T, B = normal_rotation(self.body, self.B[: self.m])
-                T, B = self._restrict(T), self._columns(B)
-                factor = InterfaceFactor(K, np.unique(B.indices), order, rotation=T)
+                T, B = normal_rotation(self._columns(self.B[: self.m]))
+                factor = InterfaceFactor(K, _in_row_order(B), order, rotation=T)
             else:
                 B = self._columns(self.B)
-                factor = InterfaceFactor(K, np.unique(B.indices), order)
+                factor = InterfaceFactor(K, _in_row_order(B), order)
             on_last = B[:, factor.last].tocsr()
             if on_last.nnz != B.nnz:
                 raise AssertionError("interface rows reach beyond the trailing block")
@@ -142,7 +141,8 @@ class FactoredBody:
     def backward(self, y: np.ndarray, rows: Rows, Wt: np.ndarray | None = None) -> np.ndarray:
         """``K⁺ (f - Bᵀ Wt)`` on the free DOFs (the pinned DOF, if any, is zero) from
         ``y = forward(f)``; ``Wt`` (R,) weighted interface tractions, zero on the rows the
-        factorization does not serve."""
+        factorization does not serve. For an (n, j) ``y``, ``Wt`` is (R, j) and the j
+        columns are solved in one sweep over the factor."""
         factor, on_last = self.factor(rows)
         if Wt is not None:
             y = y - factor.lift(on_last.T @ Wt[: on_last.shape[0]])
@@ -154,36 +154,37 @@ class FactoredBody:
         return u
 
 
-def normal_rotation(body: Body, B_normal: sp.csr_matrix) -> tuple[sp.csr_matrix, sp.csr_matrix]:
-    """Orthogonal ``T`` (n, n) and the normal rows in its unknowns, ``B_normal T``.
+def _in_row_order(B: sp.csr_matrix) -> np.ndarray:
+    """The unknowns ``B`` acts on, in the order its rows first reach them: ordered last in
+    that order, one-unknown rows find the flexibility in the trailing block's order."""
+    first = np.unique(B.indices, return_index=True)[1]
+    return B.indices[np.sort(first)].astype(np.int64)
 
-    At each interface node with both DOFs free, its x and y DOFs become the components
-    along the unit normal and tangent of its normal row (``u = T u'``): that row is then
-    ``|c|`` on the normal component alone, written exactly here (the product would leave
-    rounding on the tangential one). Elsewhere ``T`` is the identity: a node on the
-    symmetry line keeps its one free DOF, which its normal row already is.
+
+def normal_rotation(B_normal: sp.csr_matrix) -> tuple[PairRotation, sp.csr_matrix]:
+    """The rotation ``T`` that makes each normal row act on one unknown, and ``B_normal T``.
+
+    A row ``v_0 u_i + v_1 u_j`` on a node's two unknowns (both free) becomes ``|v| u'_i``:
+    ``u'_i`` is the component along the row's unit direction (the normal) and ``u'_j`` the
+    one across it (the tangent), written exactly here (the product would leave rounding on
+    the tangential one). A row on one unknown (a node on the symmetry line, or a normal
+    along an axis) is one already and keeps it.
     """
-    n = body.n
     B = sp.csr_matrix(B_normal)
-    rows = np.flatnonzero(np.diff(B.indptr) > 0)
-    dx, dy = body.free_of[:, body.node_of_dof()[B.indices[B.indptr[rows]]]]
-    both = (dx >= 0) & (dy >= 0)
-    rows, dx, dy = rows[both], dx[both], dy[both]
-    c = np.vstack([np.asarray(B[rows, dx]).ravel(), np.asarray(B[rows, dy]).ravel()])
-    length = np.hypot(*c)
-    nx, ny = c / length
-    # columns: T[:, dx] = (nx, ny) (normal), T[:, dy] = (-ny, nx) (tangent)
-    diag = np.ones(n)
-    diag[dx] = diag[dy] = nx
-    T = sp.csr_matrix((np.concatenate([diag, ny, -ny]),
-                       (np.concatenate([np.arange(n), dy, dx]), np.concatenate([np.arange(n), dx, dy]))),
-                      shape=(n, n))
-    coo = B.tocoo()
-    keep = ~np.isin(coo.row, rows)
-    rotated = sp.csr_matrix((np.concatenate([coo.data[keep], length]),
-                             (np.concatenate([coo.row[keep], rows]), np.concatenate([coo.col[keep], dx]))),
-                            shape=B.shape)
-    return T, rotated
+    B.sum_duplicates()
+    n = B.shape[1]
+    rows = np.flatnonzero(np.diff(B.indptr) == 2)
+    if np.any(np.diff(B.indptr) > 2):
+        raise ValueError("a normal row on more than one node")
+    first = B.indptr[rows]
+    i, j = B.indices[first], B.indices[first + 1]
+    length = np.hypot(B.data[first], B.data[first + 1])
+    rotation = PairRotation(n, i, j, B.data[first] / length, B.data[first + 1] / length)
+    data, indices = B.data.copy(), B.indices.copy()
+    data[first], data[first + 1] = length, 0.0
+    rotated = sp.csr_matrix((data, indices, B.indptr), shape=B.shape)
+    rotated.eliminate_zeros()
+    return rotation, rotated
 
 
 def lining_pin(body: Body, interface_nodes: np.ndarray) -> int:

@@ -230,9 +230,10 @@ class TunnelModel:
         if rows not in self._S:
             self._factorize(rows)
             t0 = time.perf_counter()
-            S = self.ground.flexibility(rows) + self.lining.flexibility(rows)
+            S = self.ground.flexibility(rows)
+            S += self.lining.flexibility(rows)  # each exactly symmetric
             self.timings["flexibility"] = self.timings.get("flexibility", 0.0) + time.perf_counter() - t0
-            self._S[rows] = 0.5 * (S + S.T)
+            self._S[rows] = S
         return self._S[rows]
 
     @property
@@ -329,10 +330,15 @@ class TunnelModel:
             t = sol.t
         t_solve = time.perf_counter()
         Wt = self.w * t
-        u_g = ground.backward(stage.ground, rows, Wt)
+        if stage.release is not None and stage.deconfinement > 0.0:
+            # the contact stage and stage 1 (λd r alone) in one backward sweep over the factor
+            u = ground.backward(np.column_stack([stage.ground, stage.release]), rows,
+                                np.column_stack([Wt, np.zeros_like(Wt)]))
+            u_g, u1 = u[:, 0], stage.deconfinement * u[:, 1]
+        else:
+            u_g = ground.backward(stage.ground, rows, Wt)
+            u1 = np.zeros_like(u_g)
         u_l = lining.backward(stage.lining, rows, Wt) + sol.a * self.rigid
-        u1 = (stage.deconfinement * ground.backward(stage.release, rows)
-              if stage.release is not None and stage.deconfinement > 0.0 else np.zeros_like(u_g))
         J = ground.B @ u_g + lining.B @ u_l
         lam = t[:m]
         shear = np.zeros(m)
