@@ -45,7 +45,8 @@ class FactorizationError(SolverError):
 
 # -- CHOLMOD's C interface (cholmod_core.h, CHOLMOD 3) ---------------------------------------
 # cvxopt's extension module links libcholmod; looking symbols up through its handle finds
-# them in its dependencies, whatever the wheel names the library file.
+# them in its dependencies, whatever the wheel names the library file. A CDLL's calls run
+# without the GIL (tests/solver/test_linalg.py::test_factorization_releases_the_gil).
 _lib = ctypes.CDLL(_cvxopt_cholmod.__file__)
 _size, _double, _int, _ptr = ctypes.c_size_t, ctypes.c_double, ctypes.c_int, ctypes.c_void_p
 _LONG, _REAL, _DOUBLE = 2, 1, 0  # itype, xtype, dtype

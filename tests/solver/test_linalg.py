@@ -192,3 +192,46 @@ def _factor_entries(K: sp.spmatrix, order: np.ndarray) -> int:
     from solver.linalg import Cholesky
 
     return Cholesky(K, order).entries
+
+
+def test_factorization_releases_the_gil():
+    """CHOLMOD runs without the GIL (ctypes releases it): a Python thread keeps running while
+    another thread factorizes, so a worker's event loop is not blocked by a long
+    factorization. The longest pause of the counting thread is compared with the numeric
+    factorization's own length, not with a clock limit."""
+    import threading
+    import time
+
+    from solver.linalg import Cholesky
+
+    K = laplacian_2d(320)  # 102 400 unknowns
+    perm = _grid_dissection(320)
+    done, stamps, seconds = threading.Event(), [], {}
+
+    def factorize():
+        seconds.update(Cholesky(K, perm).seconds)
+        done.set()
+
+    worker = threading.Thread(target=factorize)
+    worker.start()
+    while not done.is_set():
+        stamps.append(time.perf_counter())
+    worker.join()
+    longest_pause = float(np.max(np.diff(stamps)))
+    assert seconds["numeric"] > 0.02, seconds  # long enough for the comparison to mean something
+    assert longest_pause < 0.5 * seconds["numeric"], (longest_pause, seconds)
+
+
+def _grid_dissection(n: int) -> np.ndarray:
+    """A nested-dissection order of an n x n grid (recursive halving, separators last)."""
+    def order(rows: range, cols: range) -> list[int]:
+        if len(rows) * len(cols) <= 64:
+            return [r * n + c for r in rows for c in cols]
+        if len(rows) >= len(cols):
+            mid = rows.start + len(rows) // 2
+            return order(range(rows.start, mid), cols) + order(range(mid + 1, rows.stop), cols) \
+                + [mid * n + c for c in cols]
+        mid = cols.start + len(cols) // 2
+        return order(rows, range(cols.start, mid)) + order(rows, range(mid + 1, cols.stop)) \
+            + [r * n + mid for r in rows]
+    return np.array(order(range(n), range(n)), dtype=np.int64)
