@@ -35,10 +35,12 @@ SIZES = [(0.1, 4.0), (0.05, 2.0), (0.025, 1.0)]
 
 
 def _floor(model: TunnelModel) -> float:
+    factors = []  # freed after the timing, as the model's factors are (about 6 ms at 152k DOF)
     t0 = time.perf_counter()
     for fb in (model.ground, model.lining):
         K, order = fb.matrix()  # what the model factorizes and its ordering, nothing ordered last
-        InterfaceFactor(K, np.array([], dtype=np.int64), order).solve(np.ones(K.shape[0]))
+        factors.append(InterfaceFactor(K, np.array([], dtype=np.int64), order))
+        factors[-1].solve(np.ones(K.shape[0]))
     return time.perf_counter() - t0
 
 
