@@ -223,7 +223,7 @@ class Cholesky:
             raise (MemoryError if c.status == _OUT_OF_MEMORY else RuntimeError)(
                 f"CHOLMOD solve failed (status {c.status})")
         try:
-            x = _view(X.contents.x, self.n * j, ctypes.c_double).reshape(j, self.n).T.copy()
+            x = np.array(_view(X.contents.x, self.n * j, ctypes.c_double).reshape(j, self.n).T, order="F")
         finally:
             _lib.cholmod_l_free_dense(ctypes.byref(X), ctypes.byref(c))
         return x.reshape(b.shape)
@@ -409,9 +409,9 @@ class InterfaceFactor:
             raise RuntimeError("CHOLMOD did not keep the interface unknowns last")
         self._Ltt = self._chol.trailing_block(self.k)
         where = np.empty(n, np.int64)
-        where[self._perm[n - self.k:]] = np.arange(self.k)
-        #: trailing-block position of each of ``last``
-        self._pos = where[self.last]
+        where[self._perm] = np.arange(n)
+        #: factor position of each unknown, and the trailing-block position of each of ``last``
+        self._where, self._pos = where, where[self.last] - (n - self.k)
 
     # -- the interface -----------------------------------------------------------------
     def flexibility(self, Bd: np.ndarray) -> np.ndarray:
@@ -467,9 +467,7 @@ class InterfaceFactor:
 
     def backward(self, y: np.ndarray) -> np.ndarray:
         """``x = T Pᵀ L⁻ᵀ y``: with ``y = forward(b)``, ``x = K⁻¹ b``."""
-        z = self._chol.solve(_SYS_LT, y)
-        x = np.empty_like(z)
-        x[self._perm] = z
+        x = self._chol.solve(_SYS_LT, y)[self._where]
         return x if self.rotation is None else self.rotation.apply(x)
 
     def solve(self, b: np.ndarray) -> np.ndarray:

@@ -235,3 +235,15 @@ def _grid_dissection(n: int) -> np.ndarray:
         return order(rows, range(cols.start, mid)) + order(rows, range(mid + 1, cols.stop)) \
             + [r * n + mid for r in rows]
     return np.array(order(range(n), range(n)), dtype=np.int64)
+
+
+def test_an_invalid_permutation_is_an_error_not_a_crash():
+    """CHOLMOD checks the permutation it is given; its refusal surfaces as an error."""
+    from solver.linalg import Cholesky
+
+    K = laplacian_2d(5)
+    perm = np.arange(K.shape[0])
+    perm[3] = perm[4]  # not a permutation
+    with pytest.raises(RuntimeError, match="CHOLMOD analysis failed"):
+        Cholesky(K, perm)
+    assert Cholesky(K, np.arange(K.shape[0])).entries > 0  # the library still works after it
