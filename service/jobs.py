@@ -45,7 +45,7 @@ from pydantic import ValidationError
 from solver.errors import field_errors, format_errors
 from solver.spec import CaseSpec
 from workflows.store import remove_stale_temporaries, stored_case_ids
-from workflows.tasks import case_id_of_key, solve_and_store, task_key  # one key per case, CLI too
+from workflows.tasks import case_id_of_key, map_cases  # one task key per case, CLI too
 
 from .results import BrokenResult, public_error, result_state, stored_outcome, written
 from .store import UNREADABLE, CaseRecord, JobStore
@@ -158,8 +158,7 @@ class Dispatcher:
             return
         ids = list(batch)
         try:
-            futures = self.client.map(solve_and_store, [batch[c] for c in ids], [str(self.root)] * len(ids),
-                                      key=[task_key(c) for c in ids], pure=False)
+            futures = map_cases(self.client, [batch[c] for c in ids], ids, str(self.root))
             fire_and_forget(futures)
         except Exception:
             logger.exception("could not submit %d cases; they stay queued", len(ids))

@@ -24,7 +24,7 @@ from workflows.plots import PLOTS, SWEEP_PLOT_NAMES
 
 from . import cases, studies
 from .comparison import comparison_table, ordered_scalars, scalar_column, shown
-from .params import CaseId, SweepId, jobs_of, not_found
+from .params import CaseId, SweepId, jobs_of, sweep_or_404
 from .schemas import SweepStatus
 
 logger = logging.getLogger(__name__)
@@ -107,9 +107,7 @@ async def error_page(request: Request, status_code: int, detail: str) -> HTMLRes
 @router.get("/ui/sweeps/{sweep_id}", response_class=HTMLResponse)
 async def sweep_page(sweep_id: SweepId, request: Request) -> HTMLResponse:
     store = jobs_of(request).store
-    record = store.get_sweep(sweep_id)  # read once for the status, the table and the spec
-    if record is None:
-        raise not_found("sweep", sweep_id)
+    record = sweep_or_404(request, sweep_id)  # read once for the status, the table and the spec
     status = SweepStatus.of(record, store.status_counts(record.case_ids))
     return await _render(request, "sweep.html", sweep=status, table=comparison_table(store, record),
                          spec=record.spec, plots=SWEEP_PLOT_NAMES)

@@ -32,6 +32,14 @@ def not_found(kind: str, ident: str) -> HTTPException:
     return HTTPException(status_code=404, detail=f"unknown {kind} {ident}")
 
 
+def sweep_or_404(request: Request, sweep_id: str) -> SweepRecord:
+    """The stored sweep ``sweep_id``; 404 if there is none."""
+    record = jobs_of(request).store.get_sweep(sweep_id)
+    if record is None:
+        raise not_found("sweep", sweep_id)
+    return record
+
+
 def not_ready(what: str, status: str) -> HTTPException:
     return HTTPException(status_code=409, detail=f"{what} not ready: {status}")
 

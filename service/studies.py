@@ -16,21 +16,13 @@ from workflows.plots import SWEEP_PLOT_NAMES
 from .comparison import ComparisonTable, comparison_table, table_csv
 from .errors import responses
 from .guards import require_token
-from .params import Offset, SweepId, jobs_of, not_found, sweep_results
+from .params import Offset, SweepId, jobs_of, sweep_or_404, sweep_results
 from .schemas import SweepCancelled, SweepPage, SweepStatus
-from .store import SweepRecord
 
 router = APIRouter(prefix="/sweeps", tags=["sweeps"])
 
 #: Plot names accepted in ``/sweeps/{id}/plots/{name}.png``.
 SweepPlotName = Enum("SweepPlotName", {name: name for name in SWEEP_PLOT_NAMES}, type=str)
-
-
-def _sweep(request: Request, sweep_id: str) -> SweepRecord:
-    record = jobs_of(request).store.get_sweep(sweep_id)
-    if record is None:
-        raise not_found("sweep", sweep_id)
-    return record
 
 
 @router.get("", response_model=SweepPage, responses=responses(422))
@@ -49,7 +41,7 @@ async def get_sweep_table(sweep_id: SweepId, request: Request) -> ComparisonTabl
     """The comparison table: one row per case; columns ``case_id``, ``status``, the parameters
     that vary across the sweep, the result scalars (SI units; see ``columns``), then ``error``
     and ``warnings``."""
-    return comparison_table(jobs_of(request).store, _sweep(request, sweep_id))
+    return comparison_table(jobs_of(request).store, sweep_or_404(request, sweep_id))
 
 
 @router.get("/{sweep_id}/summary.csv", response_class=Response, responses={
@@ -76,7 +68,7 @@ async def get_sweep_plot(sweep_id: SweepId, name: SweepPlotName, request: Reques
     have them) or ``scalars`` (each summary scalar against each varied parameter).
     As for ``result.nc``: 409 while no case is done but some is open, 404 when none can be."""
     jobs = jobs_of(request)
-    record = _sweep(request, sweep_id)
+    record = sweep_or_404(request, sweep_id)
     done = await sweep_results(jobs, record)  # as for result.nc
     path = await asyncio.to_thread(render_sweep_plot, jobs.root, sweep_id, done, name.value)
     return FileResponse(path, media_type="image/png",
@@ -91,7 +83,7 @@ async def cancel_sweep(sweep_id: SweepId, request: Request) -> SweepCancelled:
     Posting the sweep (or one of its cases) again submits the cancelled cases again.
     """
     jobs = jobs_of(request)
-    record = _sweep(request, sweep_id)
+    record = sweep_or_404(request, sweep_id)
     cancelled = await jobs.cancel(list(record.case_ids))
     status = SweepStatus.of(record, jobs.store.status_counts(record.case_ids))
     return SweepCancelled(**status.model_dump(), cancelled_now=cancelled)

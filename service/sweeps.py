@@ -15,7 +15,7 @@ from workflows.artifacts import write_combined
 from .errors import invalid, responses
 from .cases import RETRY_QUERY, Retry
 from .guards import check_capacity, require_token
-from .params import NETCDF, SweepId, jobs_of, not_found, settings_of, sweep_results
+from .params import NETCDF, SweepId, jobs_of, settings_of, sweep_or_404, sweep_results
 from .schemas import FieldError, SweepAccepted, SweepStatus
 
 router = APIRouter(prefix="/sweeps", tags=["sweeps"])
@@ -65,11 +65,8 @@ async def submit_sweep(sweep: Sweep, request: Request, response: Response,
 @router.get("/{sweep_id}", response_model=SweepStatus, responses=responses(404))
 async def get_sweep(sweep_id: SweepId, request: Request) -> SweepStatus:
     """A sweep's cases and how many are in each status."""
-    store = jobs_of(request).store
-    record = store.get_sweep(sweep_id)
-    if record is None:
-        raise not_found("sweep", sweep_id)
-    return SweepStatus.of(record, store.status_counts(record.case_ids))
+    record = sweep_or_404(request, sweep_id)
+    return SweepStatus.of(record, jobs_of(request).store.status_counts(record.case_ids))
 
 
 @router.get("/{sweep_id}/result.nc", response_class=FileResponse, responses={
@@ -79,10 +76,7 @@ async def get_sweep(sweep_id: SweepId, request: Request) -> SweepStatus:
 async def get_sweep_result(sweep_id: SweepId, request: Request) -> FileResponse:
     """The combined dataset (dim ``case``) of the sweep's finished cases; 409 while none is done
     but some is still queued or running, 404 (saying why) when none is done and none is open."""
-    jobs = jobs_of(request)
-    record = jobs.store.get_sweep(sweep_id)
-    if record is None:
-        raise not_found("sweep", sweep_id)
+    jobs, record = jobs_of(request), sweep_or_404(request, sweep_id)
     done = await sweep_results(jobs, record)
     path = await asyncio.to_thread(write_combined, jobs.root, sweep_id, done)
     return FileResponse(path, media_type=NETCDF, filename=f"sweep-{sweep_id}.nc",

@@ -71,16 +71,24 @@ def solve_and_store(spec_json: str, root: StoreLike, force: bool = False) -> dic
             "computed": computed, "seconds": time.perf_counter() - start}
 
 
-def submit_cases(client, specs: Sequence[CaseSpec], root: StoreLike, *, force: bool = False) -> dict:
-    """Submit the cases ``specs`` to dask, one :func:`solve_and_store` task each under
-    :func:`task_key` (the service's key too); return ``{future: case id}``.
+def map_cases(client, spec_jsons: Sequence[str], case_ids: Sequence[str], root: str, *,
+              force: bool = False) -> list:
+    """One :func:`solve_and_store` task per case on dask, under :func:`task_key`: how the
+    CLI's sweeps (:func:`submit_cases`) and the service's dispatcher both submit cases, so a
+    case has one task key whoever asks. ``root`` is the store's folder as the workers see it.
 
     Cases that share a mesh and materials share the solver model built on each worker
     (:func:`solver.model.shared_model`), so no grouping of tasks is needed for that.
     """
-    root = str(as_store(root).root)
-    futures = client.map(solve_and_store, [s.canonical_json() for s in specs], [root] * len(specs),
-                         [force] * len(specs), key=[task_key(s.case_id) for s in specs], pure=False)
+    n = len(case_ids)
+    return client.map(solve_and_store, list(spec_jsons), [root] * n, [force] * n,
+                      key=[task_key(c) for c in case_ids], pure=False)
+
+
+def submit_cases(client, specs: Sequence[CaseSpec], root: StoreLike, *, force: bool = False) -> dict:
+    """Submit the cases ``specs`` (:func:`map_cases`); return ``{future: case id}``."""
+    futures = map_cases(client, [s.canonical_json() for s in specs], [s.case_id for s in specs],
+                        str(as_store(root).root), force=force)
     return {future: spec.case_id for future, spec in zip(futures, specs)}
 
 

@@ -12,10 +12,17 @@ import httpx
 import psutil
 import pytest
 from distributed import Client
-
-from service.jobs import task_key
-from service.process import dask_command, free_port, running_service, start, stop, worker_command
 from service_helpers import coarse_case, wait_until
+
+from service.process import (
+    dask_command,
+    free_port,
+    running_service,
+    start,
+    stop,
+    worker_command,
+)
+from workflows.tasks import task_key
 
 #: A fresh worker process spends a second or more importing the solver before this case runs:
 #: time enough to kill it mid-task, again after its nanny has started a new one.
