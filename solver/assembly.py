@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from skfem import Basis, ElementTriP2, ElementVector, FacetBasis, LinearForm, asm
-from skfem.models.elasticity import lame_parameters, linear_elasticity
+from skfem import Basis, BilinearForm, ElementTriP2, ElementVector, FacetBasis, LinearForm, asm
+from skfem.models.elasticity import lame_parameters
 
 from .mesh import BodyMesh
 
@@ -106,7 +106,7 @@ def assemble_body(mesh: BodyMesh, young: float, poisson: float, fixed: list[np.n
                   basis: Basis | None = None) -> Body:
     """Stiffness of one body with the full DOFs in ``fixed`` removed."""
     basis = vector_basis(mesh) if basis is None else basis
-    K = asm(linear_elasticity(*lame_parameters(young, poisson)), basis)
+    K = _structural_csr(elasticity_form(young, poisson).elemental(basis))
     dof_of_node = _dof_of_node(basis)
     is_fixed = np.zeros(basis.N, bool)
     for dofs in fixed:
@@ -220,11 +220,40 @@ def stress_at(body: Body, young: float, poisson: float, u_nodes: np.ndarray,
 
 
 def _hooke(grad: np.ndarray, young: float, poisson: float) -> np.ndarray:
+    return np.stack(_stress_components(grad, young, poisson))
+
+
+def _stress_components(grad: np.ndarray, young: float, poisson: float) -> tuple[np.ndarray, ...]:
+    """Plane-strain Hooke's law: σ_xx, σ_yy, σ_xy, σ_zz from the displacement gradient."""
     lam, mu = lame_parameters(young, poisson)
     exx, eyy = grad[0, 0], grad[1, 1]
-    exy = 0.5 * (grad[0, 1] + grad[1, 0])
     tr = exx + eyy
-    return np.stack([lam * tr + 2 * mu * exx, lam * tr + 2 * mu * eyy, 2 * mu * exy, lam * tr])
+    return lam * tr + 2 * mu * exx, lam * tr + 2 * mu * eyy, mu * (grad[0, 1] + grad[1, 0]), lam * tr
+
+
+def _structural_csr(coo) -> sp.csr_matrix:
+    """A scikit-fem ``COOData`` as CSR with every element entry kept, exact zeros too:
+    ``asm`` drops the zero element entries, which makes the pattern depend on the values
+    (at some meshes an x row of a node then misses a column its y row has), and the
+    interface rotation's in-place path needs a node's unknowns to share their columns."""
+    i, j = coo.indices
+    return sp.coo_matrix((coo.data, (i, j)), shape=coo.shape).tocsr()
+
+
+def elasticity_form(young: float, poisson: float) -> BilinearForm:
+    """The stiffness form ``∫ σ(u) : ∇v`` with :func:`_stress_components`' plane-strain law
+    (the same Hooke's law as the stress recovery). Written out on the gradient's components
+    it assembles 1.7× faster than scikit-fem's generic ``linear_elasticity``
+    (``C(sym_grad(u)) : sym_grad(v)``; 0.49 against 0.81 s for the 128k-unknown ground, /tmp
+    script) and agrees with it to 3e-16 of the largest entry."""
+
+    @BilinearForm
+    def form(u, v, w):
+        sxx, syy, sxy, _ = _stress_components(u.grad, young, poisson)
+        g = v.grad
+        return sxx * g[0, 0] + syy * g[1, 1] + sxy * (g[0, 1] + g[1, 0])
+
+    return form
 
 
 def element_nodal_forces(body: Body, young: float, poisson: float, u_nodes: np.ndarray,
