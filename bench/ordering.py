@@ -69,8 +69,8 @@ def node_amd(K, nodes):
 
 def main(argv=None) -> None:
     from solver import CaseSpec
-    from solver.flexibility import normal_rotation
-    from solver.linalg import Cholesky, nested_dissection
+    from solver.flexibility import in_row_order, normal_rotation
+    from solver.linalg import Cholesky, interface_last, nested_dissection
     from solver.model import TunnelModel
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -84,9 +84,7 @@ def main(argv=None) -> None:
     K = fb.body.K
     nodes = fb.body.node_of_dof()
     T, B = normal_rotation(fb.B[: fb.m])
-    last = np.unique(B.indices)
-    at_end = np.zeros(K.shape[0], dtype=bool)
-    at_end[last] = True
+    last = in_row_order(B)  # as the solver orders them
     free, constrained = K, T.congruence(K)
     orderings = {"vertex-nd": lambda: nested_dissection(fb.body.basis.mesh, nodes),
                  "node-nd": lambda: node_nd(K, nodes), "amd": lambda: node_amd(K, nodes)}
@@ -98,7 +96,7 @@ def main(argv=None) -> None:
             order = find()
             times = {"order": time.perf_counter() - t0}
             for kind, A, p in (("free", free, order),
-                               ("last", constrained, np.concatenate([order[~at_end[order]], last]))):
+                               ("last", constrained, interface_last(order, last))):
                 factor = Cholesky(A, p)
                 times[f"{kind}_symbolic"], times[f"{kind}_numeric"] = (factor.seconds["symbolic"],
                                                                        factor.seconds["numeric"])

@@ -179,6 +179,10 @@ class JobStore:
             self._migrate_warnings_column()
             self._db.execute("PRAGMA foreign_keys=ON")
             self._db.executescript(_SCHEMA)
+            # a new case's row as the table makes it: every column's default, evaluated by SQLite
+            columns = self._db.execute("PRAGMA table_info(cases)").fetchall()
+            defaults = self._db.execute("SELECT " + ", ".join(c["dflt_value"] or "NULL" for c in columns)).fetchone()
+            self._new_case = dict(zip((c["name"] for c in columns), defaults))
             if background_checkpoints:
                 self._db.execute("PRAGMA wal_autocheckpoint=0")
         self._checkpointer = _Checkpointer(self.path, CHECKPOINT_INTERVAL) if background_checkpoints else None
@@ -235,16 +239,11 @@ class JobStore:
 
     def add_case(self, case_id: str, spec_json: str) -> tuple[CaseRecord, bool]:
         """Record a case as queued unless it exists; return the record and whether it is new."""
-        now = time.time()
-        created = self._write(
-            "INSERT OR IGNORE INTO cases (id, spec, status, submitted_at) VALUES (?, ?, 'queued', ?)",
-            (case_id, spec_json, now)) == 1
-        if not created:
+        row = {**self._new_case, "id": case_id, "spec": spec_json, "status": "queued", "submitted_at": time.time()}
+        if self._write("INSERT OR IGNORE INTO cases (id, spec, status, submitted_at) VALUES (?, ?, ?, ?)",
+                       (case_id, spec_json, row["status"], row["submitted_at"])) != 1:
             return self.get_case(case_id), False
-        # the row just inserted, without reading it back (the columns' defaults)
-        return _case({"id": case_id, "spec": spec_json, "status": "queued", "summary": None, "error": None,
-                      "submitted_at": now, "started_at": None, "finished_at": None, "submissions": 0,
-                      "warnings": None}), True
+        return _case(row), True  # the row inserted, without reading it back
 
     def get_case(self, case_id: str) -> Optional[CaseRecord]:
         rows = self._read("SELECT * FROM cases WHERE id = ?", (case_id,))

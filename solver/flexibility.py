@@ -107,10 +107,10 @@ class FactoredBody:
             K, order = self.matrix()
             if rows == "normal":
                 T, B = normal_rotation(self._columns(self.B[: self.m]))
-                factor = InterfaceFactor(K, _in_row_order(B), order, rotation=T)
+                factor = InterfaceFactor(K, in_row_order(B), order, rotation=T)
             else:
                 B = self._columns(self.B)
-                factor = InterfaceFactor(K, _in_row_order(B), order)
+                factor = InterfaceFactor(K, in_row_order(B), order)
             on_last = B[:, factor.last].tocsr()
             if on_last.nnz != B.nnz:
                 raise AssertionError("interface rows reach beyond the trailing block")
@@ -154,7 +154,7 @@ class FactoredBody:
         return u
 
 
-def _in_row_order(B: sp.csr_matrix) -> np.ndarray:
+def in_row_order(B: sp.csr_matrix) -> np.ndarray:
     """The unknowns ``B`` acts on, in the order its rows first reach them: ordered last in
     that order, one-unknown rows find the flexibility in the trailing block's order."""
     first = np.unique(B.indices, return_index=True)[1]

@@ -141,6 +141,11 @@ def _common() -> _Common:
     return c
 
 
+def _failure(c: _Common, what: str) -> Exception:
+    """The error for a CHOLMOD call that failed, from the status it left in ``c``."""
+    return (MemoryError if c.status == _OUT_OF_MEMORY else RuntimeError)(f"CHOLMOD {what} failed (status {c.status})")
+
+
 def _free_factor(address: int) -> None:
     _lib.cholmod_l_free_factor(ctypes.byref(ctypes.cast(address, _factor_p)), _common())
 
@@ -181,8 +186,7 @@ class Cholesky:
         L = _lib.cholmod_l_analyze_p(ctypes.byref(A), P.ctypes.data, None, 0, ctypes.byref(c))
         t1 = time.perf_counter()
         if not L:
-            raise (MemoryError if c.status == _OUT_OF_MEMORY else RuntimeError)(
-                f"CHOLMOD analysis failed (status {c.status})")
+            raise _failure(c, "analysis")
         self._L, self.n = L, n
         weakref.finalize(self, _free_factor, ctypes.addressof(L.contents))
         ok = _lib.cholmod_l_factorize(ctypes.byref(A), L, ctypes.byref(c))
@@ -191,8 +195,7 @@ class Cholesky:
         if c.status == _NOT_POSDEF or f.minor < n:
             raise FactorizationError(f"the stiffness matrix is not positive definite (pivot {f.minor} of {n})")
         if not ok or c.status < 0:
-            raise (MemoryError if c.status == _OUT_OF_MEMORY else RuntimeError)(
-                f"CHOLMOD factorization failed (status {c.status})")
+            raise _failure(c, "factorization")
         #: the unknown at each factor position
         self.perm = _view(f.Perm, n, ctypes.c_int64).copy()
 
@@ -213,7 +216,7 @@ class Cholesky:
     @property
     def entries(self) -> int:
         """Entries of ``L`` (the lower triangle of each supernode's dense block)."""
-        ns, sup, pi, _, _, _ = self._supernodes()
+        _, sup, pi, _, _, _ = self._supernodes()
         cols, rows = np.diff(sup), np.diff(pi)
         return int(np.sum(rows * cols - cols * (cols - 1) // 2))
 
@@ -226,8 +229,7 @@ class Cholesky:
         c = _common()
         X = _lib.cholmod_l_solve(system, self._L, ctypes.byref(rhs), ctypes.byref(c))
         if not X:
-            raise (MemoryError if c.status == _OUT_OF_MEMORY else RuntimeError)(
-                f"CHOLMOD solve failed (status {c.status})")
+            raise _failure(c, "solve")
         try:
             x = np.array(_view(X.contents.x, self.n * j, ctypes.c_double).reshape(j, self.n).T, order="F")
         finally:
@@ -374,6 +376,13 @@ def _positions(indptr: np.ndarray, rows: np.ndarray) -> np.ndarray:
     return np.repeat(starts - np.r_[0, np.cumsum(counts)[:-1]], counts) + np.arange(counts.sum())
 
 
+def interface_last(order: np.ndarray, last: np.ndarray) -> np.ndarray:
+    """``order`` with the unknowns ``last`` taken out and put at the end, in their own order."""
+    at_end = np.zeros(order.size, dtype=bool)
+    at_end[last] = True
+    return np.concatenate([order[~at_end[order]], last])
+
+
 class InterfaceFactor:
     """Cholesky factorization of an SPD matrix with the ``last`` unknowns ordered last.
 
@@ -396,10 +405,7 @@ class InterfaceFactor:
         K = _csr(K)
         n = K.shape[0]
         self.last = np.asarray(last, dtype=np.int64)
-        order = np.arange(n) if order is None else np.asarray(order)
-        at_end = np.zeros(n, dtype=bool)
-        at_end[self.last] = True
-        perm = np.concatenate([order[~at_end[order]], self.last])
+        perm = interface_last(np.arange(n) if order is None else np.asarray(order), self.last)
         self.rotation = rotation
         if rotation is not None:
             K = rotation.congruence(K)

@@ -23,8 +23,8 @@ combines them. Solves. Each body's factorization has the interface unknowns last
 case's solve splits around the contact problem: a forward solve of its load gives the
 interface jumps ``B K⁺ f``, and one backward solve with the contact tractions the
 displacements (:meth:`FactoredBody.forward`, :meth:`~FactoredBody.backward`): the
-triangular solves of one elastic solve per body, and one more backward solve on the
-ground for the stage-1 displacement of a staged excavation.
+triangular solves of one elastic solve per body, the stage-1 displacement of a staged
+excavation a second column of the ground's backward solve.
 """
 from __future__ import annotations
 

@@ -242,16 +242,11 @@ class ResultStore:
         later success removes that record.
         """
         spec = CaseSpec.model_validate(spec)
-        self.solve_and_store(spec, force=force)
-        return spec.case_id
-
-    def solve_and_store(self, spec: CaseSpec, *, force: bool = False) -> dict[str, float] | None:
-        """:meth:`run_and_store` returning the new result's scalars (from memory, not read
-        back), or None when the case was already stored and not recomputed."""
         if not force and self.is_stored(spec.case_id):
             logger.info("case %s already stored, not recomputed", spec.case_id)
-            return None
-        return self._solve(spec)[0]
+        else:
+            self._solve(spec)
+        return spec.case_id
 
     def solve_or_read(self, spec: CaseSpec, *, force: bool = False
                       ) -> tuple[dict[str, float], list[str], bool]:

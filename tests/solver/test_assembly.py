@@ -23,9 +23,10 @@ def test_stiffness_form_is_scikit_fems_linear_elasticity():
 
 
 def test_stiffness_pattern_is_structural():
-    """Every element entry is kept, exact zeros too: a node's x and y rows reach the same
-    columns, the pattern is symmetric, and it is the node graph's (each node couples
-    both unknowns of every node it shares an element with)."""
+    """Every element entry is kept, exact zeros too: the pattern is symmetric and every
+    node's x and y rows reach the same columns (what the interface rotation's in-place
+    path needs; scikit-fem's ``asm``, which drops zero entries, fails both at this mesh)."""
+    from solver.linalg import _positions
     from solver.model import TunnelModel
 
     model = TunnelModel(CaseSpec(mesh=dict(interface_size=0.05, far_size=2.0)))
@@ -37,5 +38,4 @@ def test_stiffness_pattern_is_structural():
         both = (body.free_of >= 0).all(axis=0)
         x, y = body.free_of[0, both], body.free_of[1, both]
         np.testing.assert_array_equal(np.diff(K.indptr)[x], np.diff(K.indptr)[y])
-        for i, j in zip(x[:: max(1, x.size // 200)], y[:: max(1, x.size // 200)]):
-            np.testing.assert_array_equal(K.indices[K.indptr[i]:K.indptr[i + 1]], K.indices[K.indptr[j]:K.indptr[j + 1]])
+        np.testing.assert_array_equal(K.indices[_positions(K.indptr, x)], K.indices[_positions(K.indptr, y)])

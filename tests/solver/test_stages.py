@@ -137,8 +137,16 @@ def test_stages_reuse_the_factorization(monkeypatch):
         raise AssertionError("factorized again")
 
     monkeypatch.setattr(flexibility, "InterfaceFactor", refuse)
-    sol = model.solve(spec.model_copy(update={"excavation": spec.excavation.model_copy(update={"deconfinement": 0.5})}))
-    assert np.abs(sol.u_stage1).max() > 0
+    case = spec.model_copy(update={"excavation": spec.excavation.model_copy(update={"deconfinement": 0.5})})
+    sol = model.solve(case)
+    # stage 1 (the second column of the ground's backward solve) is K u1 = λd r on the ground alone
+    body = model.ground.body
+    u1 = np.zeros(body.n)
+    held = body.free_of >= 0
+    u1[body.free_of[held]] = sol.u_stage1[held]
+    load = 0.5 * model.stage_loads(case).release
+    np.testing.assert_allclose(body.K @ u1, load, rtol=0, atol=1e-9 * np.abs(load).max())
+    assert np.abs(u1).max() > 0
 
 
 def test_large_displacement_is_stored_with_a_warning():
