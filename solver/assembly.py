@@ -42,7 +42,11 @@ class Body:
     dof_of_node : (2, N) full DOF of component c at node j.
     free : (n,) the full DOFs that are unknowns.
     free_of : (2, N) free-DOF index of component c at node j, -1 where constrained.
-    K : (n, n) CSR stiffness on the free DOFs (N/m per m of tunnel).
+    K : (n, n) CSR stiffness on the free DOFs (N/m per m of tunnel), in the unknowns' basis.
+    skew : the nodes whose unknowns are turned (:func:`assemble_body`'s ``skew``) as a
+        :class:`PairRotation` ``T`` of the free DOFs: ``u_xy = T u``; None if none is.
+        The free-DOF vectors of the body (``K``'s unknowns, :meth:`restrict`'s loads,
+        :meth:`expand`'s input) are in that basis; nodal fields are in x, y.
     """
 
     mesh: BodyMesh
@@ -51,17 +55,22 @@ class Body:
     free: np.ndarray
     free_of: np.ndarray
     K: sp.csr_matrix
+    skew: "PairRotation | None" = None
 
     @property
     def n(self) -> int:
         return self.free.size
 
     def restrict(self, f_full: np.ndarray) -> np.ndarray:
-        """Free-DOF part of a full load vector."""
-        return np.asarray(f_full)[self.free]
+        """Free-DOF part of a full (x, y) load or displacement vector, in the unknowns' basis
+        (``Tᵀ f``: ``T`` is orthogonal, so loads and displacements turn alike)."""
+        f = np.asarray(f_full)[self.free]
+        return f if self.skew is None else self.skew.apply_transpose(f)
 
     def expand(self, u_free: np.ndarray) -> np.ndarray:
-        """Nodal displacements (2, N) from free-DOF values (constrained DOFs are 0)."""
+        """Nodal displacements (2, N) in x, y from free-DOF values (constrained DOFs are 0)."""
+        if self.skew is not None:
+            u_free = self.skew.apply(u_free)
         u = np.zeros(self.free_of.shape)
         mask = self.free_of >= 0
         u[mask] = u_free[self.free_of[mask]]
@@ -86,7 +95,44 @@ class Body:
         r = np.zeros(self.n)
         ys = self.free_of[1]
         r[ys[ys >= 0]] = 1.0
-        return r
+        return r if self.skew is None else self.skew.apply_transpose(r)
+
+
+class PairRotation:
+    """An orthogonal ``T`` (n, n) that turns pairs of unknowns ``(a_i, b_i)`` by angles
+    ``(cos, sin) = (c_i, s_i)``: ``u_a = c u'_a - s u'_b``, ``u_b = s u'_a + c u'_b`` (the
+    pair ``u'`` of a node's x and y unknowns becomes, e.g., its normal and tangential
+    components); the identity elsewhere. Applied pair by pair, never as a product."""
+
+    def __init__(self, n: int, a: np.ndarray, b: np.ndarray, c: np.ndarray, s: np.ndarray):
+        self.n = n
+        self.a, self.b = np.asarray(a, dtype=np.int64), np.asarray(b, dtype=np.int64)
+        self.c, self.s = np.asarray(c, dtype=float), np.asarray(s, dtype=float)
+
+    def matrix(self) -> sp.csr_matrix:
+        """``T`` as a sparse matrix."""
+        diag = np.ones(self.n)
+        diag[self.a] = diag[self.b] = self.c
+        return sp.csr_matrix((np.r_[diag, self.s, -self.s],
+                              (np.r_[np.arange(self.n), self.b, self.a], np.r_[np.arange(self.n), self.a, self.b])),
+                             shape=(self.n, self.n))
+
+    def _turn(self, x: np.ndarray, sign: float, axis: int = 0) -> np.ndarray:
+        x = np.array(x, dtype=float)
+        y = np.moveaxis(x, axis, 0)  # a view of the copy
+        xa, xb = y[self.a], y[self.b]
+        c = self.c.reshape((-1,) + (1,) * (y.ndim - 1))
+        s = sign * self.s.reshape(c.shape)
+        y[self.a], y[self.b] = c * xa - s * xb, s * xa + c * xb
+        return x
+
+    def apply(self, x: np.ndarray, axis: int = 0) -> np.ndarray:
+        """``T x`` for a vector or a block (``T`` acting along ``axis``)."""
+        return self._turn(x, 1.0, axis)
+
+    def apply_transpose(self, x: np.ndarray, axis: int = 0) -> np.ndarray:
+        """``Tᵀ x``."""
+        return self._turn(x, -1.0, axis)
 
 
 def vector_basis(mesh: BodyMesh) -> Basis:
@@ -103,10 +149,20 @@ def _near(values: np.ndarray, target: float, scale: float) -> np.ndarray:
 
 
 def assemble_body(mesh: BodyMesh, young: float, poisson: float, fixed: list[np.ndarray],
-                  basis: Basis | None = None) -> Body:
-    """Stiffness of one body with the full DOFs in ``fixed`` removed."""
+                  basis: Basis | None = None,
+                  skew: tuple[np.ndarray, np.ndarray] | None = None) -> Body:
+    """Stiffness of one body with the full DOFs in ``fixed`` removed.
+
+    ``skew = (nodes, directions)``, directions (2, k) unit vectors: at these nodes (those
+    with both DOFs free) the unknowns are the displacement's components along the
+    direction and across it (the direction turned 90° counter-clockwise), a nodal skew
+    basis: with the interface normals, each contact row acts on one unknown. The element
+    stiffnesses of the elements at those nodes are turned before they are summed
+    (``Rᵀ K_e R``), which costs a few hundred small element matrices instead of a pass
+    over ``K``.
+    """
     basis = vector_basis(mesh) if basis is None else basis
-    K = _structural_csr(elasticity_form(young, poisson).elemental(basis))
+    coo = elasticity_form(young, poisson).elemental(basis)
     dof_of_node = _dof_of_node(basis)
     is_fixed = np.zeros(basis.N, bool)
     for dofs in fixed:
@@ -114,9 +170,47 @@ def assemble_body(mesh: BodyMesh, young: float, poisson: float, fixed: list[np.n
     free = np.flatnonzero(~is_fixed)
     index = -np.ones(basis.N, np.int64)
     index[free] = np.arange(free.size)
-    K = K.tocsr()[free][:, free].tocsr()
-    return Body(mesh=mesh, basis=basis, dof_of_node=dof_of_node, free=free,
-                free_of=index[dof_of_node], K=K)
+    free_of = index[dof_of_node]
+    rotation = None
+    if skew is not None:
+        nodes, directions = np.asarray(skew[0]), np.asarray(skew[1], dtype=float)
+        both = (free_of[0, nodes] >= 0) & (free_of[1, nodes] >= 0)
+        nodes, c, s = nodes[both], directions[0, both], directions[1, both]
+        _turn_elements(coo, basis, dof_of_node[:, nodes], c, s)
+        rotation = PairRotation(free.size, free_of[0, nodes], free_of[1, nodes], c, s)
+    K = _structural_csr(coo)[free][:, free].tocsr()
+    return Body(mesh=mesh, basis=basis, dof_of_node=dof_of_node, free=free, free_of=free_of, K=K,
+                skew=rotation)
+
+
+def _turn_elements(coo, basis: Basis, dofs: np.ndarray, c: np.ndarray, s: np.ndarray) -> None:
+    """``Rᵀ K_e R`` in place in scikit-fem's element data, for the elements with a node whose
+    full x, y DOFs ``dofs[:, i]`` turn by ``(c_i, s_i)`` (:class:`PairRotation`'s convention).
+
+    The vector P2 element numbers a node's x and y DOFs side by side (local 2k, 2k + 1);
+    that is checked on every element turned."""
+    nb, ne = basis.Nbfun, basis.nelems
+    data = coo.data.reshape(nb, nb, ne)  # [trial j, test i, element]: a view
+    E = basis.element_dofs  # (nb, ne) full DOF of each local DOF
+    turn_x, turn_y = np.full(basis.N, -1, np.int64), np.full(basis.N, -1, np.int64)
+    turn_x[dofs[0]] = turn_y[dofs[1]] = np.arange(dofs.shape[1])
+    elements = np.flatnonzero((turn_x[E] >= 0).any(axis=0))
+    if elements.size == 0:
+        return
+    local = E[:, elements]
+    t = turn_x[local[0::2]]  # (nb/2, elements): the turn of each local node, -1 for none
+    if not (np.array_equal(turn_y[local[1::2]], t) and np.all(turn_x[local[1::2]] < 0)):
+        raise AssertionError("unexpected local DOF layout of the vector P2 element")
+    cs, sn = np.where(t >= 0, c[t], 1.0), np.where(t >= 0, s[t], 0.0)
+    block = data[:, :, elements]  # a contiguous copy
+    pairs = nb // 2
+    rows = block.reshape(pairs, 2, nb, -1)  # rows, then columns: Rᵀ K_e R
+    a, b = rows[:, 0].copy(), rows[:, 1].copy()
+    rows[:, 0], rows[:, 1] = cs[:, None] * a + sn[:, None] * b, cs[:, None] * b - sn[:, None] * a
+    cols = block.reshape(nb, pairs, 2, -1)
+    a, b = cols[:, :, 0].copy(), cols[:, :, 1].copy()
+    cols[:, :, 0], cols[:, :, 1] = cs * a + sn * b, cs * b - sn * a
+    data[:, :, elements] = block
 
 
 def ground_constraints(basis: Basis, *, width: float, height: float, side: str, bottom: str) -> list[np.ndarray]:
@@ -234,8 +328,8 @@ def _stress_components(grad: np.ndarray, young: float, poisson: float) -> tuple[
 def _structural_csr(coo) -> sp.csr_matrix:
     """A scikit-fem ``COOData`` as CSR with every element entry kept, exact zeros too:
     ``asm`` drops the zero element entries, which makes the pattern depend on the values
-    (at some meshes an x row of a node then misses a column its y row has), and the
-    interface rotation's in-place path needs a node's unknowns to share their columns."""
+    (at some meshes an x row of a node then misses a column its y row has): structural,
+    the pattern is the mesh's alone, whatever the materials and the skew basis."""
     i, j = coo.indices
     return sp.coo_matrix((coo.data, (i, j)), shape=coo.shape).tocsr()
 

@@ -7,7 +7,10 @@ both bodies hold, so s = 0 there by symmetry). The force on the lining at node i
 ``w_i (λ_i ν_i + s_i τ_i)`` and its opposite acts on the ground.
 
 ``B`` maps a body's free DOFs to ``sign · [ν·u; τ·u]`` at the interface rows (sign +1
-ground, -1 lining), so the jumps ``J = [[u]ν; [u]τ] = B' u' + B'' u''``. Each body is
+ground, -1 lining), so the jumps ``J = [[u]ν; [u]τ] = B' u' + B'' u''``. The interface
+nodes of both bodies carry their normal and tangential components as unknowns (a skew
+basis, :func:`solver.assembly.assemble_body`), so each row of ``B`` acts on one unknown
+(two at the crown and the invert, where the normal is vertical and x is held). Each body is
 factorized once with the interface unknowns its contact model needs ordered last
 (:class:`FactoredBody`, :mod:`solver.linalg`); the dense flexibility ``S = B K⁺ Bᵀ``
 then comes from the factor's trailing block, and for loads
@@ -22,7 +25,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .assembly import Body
-from .linalg import InterfaceFactor, PairRotation, nested_dissection
+from .linalg import InterfaceFactor, nested_dissection
 from .mesh import Interface
 
 
@@ -36,7 +39,9 @@ def interface_rows(iface: Interface) -> tuple[np.ndarray, np.ndarray, np.ndarray
 
 
 def interface_operator(body: Body, nodes: np.ndarray, directions: np.ndarray, sign: float) -> sp.csr_matrix:
-    """Sparse ``sign · direction·u`` at ``nodes`` on the body's free DOFs, shape (R, n)."""
+    """Sparse ``sign · direction·u`` at ``nodes`` on the body's free DOFs (in its basis: ``B T``
+    for a skew body), shape (R, n). Along a skew node's own normal or tangent a row has one
+    entry: the other's is ``±(ν_x ν_y - ν_y ν_x)``, exactly zero, and dropped."""
     rows, cols, vals = [], [], []
     for c in range(2):
         dof = body.free_of[c, nodes]
@@ -44,8 +49,12 @@ def interface_operator(body: Body, nodes: np.ndarray, directions: np.ndarray, si
         rows.append(np.flatnonzero(ok))
         cols.append(dof[ok])
         vals.append(sign * directions[c, ok])
-    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                         shape=(nodes.size, body.n))
+    B = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                      shape=(nodes.size, body.n))
+    if body.skew is not None:
+        B = sp.csr_matrix(B @ body.skew.matrix())
+        B.eliminate_zeros()
+    return B
 
 
 #: Which interface rows a factorization serves with its trailing block: ``"normal"``
@@ -61,12 +70,12 @@ def rows_of_model(interface_model: str) -> Rows:
 class FactoredBody:
     """A body, its interface operator ``B`` (R, n) and its factorizations, built on first use.
 
-    Two factorizations can serve the interface. ``"all"`` orders both DOFs of every
-    interface node last. ``"normal"`` first turns each interface node's DOFs into normal
-    and tangential components (an orthogonal ``T``, :func:`normal_rotation`) and orders
-    only the normal ones last: half the trailing block, an eighth of its dense
-    factorization. A result is always computed with the factorization its interface
-    model needs, so it never depends on which the model built before.
+    Two factorizations can serve the interface. ``"all"`` orders the normal and the
+    tangential unknowns of every interface node last, ``"normal"`` only the normal ones
+    (the body's skew basis makes them unknowns of their own): half the trailing block,
+    an eighth of its dense factorization. A result is always computed with the
+    factorization its interface model needs, so it never depends on which the model
+    built before.
 
     Parameters
     ----------
@@ -105,12 +114,8 @@ class FactoredBody:
         columns of its ``last`` unknowns (built on first use)."""
         if rows not in self._factors:
             K, order = self.matrix()
-            if rows == "normal":
-                T, B = normal_rotation(self._columns(self.B[: self.m]))
-                factor = InterfaceFactor(K, in_row_order(B), order, rotation=T)
-            else:
-                B = self._columns(self.B)
-                factor = InterfaceFactor(K, in_row_order(B), order)
+            B = self._columns(self.B[: self.m] if rows == "normal" else self.B)
+            factor = InterfaceFactor(K, in_row_order(B), order)
             on_last = B[:, factor.last].tocsr()
             if on_last.nnz != B.nnz:
                 raise AssertionError("interface rows reach beyond the trailing block")
@@ -159,32 +164,6 @@ def in_row_order(B: sp.csr_matrix) -> np.ndarray:
     that order, one-unknown rows find the flexibility in the trailing block's order."""
     first = np.unique(B.indices, return_index=True)[1]
     return B.indices[np.sort(first)].astype(np.int64)
-
-
-def normal_rotation(B_normal: sp.csr_matrix) -> tuple[PairRotation, sp.csr_matrix]:
-    """The rotation ``T`` that makes each normal row act on one unknown, and ``B_normal T``.
-
-    A row ``v_0 u_i + v_1 u_j`` on a node's two unknowns (both free) becomes ``|v| u'_i``:
-    ``u'_i`` is the component along the row's unit direction (the normal) and ``u'_j`` the
-    one across it (the tangent), written exactly here (the product would leave rounding on
-    the tangential one). A row on one unknown (a node on the symmetry line, or a normal
-    along an axis) is one already and keeps it.
-    """
-    B = sp.csr_matrix(B_normal)
-    B.sum_duplicates()
-    n = B.shape[1]
-    rows = np.flatnonzero(np.diff(B.indptr) == 2)
-    if np.any(np.diff(B.indptr) > 2):
-        raise ValueError("a normal row on more than one node")
-    first = B.indptr[rows]
-    i, j = B.indices[first], B.indices[first + 1]
-    length = np.hypot(B.data[first], B.data[first + 1])
-    rotation = PairRotation(n, i, j, B.data[first] / length, B.data[first + 1] / length)
-    data, indices = B.data.copy(), B.indices.copy()
-    data[first], data[first + 1] = length, 0.0
-    rotated = sp.csr_matrix((data, indices, B.indptr), shape=B.shape)
-    rotated.eliminate_zeros()
-    return rotation, rotated
 
 
 def lining_pin(body: Body, interface_nodes: np.ndarray) -> int:

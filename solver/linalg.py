@@ -297,85 +297,6 @@ def nested_dissection(mesh, node_of_unknown: np.ndarray) -> np.ndarray:
     return np.lexsort((np.arange(node_of_unknown.size), rank[node_of_unknown]))
 
 
-class PairRotation:
-    """An orthogonal ``T`` (n, n) that turns pairs of unknowns ``(a_i, b_i)`` by angles
-    ``(cos, sin) = (c_i, s_i)``: ``u_a = c u'_a - s u'_b``, ``u_b = s u'_a + c u'_b`` (the
-    pair ``u'`` of a node's x and y unknowns becomes, e.g., its normal and tangential
-    components); the identity elsewhere. Applied pair by pair, never as a product."""
-
-    def __init__(self, n: int, a: np.ndarray, b: np.ndarray, c: np.ndarray, s: np.ndarray):
-        self.n = n
-        self.a, self.b = np.asarray(a, dtype=np.int64), np.asarray(b, dtype=np.int64)
-        self.c, self.s = np.asarray(c, dtype=float), np.asarray(s, dtype=float)
-
-    def matrix(self) -> sp.csr_matrix:
-        """``T`` as a sparse matrix."""
-        diag = np.ones(self.n)
-        diag[self.a] = diag[self.b] = self.c
-        return sp.csr_matrix((np.r_[diag, self.s, -self.s],
-                              (np.r_[np.arange(self.n), self.b, self.a], np.r_[np.arange(self.n), self.a, self.b])),
-                             shape=(self.n, self.n))
-
-    def _turn(self, x: np.ndarray, sign: float) -> np.ndarray:
-        x = np.array(x, dtype=float)
-        xa, xb = x[self.a], x[self.b]
-        c = self.c.reshape((-1,) + (1,) * (x.ndim - 1))
-        s = sign * self.s.reshape(c.shape)
-        x[self.a], x[self.b] = c * xa - s * xb, s * xa + c * xb
-        return x
-
-    def apply(self, x: np.ndarray) -> np.ndarray:
-        """``T x`` for a vector or an (n, j) block."""
-        return self._turn(x, 1.0)
-
-    def apply_transpose(self, x: np.ndarray) -> np.ndarray:
-        """``Tᵀ x``."""
-        return self._turn(x, -1.0)
-
-    def congruence(self, K: sp.csr_matrix) -> sp.csr_matrix:
-        """``Tᵀ K T`` for a symmetric ``K``: a copy of ``K``'s values with each pair's rows,
-        then its columns, turned in place. That needs each pair's two rows to have the same
-        columns (a node's unknowns couple to the same nodes), so that the pattern is
-        unchanged; otherwise the sparse product. Measured for the 128k-unknown ground of
-        ``python -m bench.solver``'s finest mesh: 5-7 ms, with the copy of the values, against
-        28 ms for the product.
-        """
-        K = _csr(K)
-        n, a, b = self.n, self.a, self.b
-        if a.size == 0:
-            return K.copy()
-        indptr, indices = K.indptr, K.indices
-        counts = np.diff(indptr)
-        rows_a, rows_b = _positions(indptr, a), _positions(indptr, b)
-        if np.array_equal(counts[a], counts[b]) and np.array_equal(indices[rows_a], indices[rows_b]):
-            # the columns a and b in every row that has them: the columns of rows a (symmetry)
-            r = indices[rows_a].astype(np.int64)
-            pair = np.repeat(np.arange(a.size), counts[a])
-            keys_a, keys_b = r * n + a[pair], r * n + b[pair]
-            touched = np.unique(r)
-            at = _positions(indptr, touched)
-            keys = np.repeat(touched.astype(np.int64), counts[touched]) * n + indices[at]
-            pos_a = np.minimum(np.searchsorted(keys, keys_a), keys.size - 1)
-            pos_b = np.minimum(np.searchsorted(keys, keys_b), keys.size - 1)
-            if np.array_equal(keys[pos_a], keys_a) and np.array_equal(keys[pos_b], keys_b):
-                data = K.data.astype(float)
-                for pa, pb, i in ((rows_a, rows_b, pair), (at[pos_a], at[pos_b], pair)):  # rows, then columns
-                    c, s = self.c[i], self.s[i]
-                    xa, xb = data[pa], data[pb]
-                    data[pa], data[pb] = c * xa + s * xb, c * xb - s * xa
-                out = sp.csr_matrix((data, indices, indptr), shape=K.shape)
-                out.has_canonical_format = K.has_canonical_format  # K's own pattern
-                return out
-        T = self.matrix()
-        return sp.csr_matrix(T.T @ K @ T)
-
-
-def _positions(indptr: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    """Positions in a CSR matrix's ``indices``/``data`` of the entries of ``rows``, row after row."""
-    starts, counts = indptr[rows], indptr[rows + 1] - indptr[rows]
-    return np.repeat(starts - np.r_[0, np.cumsum(counts)[:-1]], counts) + np.arange(counts.sum())
-
-
 def interface_last(order: np.ndarray, last: np.ndarray) -> np.ndarray:
     """``order`` with the unknowns ``last`` taken out and put at the end, in their own order."""
     at_end = np.zeros(order.size, dtype=bool)
@@ -392,23 +313,15 @@ class InterfaceFactor:
     last : (k,) indices of the interface unknowns.
     order : (n,) optional fill-reducing ordering of the unknowns (:func:`nested_dissection`);
         the factor uses it with ``last`` moved to the end. Default: as numbered.
-    rotation : optional :class:`PairRotation` ``T``: the factor is of ``Tᵀ K T`` (the
-        unknowns ``Tᵀ u``, e.g. normal and tangential components at interface nodes) and
-        ``last`` counts in that basis; the solves still answer ``K⁻¹ b``. ``T`` must turn
-        unknowns of one node only, so the ordering stays that of ``K``.
 
     Raises :class:`FactorizationError` if the matrix is not positive definite.
     """
 
-    def __init__(self, K: sp.spmatrix, last: np.ndarray, order: np.ndarray | None = None,
-                 rotation: PairRotation | None = None):
+    def __init__(self, K: sp.spmatrix, last: np.ndarray, order: np.ndarray | None = None):
         K = _csr(K)
         n = K.shape[0]
         self.last = np.asarray(last, dtype=np.int64)
         perm = interface_last(np.arange(n) if order is None else np.asarray(order), self.last)
-        self.rotation = rotation
-        if rotation is not None:
-            K = rotation.congruence(K)
         self.n, self.k = n, self.last.size
         # CHOLMOD postorders the elimination tree (4 % less factorization time at 128k
         # unknowns): a permutation of ours that keeps a connected interface block trailing.
@@ -429,7 +342,7 @@ class InterfaceFactor:
     # -- the interface -----------------------------------------------------------------
     def flexibility(self, Bd: np.ndarray) -> np.ndarray:
         """``Bd (K^-1)[last, last] Bd^T`` for an (m, k) ``Bd`` (sparse or dense) acting on
-        ``last`` (with a ``rotation``: ``K`` is ``Tᵀ K T`` here and ``Bd`` acts in its basis):
+        ``last``:
         ``S⁻¹`` from ``L_ΓΓ`` (LAPACK ``dpotri``), seen through the few entries per row of
         ``Bd``; exactly symmetric."""
         if self.k == 0:
@@ -442,7 +355,7 @@ class InterfaceFactor:
         np.fill_diagonal(inverse, diagonal)
         Bd = sp.csr_matrix(Bd)
         if np.all(np.diff(Bd.indptr) == 1):
-            # one unknown per row (normal rows in the rotated basis): entries of S⁻¹, scaled;
+            # one unknown per row (interface rows in a body's skew basis): entries of S⁻¹, scaled;
             # no gather when the rows are the trailing block's order (``last`` in row order)
             at = self._pos[Bd.indices]
             if not np.array_equal(at, np.arange(self.k)):
@@ -456,10 +369,8 @@ class InterfaceFactor:
 
     # -- solves, whole or in halves --------------------------------------------------------
     def forward(self, b: np.ndarray) -> np.ndarray:
-        """``y = L⁻¹ P Tᵀ b`` for a vector or an (n, j) block (factor order)."""
+        """``y = L⁻¹ P b`` for a vector or an (n, j) block (factor order)."""
         b = np.asarray(b, dtype=float)
-        if self.rotation is not None:
-            b = self.rotation.apply_transpose(b)
         return self._chol.solve(_SYS_L, b[self._perm])
 
     def interface(self, y: np.ndarray) -> np.ndarray:
@@ -479,9 +390,8 @@ class InterfaceFactor:
         return y
 
     def backward(self, y: np.ndarray) -> np.ndarray:
-        """``x = T Pᵀ L⁻ᵀ y``: with ``y = forward(b)``, ``x = K⁻¹ b``."""
-        x = self._chol.solve(_SYS_LT, y)[self._where]
-        return x if self.rotation is None else self.rotation.apply(x)
+        """``x = Pᵀ L⁻ᵀ y``: with ``y = forward(b)``, ``x = K⁻¹ b``."""
+        return self._chol.solve(_SYS_LT, y)[self._where]
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """``K^-1 b`` for a vector or an (n, j) block."""

@@ -176,14 +176,18 @@ class TunnelModel:
         t1 = time.perf_counter()
         g = spec.geometry
         gb = vector_basis(self.mesh.ground)
+        iface = self.mesh.interface
+        # interface nodes carry normal and tangential unknowns (skew basis): each contact row
+        # then acts on one unknown, and the normal ones alone can be ordered last
         ground = assemble_body(self.mesh.ground, spec.ground.young, spec.ground.poisson,
                                ground_constraints(gb, width=g.width, height=g.height,
-                                                  side=spec.boundaries.side, bottom=spec.boundaries.bottom), gb)
+                                                  side=spec.boundaries.side, bottom=spec.boundaries.bottom), gb,
+                               skew=(iface.ground_node, iface.normal))
         lb = vector_basis(self.mesh.lining)
         lining = assemble_body(self.mesh.lining, spec.lining.young, spec.lining.poisson,
-                               lining_constraints(lb, scale=g.outer_radius), lb)
+                               lining_constraints(lb, scale=g.outer_radius), lb,
+                               skew=(iface.lining_node, iface.normal))
         t2 = time.perf_counter()
-        iface = self.mesh.interface
         nodes, directions, self.tangential = interface_rows(iface)
         Bg = interface_operator(ground, iface.ground_node[nodes], directions, +1.0)
         Bl = interface_operator(lining, iface.lining_node[nodes], directions, -1.0)

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from solver.linalg import InterfaceFactor, PairRotation
+from solver.linalg import InterfaceFactor
 
 
 def laplacian_2d(n: int) -> sp.csr_matrix:
@@ -68,71 +68,9 @@ def test_not_positive_definite_is_a_clear_error():
     assert isinstance(caught.value, SolverError)  # reported as a failed case, not a crash
 
 
-def _node_rotation(n: int, nodes, angles) -> PairRotation:
-    """Each node's two unknowns (2 node, 2 node + 1) turned by its angle."""
-    nodes, angles = np.asarray(nodes), np.asarray(angles)
-    return PairRotation(n, 2 * nodes, 2 * nodes + 1, np.cos(angles), np.sin(angles))
-
-
-def test_rotated_factor_matches_dense_inverse():
-    """With an orthogonal T mixing the two unknowns of a node, the factor is of TᵀKT (its
-    trailing block in that basis) while solve still answers K⁻¹b."""
-    K = laplacian_2d(14)
-    n = K.shape[0]
-    rng = np.random.default_rng(1)
-    nodes = np.sort(rng.choice(n // 2, 12, replace=False))
-    rotation = _node_rotation(n, nodes, rng.uniform(0, 2 * np.pi, nodes.size))
-    T = rotation.matrix().toarray()
-    np.testing.assert_allclose(T.T @ T, np.eye(n), atol=1e-15)
-    last = 2 * nodes  # the first rotated unknown of each node
-    f = InterfaceFactor(K, last, rotation=rotation)
-    Kr_inv = np.linalg.inv(T.T @ K.toarray() @ T)
-    Bd = rng.standard_normal((5, last.size))
-    np.testing.assert_allclose(f.flexibility(Bd), Bd @ Kr_inv[np.ix_(last, last)] @ Bd.T, rtol=1e-10, atol=1e-12)
-    b = rng.standard_normal(n)
-    np.testing.assert_allclose(f.solve(b), np.linalg.solve(K.toarray(), b), rtol=1e-10, atol=1e-12)
-    B = rng.standard_normal((n, 2))
-    np.testing.assert_allclose(rotation.apply(B), T @ B, atol=1e-15)
-    np.testing.assert_allclose(rotation.apply_transpose(B), T.T @ B, atol=1e-15)
-
-
-def test_congruence_is_the_full_product():
-    """``congruence`` (each pair's rows and columns turned in a copy of K's values) is TᵀKT,
-    and the unrotated unknowns' block is K's own, entry for entry; where a pair's rows have
-    different columns it takes the product, with the same answer."""
-    n = 200
-    rotation = _node_rotation(n, [3, 17, 40], [0.4, 2.0, -1.1])
-    T = rotation.matrix()
-    nodal = sp.kron(laplacian_2d(10), np.ones((2, 2))) + sp.identity(n)  # a node's unknowns couple alike
-    scalar = sp.block_diag([laplacian_2d(10)] * 2)  # rows 2i and 2i + 1 reach different columns
-    for K in (sp.csr_matrix(nodal), sp.csr_matrix(scalar)):
-        R = rotation.congruence(K)
-        np.testing.assert_allclose(R.toarray(), (T.T @ K @ T).toarray(), rtol=0, atol=1e-13)
-        keep = np.setdiff1d(np.arange(n), [6, 7, 34, 35, 80, 81])
-        np.testing.assert_array_equal(R[keep][:, keep].toarray(), K[keep][:, keep].toarray())
-    assert R.nnz > K.nnz  # the second K took the product (its pattern grew)
-
-
-def test_congruence_in_place_on_a_large_matrix(monkeypatch):
-    """The in-place path at a size where row * n overflows 32-bit indices (scipy's): still
-    TᵀKT on the rotated rows, and no product taken."""
-    nodes = 60_000
-    chain = sp.diags([-1.0, 2.5, -1.0], [-1, 0, 1], shape=(nodes, nodes))
-    K = sp.csr_matrix(sp.kron(chain, np.ones((2, 2))) + sp.identity(2 * nodes))
-    assert K.indices.dtype == np.int32
-    n = K.shape[0]
-    rotation = _node_rotation(n, [5, nodes - 40, nodes - 1], [0.3, 1.2, -2.2])
-    monkeypatch.setattr(PairRotation, "matrix", lambda self: pytest.fail("took the product"))
-    R = rotation.congruence(K)
-    monkeypatch.undo()
-    T = rotation.matrix()
-    rows = np.r_[8:14, 2 * nodes - 84:2 * nodes - 76, 2 * nodes - 4:2 * nodes]
-    np.testing.assert_allclose(R[rows].toarray(), (T.T @ K @ T)[rows].toarray(), rtol=0, atol=1e-13)
-
-
 def test_normal_and_full_factorizations_agree_on_a_model():
-    """The two factorizations of a body (normal rows last after rotating the interface nodes,
-    or both DOFs last) give the same normal flexibility and the same solves."""
+    """The two factorizations of a body (the interface nodes' normal unknowns last, or their
+    normal and tangential ones) give the same normal flexibility and the same solves."""
     from solver import CaseSpec
     from solver.model import TunnelModel
 
