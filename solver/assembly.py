@@ -55,7 +55,7 @@ class Body:
     free: np.ndarray
     free_of: np.ndarray
     K: sp.csr_matrix
-    skew: "PairRotation | None" = None
+    skew: PairRotation | None = None
 
     @property
     def n(self) -> int:

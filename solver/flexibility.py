@@ -10,7 +10,8 @@ both bodies hold, so s = 0 there by symmetry). The force on the lining at node i
 ground, -1 lining), so the jumps ``J = [[u]ν; [u]τ] = B' u' + B'' u''``. The interface
 nodes of both bodies carry their normal and tangential components as unknowns (a skew
 basis, :func:`solver.assembly.assemble_body`), so each row of ``B`` acts on one unknown
-(two at the crown and the invert, where the normal is vertical and x is held). Each body is
+(at the crown and the invert, where x is held, the normal is vertical and the row is
+``±u_y`` itself). Each body is
 factorized once with the interface unknowns its contact model needs ordered last
 (:class:`FactoredBody`, :mod:`solver.linalg`); the dense flexibility ``S = B K⁺ Bᵀ``
 then comes from the factor's trailing block, and for loads

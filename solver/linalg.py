@@ -26,8 +26,8 @@ layout stops with an error instead of reading the wrong fields.
 from __future__ import annotations
 
 import ctypes
-import time
 import threading
+import time
 import weakref
 
 import numpy as np
