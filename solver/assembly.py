@@ -117,22 +117,21 @@ class PairRotation:
                               (np.r_[np.arange(self.n), self.b, self.a], np.r_[np.arange(self.n), self.a, self.b])),
                              shape=(self.n, self.n))
 
-    def _turn(self, x: np.ndarray, sign: float, axis: int = 0) -> np.ndarray:
+    def _turn(self, x: np.ndarray, sign: float) -> np.ndarray:
         x = np.array(x, dtype=float)
-        y = np.moveaxis(x, axis, 0)  # a view of the copy
-        xa, xb = y[self.a], y[self.b]
-        c = self.c.reshape((-1,) + (1,) * (y.ndim - 1))
+        xa, xb = x[self.a], x[self.b]
+        c = self.c.reshape((-1,) + (1,) * (x.ndim - 1))
         s = sign * self.s.reshape(c.shape)
-        y[self.a], y[self.b] = c * xa - s * xb, s * xa + c * xb
+        x[self.a], x[self.b] = c * xa - s * xb, s * xa + c * xb
         return x
 
-    def apply(self, x: np.ndarray, axis: int = 0) -> np.ndarray:
-        """``T x`` for a vector or a block (``T`` acting along ``axis``)."""
-        return self._turn(x, 1.0, axis)
+    def apply(self, x: np.ndarray) -> np.ndarray:
+        """``T x`` for a vector or an (n, j) block."""
+        return self._turn(x, 1.0)
 
-    def apply_transpose(self, x: np.ndarray, axis: int = 0) -> np.ndarray:
+    def apply_transpose(self, x: np.ndarray) -> np.ndarray:
         """``Tᵀ x``."""
-        return self._turn(x, -1.0, axis)
+        return self._turn(x, -1.0)
 
 
 def vector_basis(mesh: BodyMesh) -> Basis:
@@ -176,6 +175,8 @@ def assemble_body(mesh: BodyMesh, young: float, poisson: float, fixed: list[np.n
         nodes, directions = np.asarray(skew[0]), np.asarray(skew[1], dtype=float)
         both = (free_of[0, nodes] >= 0) & (free_of[1, nodes] >= 0)
         nodes, c, s = nodes[both], directions[0, both], directions[1, both]
+        if not np.allclose(np.hypot(c, s), 1.0, rtol=0, atol=1e-12):
+            raise ValueError("skew directions must be unit vectors (the turn must be orthogonal)")
         _turn_elements(coo, basis, dof_of_node[:, nodes], c, s)
         rotation = PairRotation(free.size, free_of[0, nodes], free_of[1, nodes], c, s)
     K = _structural_csr(coo)[free][:, free].tocsr()

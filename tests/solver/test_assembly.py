@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import scipy.sparse as sp
 from skfem import asm
 from skfem.models.elasticity import lame_parameters, linear_elasticity
@@ -74,6 +75,8 @@ def test_skew_basis_is_the_turned_stiffness():
     r = skew.rigid_vertical()
     np.testing.assert_allclose(T @ r, plain.rigid_vertical(), atol=1e-15)
     assert np.abs(skew.K @ r).max() <= 1e-9 * abs(skew.K).max()
+    with pytest.raises(ValueError, match="unit vectors"):
+        assemble_body(plain.mesh, 31e9, 0.2, [], plain.basis, skew=(nodes[:1], np.array([[0.6], [0.6]])))
     # energy is basis-free
     assert np.isclose(u @ (skew.K @ u), plain.restrict(plain.full(u_nodes)) @ (plain.K @ plain.restrict(
         plain.full(u_nodes))), rtol=1e-12)
@@ -89,4 +92,3 @@ def test_pair_rotation_applies_t_and_its_transpose():
     X = rng.standard_normal((n, 2))
     np.testing.assert_allclose(rotation.apply(X), T @ X, atol=1e-15)
     np.testing.assert_allclose(rotation.apply_transpose(X), T.T @ X, atol=1e-15)
-    np.testing.assert_allclose(rotation.apply(X.T, axis=1), (T @ X).T, atol=1e-15)
