@@ -156,6 +156,28 @@ def test_mesh_contract(gap):
     # interface element size near the requested one
     seg = np.diff(np.radians(iface.theta[iface.vertex])) * spec.geometry.hole_radius
     assert seg.max() <= spec.mesh.interface_size * 1.0001
+    # every edge node: on a circle arc of the body (the hole; the lining's outer and inner
+    # surfaces) at the arc's point halfway in angle between the edge's vertices, else the
+    # edge's midpoint; the arcs' edges are exactly those with both vertices on the circle
+    # along the boundary (half the interface nodes less one per arc)
+    arcs = {"ground": [spec.geometry.hole_radius],
+            "lining": [spec.geometry.outer_radius, spec.geometry.inner_radius]}
+    for name, body in (("ground", mesh.ground), ("lining", mesh.lining)):
+        pairs = np.array([[0, 1], [1, 2], [0, 2]])
+        v1, v2 = (body.p[:, body.t[pairs[:, k]]] for k in range(2))  # (2, 3, E)
+        e = body.p[:, body.t[3:]]
+        straight = np.hypot(*(e - 0.5 * (v1 + v2)))
+        r = [np.hypot(*(x - c[:, None, None])) for x in (v1, v2, e)]
+        curved = np.zeros(e.shape[1:], bool)
+        for radius in arcs[name]:
+            on = np.isclose(r[0], radius, rtol=1e-12) & np.isclose(r[1], radius, rtol=1e-12)
+            np.testing.assert_allclose(r[2][on], radius, rtol=1e-12)
+            ang = [np.arctan2(*(x - c[:, None, None])[::-1]) for x in (v1, v2, e)]
+            np.testing.assert_allclose(ang[2][on], 0.5 * (ang[0][on] + ang[1][on]), rtol=0, atol=1e-12)
+            curved |= on
+        assert np.all(straight[~curved] <= 1e-12 * max(spec.geometry.width, spec.geometry.height))
+        edges_on_arcs = np.unique(body.t[3:][curved]).size
+        assert edges_on_arcs == len(arcs[name]) * (iface.size - 1) // 2
 
 
 def test_friction_is_ignored_outside_coulomb_so_one_physical_case_has_one_id():
