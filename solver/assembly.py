@@ -345,11 +345,14 @@ def elasticity_form(young: float, poisson: float) -> BilinearForm:
 
     @BilinearForm
     def form(u, v, w):
-        sxx, syy, sxy, _ = _stress_components(u.grad, young, poisson)
-        g = v.grad
-        return sxx * g[0, 0] + syy * g[1, 1] + sxy * (g[0, 1] + g[1, 0])
+        return _work(_stress_components(u.grad, young, poisson), v.grad)
 
     return form
+
+
+def _work(stress, grad) -> np.ndarray:
+    """``σ : ∇v`` of a plane-strain stress (xx, yy, xy, ...) against a test gradient (σ symmetric)."""
+    return stress[0] * grad[0, 0] + stress[1] * grad[1, 1] + stress[2] * (grad[0, 1] + grad[1, 0])
 
 
 def element_nodal_forces(body: Body, young: float, poisson: float, u_nodes: np.ndarray,
@@ -368,6 +371,6 @@ def element_nodal_forces(body: Body, young: float, poisson: float, u_nodes: np.n
     for i in range(basis.Nbfun):
         phi = basis.basis[i][0]
         gi = phi.grad
-        work = s[0] * gi[0, 0] + s[1] * gi[1, 1] + s[2] * (gi[0, 1] + gi[1, 0])
+        work = _work(s, gi)
         out[i] = np.sum((work + density * g * np.asarray(phi)[1]) * dx, axis=1)
     return out, basis.element_dofs

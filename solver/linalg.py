@@ -374,14 +374,14 @@ class InterfaceFactor:
         return self._chol.solve(_SYS_L, b[self._perm])
 
     def interface(self, y: np.ndarray) -> np.ndarray:
-        """The ``last`` unknowns of ``K⁻¹ b`` (in the rotated basis) from ``y = forward(b)``:
+        """The ``last`` unknowns of ``K⁻¹ b`` from ``y = forward(b)``:
         ``L_ΓΓ⁻ᵀ y_Γ``, dense and small."""
         x = la.solve_triangular(self._Ltt, y[self.n - self.k:], lower=True, trans="T", check_finite=False)
         return x[self._pos]
 
     def lift(self, g: np.ndarray) -> np.ndarray:
         """``forward`` of a load on the ``last`` unknowns alone, given as its (k,) or (k, j)
-        values there (rotated basis): ``[0; L_ΓΓ⁻¹ g]``, dense and small."""
+        values there: ``[0; L_ΓΓ⁻¹ g]``, dense and small."""
         g = np.asarray(g, dtype=float)
         gt = np.zeros_like(g)
         gt[self._pos] = g

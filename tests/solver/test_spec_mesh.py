@@ -168,11 +168,11 @@ def test_mesh_contract(gap):
         e = body.p[:, body.t[3:]]
         straight = np.hypot(*(e - 0.5 * (v1 + v2)))
         r = [np.hypot(*(x - c[:, None, None])) for x in (v1, v2, e)]
+        ang = [np.arctan2(*(x - c[:, None, None])[::-1]) for x in (v1, v2, e)]
         curved = np.zeros(e.shape[1:], bool)
         for radius in arcs[name]:
             on = np.isclose(r[0], radius, rtol=1e-12) & np.isclose(r[1], radius, rtol=1e-12)
             np.testing.assert_allclose(r[2][on], radius, rtol=1e-12)
-            ang = [np.arctan2(*(x - c[:, None, None])[::-1]) for x in (v1, v2, e)]
             np.testing.assert_allclose(ang[2][on], 0.5 * (ang[0][on] + ang[1][on]), rtol=0, atol=1e-12)
             curved |= on
         assert np.all(straight[~curved] <= 1e-12 * max(spec.geometry.width, spec.geometry.height))
