@@ -16,7 +16,7 @@ from typing import Any, Iterable, Sequence
 
 __all__ = ["field_errors", "field_path", "format_errors"]
 
-_NAMED = re.compile(r"^([A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*): (.*)$", re.DOTALL)
+_NAMED = re.compile(r"^([A-Za-z_]\w*(?:\.(?:[A-Za-z_]\w*|\d+))*): (.*)$", re.DOTALL)
 #: Location prefixes FastAPI adds to pydantic's (where in the request the value was).
 _REQUEST_PARTS = frozenset({"body", "query", "path", "header", "cookie"})
 
@@ -30,6 +30,8 @@ def field_path(loc: Sequence[Any], message: str, *, kind: str = "value_error") -
     ('solver.bolt', 'theta 200 deg is outside [0, 180]')
     >>> field_path(("vary", "ground.young", 1), "Input should be a valid number", kind="float_type")
     ('vary.ground.young[1]', 'Input should be a valid number')
+    >>> field_path(("ground",), "Value error, layers.1.thickness: must be > 0")
+    ('ground.layers.1.thickness', 'must be > 0')
     """
     parts = list(loc)
     if parts and parts[0] in _REQUEST_PARTS:
@@ -40,11 +42,17 @@ def field_path(loc: Sequence[Any], message: str, *, kind: str = "value_error") -
         extra = named.group(1).split(".")
         if parts and parts[-1] == extra[0]:
             parts = parts[:-1]
-        parts = [*parts, *extra]
+        parts = [*parts, *(int(e) if e.isdigit() else e for e in extra)]
         reason = named.group(2)
+    # an item of a case's list is a path step (``ground.layers.1.young``, as sweeps address it);
+    # an item of a sweep's list of values is an index (``vary.ground.young[1]``)
+    listed = bool(parts) and parts[0] == "vary"
     path = ""
     for p in parts:
-        path += f"[{p}]" if isinstance(p, int) else (f".{p}" if path else str(p))
+        if isinstance(p, int) and listed:
+            path += f"[{p}]"
+        else:
+            path += f".{p}" if path else str(p)
     return path, reason
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-from typing import Literal, Union
+from typing import Literal, Optional, Union
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
@@ -24,6 +24,11 @@ __all__ = ["CaseSpec", "MAX_ELEMENTS", "canonical_json", "content_id"]
 MIN_YOUNG, MAX_YOUNG = 1.0e5, 1.0e12
 MAX_POISSON = 0.49
 MAX_DENSITY = 2.0e4
+#: Friction and dilatancy angles (deg), permeability (m/s) and number of strata accepted.
+MAX_FRICTION_ANGLE = 70.0
+MIN_PERMEABILITY, MAX_PERMEABILITY = 1.0e-13, 1.0e-1
+MAX_LAYERS = 20
+MAX_SEGMENTS = 24
 #: Largest lining / ground stiffness ratio the factorization and contact solve handle.
 MAX_STIFFNESS_RATIO = 1.0e6
 
@@ -41,6 +46,15 @@ def content_id(text: str) -> str:
 def is_number(value) -> bool:
     """Whether ``value`` is a number as JSON has them (a bool is not one)."""
     return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _first_message(exc: Exception) -> str:
+    """``field: reason`` of the first error of a validation error (named as :mod:`solver.errors` names it)."""
+    from .errors import field_errors
+
+    errors = field_errors(exc) if hasattr(exc, "errors") else [("", str(exc))]
+    field, reason = errors[0]
+    return f"{field}: {reason}" if field else reason
 
 
 def _ignorable(value) -> bool:
@@ -118,10 +132,146 @@ class Material(_Frozen):
     density: float = Field(ge=0, le=MAX_DENSITY, description="mass density (kg/m^3)")
 
 
-class Ground(Material):
+class Strength(_Frozen):
+    """Mohr–Coulomb strength and flow (SPEC §1.5) and the stiffness gradient and permeability of
+    §1.4: the round-3 fields shared by the ground and each of its layers."""
+
+    model: Literal["elastic", "mohr-coulomb"] = Field(
+        "elastic", description="'elastic' or 'mohr-coulomb' (elastic-perfectly plastic)")
+    cohesion: float = Field(0.0, ge=0, le=1.0e9, description="Mohr-Coulomb cohesion c (Pa)")
+    friction_angle: float = Field(30.0, ge=0, le=MAX_FRICTION_ANGLE, description="friction angle phi (deg)")
+    dilatancy: float = Field(0.0, ge=0, le=MAX_FRICTION_ANGLE, description="dilatancy angle psi (deg), 0 <= psi <= phi")
+    tensile_strength: float = Field(0.0, ge=0, le=1.0e9, description="tension cut-off (Pa), at most c cot(phi)")
+    young_gradient: float = Field(
+        0.0, ge=0, le=1.0e10, description="increase of E with depth below the layer's top (Pa/m)")
+    permeability: float = Field(
+        1.0e-6, ge=MIN_PERMEABILITY, le=MAX_PERMEABILITY, description="hydraulic conductivity k (m/s)")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _strength_only_when_plastic(cls, data):
+        # an elastic ground ignores its strength: one physical case, one id
+        if isinstance(data, dict) and data.get("model", "elastic") == "elastic":
+            data = {**data, **{k: v for k, v in STRENGTH_DEFAULTS.items()
+                               if k not in data or _ignorable(data[k])}}
+        return data
+
+    @model_validator(mode="after")
+    def _strength(self):
+        if self.model != "mohr-coulomb":
+            return self
+        if self.dilatancy > self.friction_angle:
+            raise ValueError(f"dilatancy: {self.dilatancy} deg exceeds the friction angle "
+                             f"({self.friction_angle} deg); 0 <= psi <= phi")
+        if self.cohesion <= 0 and self.friction_angle <= 0:
+            raise ValueError("cohesion: a Mohr-Coulomb ground needs cohesion > 0 or friction_angle > 0")
+        if self.friction_angle > 0:
+            apex = self.cohesion / math.tan(math.radians(self.friction_angle))
+            if self.tensile_strength > apex * (1 + 1e-12):
+                raise ValueError(f"tensile_strength: {self.tensile_strength:.6g} Pa exceeds c cot(phi) = "
+                                 f"{apex:.6g} Pa, the apex of the Mohr-Coulomb cone")
+        return self
+
+
+#: Round-3 strength fields at their defaults (what an elastic ground records).
+STRENGTH_DEFAULTS = {"cohesion": 0.0, "friction_angle": 30.0, "dilatancy": 0.0, "tensile_strength": 0.0}
+
+
+class Layer(_Frozen):
+    """One horizontal stratum (SPEC §1.4): a field it omits takes the ``ground`` value (filled
+    by :class:`Ground`, so the canonical JSON states every layer in full)."""
+
+    thickness: float = Field(0.0, ge=0, le=10000.0, description="layer thickness (m); the last layer's is ignored")
+    young: Optional[float] = Field(None, ge=MIN_YOUNG, le=MAX_YOUNG, description="Young's modulus at the layer's top (Pa)")
+    poisson: Optional[float] = Field(None, ge=0, le=MAX_POISSON, description="Poisson ratio")
+    density: Optional[float] = Field(None, ge=0, le=MAX_DENSITY, description="bulk density (kg/m^3; saturated below the table)")
+    lateral_ratio: Optional[float] = Field(None, ge=0, le=10.0, description="K0 of the layer (default loads.lateral_ratio)")
+    young_gradient: Optional[float] = Field(None, ge=0, le=1.0e10, description="increase of E with depth (Pa/m)")
+    permeability: Optional[float] = Field(None, ge=MIN_PERMEABILITY, le=MAX_PERMEABILITY, description="k (m/s)")
+    model: Optional[Literal["elastic", "mohr-coulomb"]] = None
+    cohesion: Optional[float] = Field(None, ge=0, le=1.0e9, description="cohesion c (Pa)")
+    friction_angle: Optional[float] = Field(None, ge=0, le=MAX_FRICTION_ANGLE, description="friction angle (deg)")
+    dilatancy: Optional[float] = Field(None, ge=0, le=MAX_FRICTION_ANGLE, description="dilatancy angle (deg)")
+    tensile_strength: Optional[float] = Field(None, ge=0, le=1.0e9, description="tension cut-off (Pa)")
+
+
+#: The fields a layer inherits from ``ground`` (``lateral_ratio`` from ``loads``).
+LAYER_FIELDS = ("young", "poisson", "density", "young_gradient", "permeability", "model", "cohesion",
+                "friction_angle", "dilatancy", "tensile_strength")
+
+
+class Ground(Material, Strength):
     young: float = Field(5.0e7, ge=MIN_YOUNG, le=MAX_YOUNG, description="ground Young's modulus (Pa)")
     poisson: float = Field(0.3, ge=0, le=MAX_POISSON, description="ground Poisson ratio")
     density: float = Field(2000.0, ge=0, le=MAX_DENSITY, description="ground density (kg/m^3)")
+    layers: tuple[Layer, ...] = Field(
+        (), max_length=MAX_LAYERS, description="horizontal strata from the surface down (empty: one layer of ground)")
+
+    @field_validator("layers", mode="before")
+    @classmethod
+    def _layers_list(cls, v):
+        return tuple(v) if isinstance(v, list) else v  # a JSON list (strict mode takes tuples only)
+
+    @model_validator(mode="after")
+    def _fill_layers(self) -> "Ground":
+        # every layer states every field, so one physical case has one canonical JSON
+        filled = []
+        for i, layer in enumerate(self.layers):
+            given = {k: v for k, v in layer.model_dump().items() if v is not None}
+            values = {k: getattr(self, k) for k in LAYER_FIELDS} | given
+            try:
+                Strength.model_validate({k: values[k] for k in Strength.model_fields})
+            except ValueError as exc:  # the layer's own strength checks, named by its index
+                raise ValueError(f"layers.{i}.{_first_message(exc)}") from None
+            if values["model"] == "elastic":
+                values |= STRENGTH_DEFAULTS
+            filled.append(Layer.model_validate(values | {"thickness": layer.thickness,
+                                                         "lateral_ratio": given.get("lateral_ratio")}))
+        for i, layer in enumerate(filled[:-1]):
+            if layer.thickness <= 0:
+                raise ValueError(f"layers.{i}.thickness: must be > 0 (only the last layer, which reaches "
+                                 "the model's bottom, may give none)")
+        if filled:  # the last layer's thickness is ignored: recorded as 0
+            filled[-1] = filled[-1].model_copy(update={"thickness": 0.0})
+        object.__setattr__(self, "layers", tuple(filled))
+        return self
+
+
+class Joints(_Frozen):
+    """Longitudinal joints of a segmental lining (SPEC §1.6); ``count = 0`` is a monolithic ring."""
+
+    count: int = Field(0, ge=0, le=MAX_SEGMENTS, description="segments in the full ring (0: monolithic)")
+    offset: float = Field(0.0, ge=0, lt=360.0, description="angle of the first joint from the crown (deg)")
+    contact_height: Optional[float] = Field(
+        None, gt=0, description="height a of the contact strip centred on the mid-surface (m; default: the thickness)")
+    shear: Literal["bonded", "coulomb"] = Field("bonded", description="tangential law across the strip")
+    friction: float = Field(0.0, ge=0, le=10.0, description="Coulomb coefficient across a joint ('coulomb')")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _ignored_when_monolithic(cls, data):
+        # a monolithic ring ignores the joints' other fields; bonded joints ignore friction
+        if isinstance(data, dict):
+            if data.get("count", 0) == 0:
+                data = {k: v for k, v in data.items() if k == "count" or not _ignorable(v)} | \
+                    ({"shear": "bonded"} if data.get("shear") in ("bonded", "coulomb") else {})
+            if data.get("shear", "bonded") == "bonded" and _ignorable(data.get("friction")):
+                data = {**data, "friction": 0.0}
+        return data
+
+    @model_validator(mode="after")
+    def _pattern(self) -> "Joints":
+        n = self.count
+        if n == 0:
+            return self
+        if n < 3:
+            raise ValueError(f"count: {n} segments cannot form a ring that holds; at least 3")
+        if not any(abs(self.offset - o) <= 1e-9 for o in (0.0, 180.0 / n)):
+            raise ValueError(f"offset: {self.offset} deg makes the pattern of {n} segments unsymmetric about "
+                             f"the vertical axis; use 0 or {180.0 / n:.6g}")
+        if self.shear == "coulomb" and self.friction <= 0:
+            raise ValueError("friction: joints.shear 'coulomb' needs joints.friction > 0")
+        return self
 
 
 class Lining(Material):
@@ -130,6 +280,25 @@ class Lining(Material):
     density: float = Field(
         2500.0, gt=0, le=MAX_DENSITY,
         description="lining density (kg/m^3); must be > 0: the floating lining needs weight")
+    joints: Joints = Joints()
+
+
+class Water(_Frozen):
+    """Groundwater (SPEC §1.4): a hydrostatic table and how the lining treats it."""
+
+    table: Optional[float] = Field(None, ge=0, description="depth of the water table below the surface (m); null: dry")
+    unit_weight: float = Field(9810.0, ge=5000.0, le=20000.0, description="unit weight of water gamma_w (N/m^3)")
+    lining: Literal["watertight", "drained"] = Field(
+        "watertight", description="'watertight': water pressure on the lining; 'drained': seepage into the tunnel")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _ignored_when_dry(cls, data):
+        if isinstance(data, dict) and data.get("table") is None:
+            data = {k: v for k, v in data.items() if k == "table" or not _ignorable(v)}
+            if data.get("lining") in ("watertight", "drained"):
+                data = {**data, "lining": "watertight"}
+        return data
 
 
 class Loads(_Frozen):
@@ -213,6 +382,8 @@ class SolverSettings(_Frozen):
     inner: Literal["active-set", "uzawa"] = "active-set"
     tolerance: float = Field(1e-8, gt=0, le=1e-2, description="relative KKT tolerance")
     max_iterations: int = Field(100_000, ge=1, le=10_000_000, description="inner iteration cap per bolt")
+    load_steps: int = Field(
+        10, ge=1, le=1000, description="increments per construction stage (Mohr-Coulomb ground)")
     bolt: Union[Literal["auto"], float] = Field(
         "auto", description="'auto' (bolt-point search) or a bolt position theta in degrees [0, 180]")
 
@@ -232,6 +403,16 @@ class SolverSettings(_Frozen):
         return v
 
 
+def _round3_defaults() -> dict[str, dict]:
+    defaults = {
+        "ground": {k: Strength.model_fields[k].default for k in Strength.model_fields} | {"layers": []},
+        "lining": {"joints": Joints().model_dump(mode="json")},
+        "solver": {"load_steps": SolverSettings.model_fields["load_steps"].default},
+        "water": Water().model_dump(mode="json"),
+    }
+    return defaults
+
+
 class CaseSpec(_Frozen):
     """One tunnel-contact case (SPEC §2). ``CaseSpec()`` is the default case."""
 
@@ -245,16 +426,19 @@ class CaseSpec(_Frozen):
     mesh: MeshSettings = MeshSettings()
     solver: SolverSettings = SolverSettings()
     design: Design = Design()
+    water: Water = Water()
 
     @model_validator(mode="after")
     def _consistent(self) -> "CaseSpec":
+        self._ground_fits()
+        self._canonical_round3()
         if self.interface.model == "bonded" and self.geometry.gap > 0:
             # [u]ν = 0 with a clearance would glue the lining to ground it never reaches
             raise ValueError(
                 f"geometry.gap: {self.geometry.gap} m of clearance cannot be bonded (a bonded "
                 "interface ties lining and ground where they stand, so gap must be 0); use "
                 "'frictionless' or 'coulomb', whose contact closes the gap first")
-        ratio = self.lining.young / self.ground.young
+        ratio = self.lining.young / min([self.ground.young, *(layer.young for layer in self.ground.layers)])
         if not 1.0 / MAX_STIFFNESS_RATIO <= ratio <= MAX_STIFFNESS_RATIO:
             raise ValueError(
                 f"lining.young: lining / ground stiffness ratio {ratio:.3g} is outside "
@@ -265,6 +449,63 @@ class CaseSpec(_Frozen):
             field, reason = errors[0]
             raise ValueError(f"{field}: {reason}")
         return self._mesh_fits()
+
+    def _ground_fits(self) -> None:
+        """Strata inside the model, the table above its bottom, the joints' strip inside the lining,
+        and the in-situ state of every yielding layer inside its yield surface (SPEC §1.4-§1.6)."""
+        from .strata import geostatic_errors, strata
+
+        height, layers = self.geometry.height, self.ground.layers
+        reach = 0.0
+        for i, layer in enumerate(layers[:-1]):
+            reach += layer.thickness
+            if reach >= height:
+                raise ValueError(
+                    f"ground.layers.{i}.thickness: the layers down to this one reach {reach:.6g} m, at or "
+                    f"below the model's bottom ({height:.6g} m below the surface); the last layer must "
+                    "reach the bottom")
+        if self.water.table is not None and self.water.table >= height:
+            raise ValueError(f"water.table: {self.water.table:.6g} m is at or below the model's bottom "
+                             f"({height:.6g} m)")
+        a = self.lining.joints.contact_height
+        if a is not None and a > self.geometry.thickness * (1 + 1e-12):
+            raise ValueError(f"lining.joints.contact_height: {a:.6g} m exceeds the lining thickness "
+                             f"({self.geometry.thickness:.6g} m)")
+        errors = geostatic_errors(self, strata(self))
+        if errors:
+            field, reason = errors[0]
+            raise ValueError(f"{field}: {reason}")
+
+    @property
+    def plastic(self) -> bool:
+        """Whether any layer of the ground can yield (the staged plastic solve is needed)."""
+        return any(layer.model == "mohr-coulomb" for layer in (self.ground, *self.ground.layers))
+
+    @property
+    def drained(self) -> bool:
+        """Whether water seeps into a drained lining (the seepage solve is needed)."""
+        return self.water.table is not None and self.water.lining == "drained"
+
+    def _canonical_round3(self) -> None:
+        """Values the case ignores take their defaults, so one physical case has one id:
+        permeabilities unless the lining drains, load steps unless the ground yields, a joint
+        strip as high as the lining (the default)."""
+        ground, solver, lining = self.ground, self.solver, self.lining
+        k0 = self.loads.lateral_ratio  # a layer's K0 equal to the case's is the inherited one
+        ground = ground.model_copy(update={"layers": tuple(
+            layer.model_copy(update={"lateral_ratio": None}) if layer.lateral_ratio == k0 else layer
+            for layer in ground.layers)})
+        if not self.drained:
+            k = Strength.model_fields["permeability"].default
+            ground = ground.model_copy(update={"permeability": k, "layers": tuple(
+                layer.model_copy(update={"permeability": k}) for layer in ground.layers)})
+        if not self.plastic:
+            solver = solver.model_copy(update={"load_steps": SolverSettings.model_fields["load_steps"].default})
+        a = lining.joints.contact_height
+        if a is not None and abs(a - self.geometry.thickness) <= 1e-12 * self.geometry.thickness:
+            lining = lining.model_copy(update={"joints": lining.joints.model_copy(update={"contact_height": None})})
+        for name, value in (("ground", ground), ("solver", solver), ("lining", lining)):
+            object.__setattr__(self, name, value)
 
     def _mesh_fits(self) -> "CaseSpec":
         g, m = self.geometry, self.mesh
@@ -283,12 +524,27 @@ class CaseSpec(_Frozen):
         return self
 
     def canonical_json(self) -> str:
-        """Defaults filled, keys sorted, no whitespace: the text the case id hashes."""
-        return canonical_json(self)
+        """Defaults filled, keys sorted, no whitespace: the text the case id hashes.
+
+        Round-3 fields (SPEC §2: strata, water, plasticity, joints, load steps) are left out
+        while they hold their defaults, so every case that gives none of them keeps its id.
+        """
+        data = self.model_dump(mode="json")
+        for section, fields in ROUND3_DEFAULTS.items():
+            for name, default in fields.items():
+                if data[section].get(name, default) == default:
+                    data[section].pop(name, None)
+        if data["water"] == {}:
+            del data["water"]
+        return json.dumps(data, sort_keys=True, separators=(",", ":"))
 
     @property
     def case_id(self) -> str:
         """Stable 16-hex-digit id of the physical case (sha256 of the canonical JSON)."""
         return content_id(self.canonical_json())
+
+
+#: Round-3 fields and their defaults: left out of the canonical JSON while at them.
+ROUND3_DEFAULTS = _round3_defaults()
 
 

@@ -11,6 +11,7 @@ the dotted path ``lining.thickness`` is accepted as an alias of
 from __future__ import annotations
 
 import json
+import re
 from functools import lru_cache
 from typing import Any
 
@@ -60,7 +61,33 @@ PARAMETER_ATTRS: dict[str, tuple[str | None, str]] = {
     "design.reinforcement_area": ("m2 m-1", "reinforcement area per face per metre of tunnel"),
     "design.axis_distance": ("m", "reinforcement axis distance from each face"),
     "design.load_factor": ("1", "partial factor on actions gamma_F"),
+    # third round (SPEC §1.4-§1.6)
+    "ground.model": (None, "ground constitutive model"),
+    "ground.cohesion": ("Pa", "ground cohesion"),
+    "ground.friction_angle": ("degree", "ground friction angle"),
+    "ground.dilatancy": ("degree", "ground dilatancy angle"),
+    "ground.tensile_strength": ("Pa", "ground tensile strength (tension cut-off)"),
+    "ground.young_gradient": ("Pa m-1", "increase of the ground Young's modulus with depth"),
+    "ground.permeability": ("m s-1", "ground hydraulic conductivity"),
+    "lining.joints.count": ("1", "number of segments in the ring"),
+    "lining.joints.offset": ("degree", "angle of the first joint from the crown"),
+    "lining.joints.contact_height": ("m", "height of the joints' contact strip"),
+    "lining.joints.shear": (None, "tangential law across the joints"),
+    "lining.joints.friction": ("1", "joint Coulomb friction coefficient"),
+    "solver.load_steps": ("1", "load increments per construction stage"),
+    "water.table": ("m", "depth of the water table below the surface"),
+    "water.unit_weight": ("N m-3", "unit weight of water"),
+    "water.lining": (None, "water condition of the lining"),
 }
+
+#: Units and long names of a layer's fields (path ``ground.layers.<i>.<field>``).
+LAYER_ATTRS: dict[str, tuple[str | None, str]] = {
+    "thickness": ("m", "layer thickness"),
+    "lateral_ratio": ("1", "layer K0"),
+    **{path.split(".", 1)[1]: (units, "layer " + name.removeprefix("ground "))
+       for path, (units, name) in PARAMETER_ATTRS.items() if path.startswith("ground.")},
+}
+_LAYER_PATH = re.compile(r"^ground\.layers\.(\d+)\.(\w+)$")
 
 
 def canonical_path(path: str) -> str:
@@ -75,14 +102,32 @@ def flat_name(path: str) -> str:
     return FLAT_NAME_OVERRIDES.get(path, path.replace(".", "_"))
 
 
+@lru_cache(maxsize=1)
+def _leaf_paths() -> tuple[str, ...]:
+    def leaves(model: type[BaseModel], prefix: str):
+        for name, info in model.model_fields.items():
+            kind = info.annotation
+            if isinstance(kind, type) and issubclass(kind, BaseModel):
+                yield from leaves(kind, f"{prefix}{name}.")
+            elif f"{prefix}{name}" != "ground.layers":  # list items are reached by index
+                yield f"{prefix}{name}"
+    return tuple(leaves(CaseSpec, ""))
+
+
 def parameter_paths() -> list[str]:
-    """Every leaf path ``<section>.<field>`` of :class:`CaseSpec`."""
-    paths = []
-    for section, info in CaseSpec.model_fields.items():
-        model = info.annotation
-        if isinstance(model, type) and issubclass(model, BaseModel):
-            paths.extend(f"{section}.{field}" for field in model.model_fields)
-    return paths
+    """Every leaf path of :class:`CaseSpec` (``<section>.<field>``, ``lining.joints.count``);
+    a layer's fields are reached by index, ``ground.layers.<i>.<field>`` (:func:`is_parameter`)."""
+    return list(_leaf_paths())
+
+
+def is_parameter(path: str, base: dict[str, Any] | None = None) -> bool:
+    """Whether the canonical ``path`` is a parameter of the case dict ``base`` (a layer's field
+    needs the layer in ``base``)."""
+    layer = _LAYER_PATH.match(path)
+    if layer:
+        layers = ((base or {}).get("ground") or {}).get("layers") or []
+        return int(layer.group(1)) < len(layers) and layer.group(2) in LAYER_ATTRS
+    return path in _leaf_paths()
 
 
 def parameter_attrs(name: str, *, numeric: bool = True) -> dict[str, str]:
@@ -93,7 +138,12 @@ def parameter_attrs(name: str, *, numeric: bool = True) -> dict[str, str]:
     units. An unknown name (a parameter of an older case model) gets a generic long name.
     """
     path = _paths_by_flat_name().get(name, canonical_path(name))
-    units, long_name = PARAMETER_ATTRS.get(path, (None, f"case parameter {name}"))
+    layer = _LAYER_PATH.match(path) or re.match(r"^ground_layers_(\d+)_(\w+)$", name)
+    if layer and layer.group(2) in LAYER_ATTRS:
+        units, long_name = LAYER_ATTRS[layer.group(2)]
+        long_name = f"{long_name} (layer {layer.group(1)})"
+    else:
+        units, long_name = PARAMETER_ATTRS.get(path, (None, f"case parameter {name}"))
     return {"units": units, "long_name": long_name} if numeric and units else {"long_name": long_name}
 
 
@@ -114,8 +164,27 @@ def flat_parameters(spec: CaseSpec | dict[str, Any] | str) -> dict[str, Any]:
         data = json.loads(spec)
     else:
         data = spec
-    return {flat_name(f"{section}.{field}"): value
-            for section, fields in data.items() for field, value in fields.items()}
+    flat: dict[str, Any] = {}
+
+    def walk(value, path):
+        if isinstance(value, dict):
+            for key, item in value.items():
+                walk(item, f"{path}.{key}" if path else key)
+        elif isinstance(value, list) and value and isinstance(value[0], dict):
+            for i, item in enumerate(value):
+                walk(item, f"{path}.{i}")
+        elif "." in path:
+            flat[flat_name(path)] = value
+    walk(data, "")
+    return flat
+
+
+def set_parameter(data: dict[str, Any], path: str, value: Any) -> None:
+    """Set the canonical dotted ``path`` (list items by index) in the case dict ``data``, in place."""
+    *parents, last = path.split(".")
+    for key in parents:
+        data = data[int(key)] if isinstance(data, list) else data.setdefault(key, {})
+    data[last] = value
 
 
 def varying_parameters(cases: list[dict[str, Any]]) -> list[str]:

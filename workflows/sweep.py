@@ -12,6 +12,7 @@ lengths). :func:`expand_sweep` checks everything at once and raises one
 from __future__ import annotations
 
 import itertools
+import json
 import logging
 import math
 import os
@@ -24,7 +25,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from solver.errors import field_errors
 from solver.spec import CaseSpec, canonical_json, content_id
 
-from .parameters import PATH_ALIASES, canonical_path, parameter_paths
+from .parameters import PATH_ALIASES, canonical_path, is_parameter, parameter_paths, set_parameter
 from .store import ResultStore, StoreLike, as_store
 
 logger = logging.getLogger(__name__)
@@ -85,12 +86,12 @@ def expand_sweep(sweep: Sweep | dict[str, Any]) -> list[CaseSpec]:
     case is a valid :class:`CaseSpec`.
     """
     sweep = Sweep.model_validate(sweep)
-    errors = _structure_errors(sweep)
     base = sweep.base.model_dump(mode="json")
+    errors = _structure_errors(sweep, base)
     # each value on its own first: the errors then name the varied path and value
     for path, values in sweep.vary.items():
         target = canonical_path(path)
-        if target not in parameter_paths():
+        if not is_parameter(target, base):
             continue
         for value in values:
             try:
@@ -120,16 +121,17 @@ def expand_sweep(sweep: Sweep | dict[str, Any]) -> list[CaseSpec]:
     return list(cases.values())
 
 
-def _structure_errors(sweep: Sweep) -> list[tuple[str, str]]:
+def _structure_errors(sweep: Sweep, base: dict[str, Any]) -> list[tuple[str, str]]:
     """Problems of the ``vary`` table itself: paths, empty or unequal lists, size."""
     errors: list[tuple[str, str]] = []
     known = parameter_paths()
     seen: dict[str, str] = {}
     for path, values in sweep.vary.items():
         target = canonical_path(path)
-        if target not in known:
+        if not is_parameter(target, base):
             errors.append((path, "unknown parameter; expected '<section>.<field>' of the case "
-                                 f"(e.g. {known[0]}, ..., {known[-1]})"))
+                                 f"(e.g. {known[0]}, ..., {known[-1]}), or ground.layers.<i>.<field> "
+                                 "of a layer the base case has"))
         elif target in seen:
             errors.append((path, f"the same parameter as {seen[target]!r}"))
         else:
@@ -148,10 +150,9 @@ def _structure_errors(sweep: Sweep) -> list[tuple[str, str]]:
 
 def _with_values(base: dict[str, Any], values: dict[str, Any]) -> dict[str, Any]:
     """A copy of the case dict ``base`` with ``{canonical path: value}`` set."""
-    data = {section: dict(fields) for section, fields in base.items()}
+    data = json.loads(json.dumps(base))  # a deep copy of plain JSON data
     for path, value in values.items():
-        section, field = path.split(".")
-        data[section][field] = value
+        set_parameter(data, path, value)
     return data
 
 

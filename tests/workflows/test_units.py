@@ -7,16 +7,19 @@ import io
 import json
 import typing
 
+from pydantic import BaseModel
+
 import pytest
 import xarray as xr
 
 import solver
 from solver import CaseSpec
+from solver.spec import Layer
 from workflows import ResultStore, open_results
 from workflows.combine import combine_files
 from workflows.commands import comparison_table as cli_table
 from workflows.commands import run_command, show_command
-from workflows.parameters import PARAMETER_ATTRS, flat_name, parameter_attrs, parameter_paths
+from workflows.parameters import LAYER_ATTRS, PARAMETER_ATTRS, flat_name, parameter_attrs, parameter_paths
 
 COARSE = {"mesh": {"interface_size": 0.25, "far_size": 8.0}}
 
@@ -25,10 +28,21 @@ def _is_numeric(annotation) -> bool:
     return annotation in (int, float) or any(a in (int, float) for a in typing.get_args(annotation))
 
 
-def _fields():
-    for section, info in CaseSpec.model_fields.items():
-        for field, finfo in info.annotation.model_fields.items():
-            yield f"{section}.{field}", finfo.annotation
+def _fields(model=CaseSpec, prefix=""):
+    """Every leaf field of the case model (nested sections such as lining.joints walked into;
+    a layer's fields are reached by index and described in LAYER_ATTRS)."""
+    for name, info in model.model_fields.items():
+        kind = info.annotation
+        if isinstance(kind, type) and issubclass(kind, BaseModel):
+            yield from _fields(kind, f"{prefix}{name}.")
+        elif f"{prefix}{name}" != "ground.layers":
+            yield f"{prefix}{name}", kind
+
+
+def test_every_layer_field_is_described():
+    assert set(LAYER_ATTRS) == set(Layer.model_fields)
+    assert parameter_attrs("ground.layers.1.young") == {"units": "Pa", "long_name": "layer Young's modulus (layer 1)"}
+    assert parameter_attrs("ground_layers_0_thickness")["units"] == "m"
 
 
 def test_every_case_parameter_is_described_and_every_numeric_one_has_a_unit():

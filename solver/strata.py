@@ -1,0 +1,135 @@
+"""The ground as strata: each layer's properties and its geostatic state (SPEC §1.4).
+
+Plain functions of a :class:`~solver.spec.CaseSpec`. Depth ``z`` is measured down from the
+surface (``z = -y``), stresses are compression positive here (as ``σv`` and ``u`` are spoken
+of); callers turn them into the result's tension-positive components.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Stratum", "strata", "layer_at", "geostatic_state", "geostatic_profile"]
+
+
+@dataclass(frozen=True)
+class Stratum:
+    """One layer, every property resolved (a one-layer ground is ``ground`` itself).
+
+    top, bottom : m, depths below the surface (the last layer's bottom is the model's).
+    young : Pa at the layer's top; young_gradient : Pa/m below it; k0 : σ′h/σ′v.
+    """
+
+    index: int
+    top: float
+    bottom: float
+    young: float
+    poisson: float
+    density: float
+    k0: float
+    young_gradient: float
+    permeability: float
+    model: str
+    cohesion: float
+    friction_angle: float
+    dilatancy: float
+    tensile_strength: float
+
+    def young_at(self, z: np.ndarray) -> np.ndarray:
+        """E (Pa) at depths ``z`` (m) inside the layer."""
+        return self.young + self.young_gradient * (np.asarray(z, dtype=float) - self.top)
+
+
+def strata(spec) -> list[Stratum]:
+    """The case's layers from the surface down (one layer of ``ground`` when none are given)."""
+    g, height, k0 = spec.ground, spec.geometry.height, spec.loads.lateral_ratio
+    layers = g.layers or (g,)
+    out, top = [], 0.0
+    for i, layer in enumerate(layers):
+        last = i == len(layers) - 1
+        bottom = height if last else top + layer.thickness
+        lr = getattr(layer, "lateral_ratio", None)
+        out.append(Stratum(
+            index=i, top=top, bottom=bottom, young=layer.young, poisson=layer.poisson, density=layer.density,
+            k0=k0 if lr is None else lr, young_gradient=layer.young_gradient, permeability=layer.permeability,
+            model=layer.model, cohesion=layer.cohesion, friction_angle=layer.friction_angle,
+            dilatancy=layer.dilatancy, tensile_strength=layer.tensile_strength))
+        top = bottom
+    return out
+
+
+def layer_at(layers: list[Stratum], z: np.ndarray) -> np.ndarray:
+    """Index of the layer holding each depth ``z`` (a depth on a boundary belongs to the layer below)."""
+    tops = np.array([s.top for s in layers[1:]])
+    return np.searchsorted(tops, np.asarray(z, dtype=float), side="right")
+
+
+def geostatic_state(spec, layers: list[Stratum], z: np.ndarray, layer: np.ndarray | None = None) -> dict:
+    """In-situ state at depths ``z`` (m), compression positive (Pa).
+
+    ``layer`` picks the layer of each point (e.g. the layer of its element, so that K0 jumps
+    where the mesh's layer line is); by default :func:`layer_at`. Returns ``sigma_v`` (total
+    vertical), ``pore`` (hydrostatic pore pressure, 0 above the table or in dry ground),
+    ``effective_v``, ``effective_h`` (K0 of the layer times ``effective_v``) and ``sigma_h``.
+    """
+    z = np.asarray(z, dtype=float)
+    idx = layer_at(layers, z) if layer is None else np.asarray(layer)
+    L, gravity = spec.loads, spec.loads.gravity
+    tops = np.array([s.top for s in layers])
+    rho = np.array([s.density for s in layers])
+    # total vertical stress: the surcharge and the weight of every layer above, then this one's
+    above = np.r_[0.0, np.cumsum(rho[:-1] * gravity * np.diff(np.r_[tops, layers[-1].bottom])[:-1])]
+    sigma_v = L.surface_load + above[idx] + rho[idx] * gravity * (z - tops[idx])
+    table = spec.water.table
+    pore = np.zeros_like(z) if table is None else spec.water.unit_weight * np.maximum(z - table, 0.0)
+    eff_v = sigma_v - pore
+    eff_h = np.array([s.k0 for s in layers])[idx] * eff_v
+    return {"sigma_v": sigma_v, "pore": pore, "effective_v": eff_v, "effective_h": eff_h, "sigma_h": eff_h + pore}
+
+
+def geostatic_profile(spec, layers: list[Stratum]):
+    """``(layer, depth, state)`` at every layer's top, bottom and (inside it) the water table:
+    the in-situ state is linear in depth between these points, so checks of it there hold
+    everywhere (a convex yield function, for one)."""
+    table = spec.water.table
+    for s in layers:
+        depths = [s.top, s.bottom]
+        if table is not None and s.top < table < s.bottom:
+            depths.insert(1, table)
+        for z in depths:
+            state = geostatic_state(spec, layers, np.array([z]), np.array([s.index]))
+            yield s, z, {k: float(v[0]) for k, v in state.items()}
+
+
+def mohr_coulomb_excess(s_major: float, s_minor: float, cohesion: float, friction_angle: float,
+                        tensile_strength: float = 0.0) -> float:
+    """How far a state with major and minor principal stresses (Pa, compression positive) lies
+    outside the Mohr–Coulomb surface with its tension cut-off (Pa; ≤ 0 inside)."""
+    phi = np.radians(friction_angle)
+    shear = (s_major - s_minor) - (s_major + s_minor) * np.sin(phi) - 2.0 * cohesion * np.cos(phi)
+    return float(max(shear, -s_minor - tensile_strength))
+
+
+def geostatic_errors(spec, layers: list[Stratum]) -> list[tuple[str, str]]:
+    """``(field, reason)`` for each yielding layer whose in-situ state lies outside its yield surface."""
+    errors = []
+    named = bool(spec.ground.layers)
+    for s, z, st in geostatic_profile(spec, layers):
+        if s.model != "mohr-coulomb":
+            continue
+        v, h = st["effective_v"], st["effective_h"]
+        prefix = f"ground.layers.{s.index}." if named else ""
+        if v < -1e-9 * max(1.0, st["sigma_v"]):
+            errors.append((prefix + "density" if named else "ground.density",
+                           f"the effective vertical stress is {v:.4g} Pa (tension) at {z:.4g} m depth"))
+            continue
+        scale = max(abs(v), abs(h), s.cohesion, 1.0)
+        if mohr_coulomb_excess(max(v, h), min(v, h), s.cohesion, s.friction_angle, s.tensile_strength) \
+                > 1e-9 * scale:
+            field = prefix + "lateral_ratio" if named and spec.ground.layers[s.index].lateral_ratio is not None \
+                else "loads.lateral_ratio"
+            errors.append((field, f"K0 = {s.k0:.4g} puts the in-situ state of layer {s.index} outside its "
+                                  f"Mohr-Coulomb surface at {z:.4g} m depth (sigma'v = {v:.4g} Pa, "
+                                  f"sigma'h = {h:.4g} Pa; c = {s.cohesion:.4g} Pa, phi = {s.friction_angle:.4g} deg)"))
+    return errors
