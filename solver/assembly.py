@@ -237,14 +237,21 @@ def lining_constraints(basis: Basis, *, scale: float) -> list[np.ndarray]:
     return [dofs[0, _near(x, 0.0, scale)]]
 
 
-def gravity_load(basis: Basis, density: float, g: float) -> np.ndarray:
-    """Consistent nodal body force of density × g downward (full DOFs, N/m)."""
+def gravity_load(basis: Basis, density: float, g: float, where: np.ndarray | None = None) -> np.ndarray:
+    """Consistent nodal body force of density × g downward (full DOFs, N/m); ``where`` (E,)
+    bool limits it to some elements (one layer's)."""
+    mask = _mask(where)
 
     @LinearForm
     def load(v, w):
-        return -density * g * v[1]
+        return -density * g * v[1] if mask is None else -density * g * v[1] * mask
 
     return asm(load, basis)
+
+
+def _mask(where: np.ndarray | None) -> np.ndarray | None:
+    """(E, 1) 0/1 factor of a per-element selection, broadcast over quadrature points."""
+    return None if where is None else np.asarray(where, dtype=float)[:, None]
 
 
 def _facets(basis: Basis, where) -> FacetBasis:
@@ -263,14 +270,24 @@ def surface_load(basis: Basis, q: float, *, scale: float) -> np.ndarray:
 
 
 def side_pressure_load(basis: Basis, *, q: float, rho_g: float, k0: float, width: float,
-                       scale: float) -> np.ndarray:
-    """Horizontal pressure K0 × geostatic vertical stress on the side x = width (full DOFs)."""
+                       scale: float, depths: tuple[float, float] | None = None) -> np.ndarray:
+    """Horizontal pressure K0 × geostatic vertical stress on the side x = width (full DOFs).
+
+    ``depths = (top, bottom)`` (m below the surface) loads only that stretch of the side (one
+    layer), with the vertical stress ``q + ρg (z - top)`` from its top."""
+    if depths is None:
+        @LinearForm
+        def load(v, w):
+            return -k0 * (q - rho_g * w.x[1]) * v[0]
+
+        return asm(load, _facets(basis, lambda x: _near(x[0], width, scale)))
+    top, bottom = depths
 
     @LinearForm
-    def load(v, w):
-        return -k0 * (q - rho_g * w.x[1]) * v[0]
+    def layer_load(v, w):
+        return -k0 * (q - rho_g * (w.x[1] + top)) * v[0]
 
-    return asm(load, _facets(basis, lambda x: _near(x[0], width, scale)))
+    return asm(layer_load, _facets(basis, lambda x: _near(x[0], width, scale) & (-x[1] >= top) & (-x[1] <= bottom)))
 
 
 def geostatic_stress(y: np.ndarray, *, q: float, rho_g: float, k0: float) -> tuple[np.ndarray, np.ndarray]:
@@ -280,19 +297,30 @@ def geostatic_stress(y: np.ndarray, *, q: float, rho_g: float, k0: float) -> tup
 
 
 def initial_stress_forces(basis: Basis, *, q: float, rho_g: float, k0: float,
-                          vertical: float = 1.0) -> np.ndarray:
+                          vertical: float = 1.0, top: float = 0.0, where: np.ndarray | None = None) -> np.ndarray:
     """Internal nodal forces of the geostatic stress, ∫ Bᵀ σ0 dΩ (full DOFs, N/m).
 
     ``vertical`` scales σ0_yy alone (1 for the geostatic state; 0 with k0 = 1 gives the
-    part of σ0_xx, so that ``∫Bᵀσ0 = K0 · [xx part] + [yy part]`` for any K0).
+    part of σ0_xx, so that ``∫Bᵀσ0 = K0 · [xx part] + [yy part]`` for any K0). ``where`` (E,)
+    bool limits the integral to some elements (one layer's), whose vertical stress is
+    ``q + ρg (z - top)`` from the layer's ``top`` (m below the surface).
     """
+    if where is None and top == 0.0:
+        @LinearForm
+        def internal(v, w):
+            sxx, syy = geostatic_stress(w.x[1], q=q, rho_g=rho_g, k0=k0)
+            return sxx * v.grad[0][0] + vertical * syy * v.grad[1][1]
+
+        return asm(internal, basis)
+    mask = _mask(where)
 
     @LinearForm
-    def internal(v, w):
-        sxx, syy = geostatic_stress(w.x[1], q=q, rho_g=rho_g, k0=k0)
-        return sxx * v.grad[0][0] + vertical * syy * v.grad[1][1]
+    def layer_internal(v, w):
+        sxx, syy = geostatic_stress(w.x[1] + top, q=q, rho_g=rho_g, k0=k0)
+        work = sxx * v.grad[0][0] + vertical * syy * v.grad[1][1]
+        return work if mask is None else work * mask
 
-    return asm(internal, basis)
+    return asm(layer_internal, basis)
 
 
 def point_basis(body: Body, points: np.ndarray = SUBTRIANGLE_CENTROIDS) -> Basis:

@@ -295,11 +295,13 @@ INNER = {"uzawa": uzawa, "active-set": active_set}
 
 
 def search_bolt(theta: np.ndarray, nu2: np.ndarray, solve_at, *, tol: float, p_ref: float,
-                bolt: float | str = "auto", model: str = "frictionless"):
+                bolt: float | str = "auto", model: str = "frictionless", upward: bool = False):
     """The paper's global strategy: guess a bolt A, solve (3.1), accept when λ_A >= 0.
 
     Candidates are the nodes with ν2 != 0 (the set N0). The first guess is the
-    invert (the floating lining rests on it under its own weight); after a
+    invert (the floating lining rests on it under its own weight), or the crown when the
+    lining's vertical load is ``upward`` (a watertight lining lighter than the water it
+    displaces is pushed up against the crown; the paper's method allows either sign); after a
     rejected guess the next is the untried node with the largest pressure in the
     rejected auxiliary solution (where the bolted lining presses hardest), ties
     broken towards the invert. Every trial is recorded.
@@ -315,7 +317,8 @@ def search_bolt(theta: np.ndarray, nu2: np.ndarray, solve_at, *, tol: float, p_r
     if bolt != "auto":
         order = [int(candidates[np.argmin(np.abs(theta[candidates] - float(bolt)))])]
     else:
-        order = [int(candidates[np.argmax(theta[candidates])])]
+        pick = np.argmin if upward else np.argmax
+        order = [int(candidates[pick(theta[candidates])])]
     tried: set[int] = set()
     trials: list[BoltTrial] = []
     total = 0
@@ -357,6 +360,6 @@ def solve_contact(dual: DualProblem, theta: np.ndarray, *, inner: str, tol: floa
         return lam, res.iterations, lam
 
     A, lam, trials, total, ok = search_bolt(theta, dual.nu2, solve_at, tol=tol, p_ref=dual.pressure_scale,
-                                            bolt=bolt)
+                                            bolt=bolt, upward=dual.F2 > 0)
     gap, a = dual.gap(lam, A)
     return ContactSolution(lam=lam, gap=gap, a=a, bolt=A, trials=trials, iterations=total, admissible=ok)

@@ -16,7 +16,9 @@ from datetime import datetime, timezone
 import numpy as np
 import xarray as xr
 
-from .assembly import SUBTRIANGLES, geostatic_stress, stress_at
+from .assembly import SUBTRIANGLES, stress_at
+from .ground import in_situ_stress, moduli
+from .strata import moved_lines, strata
 from .design import design_utilization
 from .model import Solution, TunnelModel
 from .post import contact_extent, lining_forces, surface_trough
@@ -43,6 +45,7 @@ SCALARS = {
     "max_surface_settlement": ("m", "largest settlement of the ground surface since excavation"),
     "volume_loss": ("1", "settlement trough area over excavated area (the trough: where the surface settles)"),
     "ground_crown_settlement": ("m", "settlement of the ground at the tunnel crown since excavation"),
+    "water_inflow": ("m3 s-1", "steady water inflow into the whole tunnel per metre (0 unless the lining drains)"),
 }
 
 
@@ -55,18 +58,32 @@ def _faces(t: np.ndarray) -> np.ndarray:
     return np.transpose(t[SUBTRIANGLES], (2, 0, 1)).reshape(-1, 3)
 
 
-def _face_stress(model: TunnelModel, body: str, spec, u_nodes: np.ndarray) -> np.ndarray:
-    """(4, 4E) stress at the sub-triangle centroids; total stress (σ0 + increment) in the ground."""
-    fb = getattr(model, body).body
-    mat = getattr(spec, body)
-    basis = model.point_basis(body)
-    s = stress_at(fb, mat.young, mat.poisson, u_nodes, basis)  # (4, E, 4)
-    if body == "ground" and spec.excavation.method == "deconfinement":
-        y = np.asarray(basis.global_coordinates())[1]
-        L = spec.loads
-        sxx, syy = geostatic_stress(y, q=L.surface_load, rho_g=spec.ground.density * L.gravity, k0=L.lateral_ratio)
-        s = s + np.stack([sxx, syy, np.zeros_like(y), sxx])
-    return s.reshape(4, -1)
+def _lining_stress(model: TunnelModel, spec, u_nodes: np.ndarray) -> np.ndarray:
+    """(4, 4E) stress in the lining at the sub-triangle centroids."""
+    basis = model.point_basis("lining")
+    return stress_at(model.lining.body, spec.lining.young, spec.lining.poisson, u_nodes, basis).reshape(4, -1)
+
+
+def _ground_state(model: TunnelModel, sol: Solution) -> dict:
+    """The ground at the sub-triangle centroids (each (…, 4E)): ``effective`` and ``total``
+    stress (4 components; the in-situ state plus the increment, since the stress-free start for
+    ``wished-in-place``) and the ``pore`` pressure after stage 2 (Pa, compression positive)."""
+    spec = sol.spec
+    basis = model.point_basis("ground")
+    y = np.asarray(basis.global_coordinates())[1]
+    young, poisson = moduli(model.layers, model.band, y)
+    effective = stress_at(model.ground.body, young, poisson, sol.u_ground, basis)  # (4, E, 4)
+    if spec.excavation.method == "deconfinement":
+        effective = effective + in_situ_stress(spec, strata(spec), model.band, y)["effective"]
+    if spec.water.table is None:
+        pore, total = np.zeros_like(y), effective
+    else:
+        from skfem import Basis, ElementTriP2
+
+        scalar = Basis(basis.mesh, ElementTriP2(), quadrature=basis.quadrature)
+        pore = np.asarray(scalar.interpolate(sol.pore))
+        total = effective - np.stack([pore, pore, np.zeros_like(pore), pore])
+    return {"effective": effective.reshape(4, -1), "total": total.reshape(4, -1), "pore": pore.reshape(-1)}
 
 
 def volume_loss(x: np.ndarray, settlement: np.ndarray, hole_radius: float) -> float:
@@ -107,8 +124,13 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
     body = np.r_[np.zeros(n_fg, np.int8), np.ones(faces.shape[0] - n_fg, np.int8)]
     u = np.concatenate([sol.u_ground, sol.u_lining], axis=1)
     u1 = np.concatenate([sol.u_stage1, np.zeros_like(sol.u_lining)], axis=1)
-    stress = np.concatenate([_face_stress(model, "ground", spec, sol.u_ground),
-                             _face_stress(model, "lining", spec, sol.u_lining)], axis=1)
+    state = _ground_state(model, sol)
+    lining_stress = _lining_stress(model, spec, sol.u_lining)
+    stress = np.concatenate([state["total"], lining_stress], axis=1)
+    effective = np.concatenate([state["effective"], lining_stress], axis=1)
+    n_fl = faces.shape[0] - n_fg
+    pore = np.r_[state["pore"], np.zeros(n_fl)]
+    layer = np.r_[np.repeat(model.band, 4), np.full(n_fl, -1)].astype(np.int16)
     forces = lining_forces(spec, model.lining.body, iface, mesh.center, sol.u_lining, sol.lam, sol.shear)
     eta, env_n, env_m = design_utilization(forces.thrust, forces.moment, g.thickness, spec.design)
     surf_x, settlement = surface_trough(mg.p, sol.u_ground, scale=max(g.width, g.height))
@@ -121,7 +143,7 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
         "crown_settlement": float(-sol.u_lining[1, crown]),
         "max_thrust": float(forces.thrust.max()),
         "max_abs_moment": float(np.abs(forces.moment).max()),
-        "lining_weight": float(-sol.F2),
+        "lining_weight": float(sol.lining_weight),
         "bolt_theta": float(iface.theta[sol.bolt]) if sol.bolt is not None else np.nan,
         "bolt_trials": np.int32(len(sol.trials)),
         "iterations": np.int32(sol.iterations),
@@ -132,8 +154,11 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
         "max_surface_settlement": float(settlement.max()),
         "volume_loss": volume_loss(surf_x, settlement, g.hole_radius),
         "ground_crown_settlement": float(-sol.u_ground[1, iface.ground_node[0]]),
+        "water_inflow": float(sol.water_inflow),
     }
-    warnings = []
+    warnings = [f"the line between layers {i - 1} and {i} ({z:.4g} m deep) is drawn at {drawn:.4g} m: it met the "
+                "tunnel's crown or invert level, where the mesh cannot follow a line tangent to the excavation"
+                for i, z, drawn in moved_lines(spec)]
     largest = float(np.max(np.hypot(u[0], u[1])))
     if largest > SMALL_DISPLACEMENT_LIMIT * g.hole_radius:
         warnings.append(
@@ -149,6 +174,7 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
         "lining_translation_m": float(sol.a),
         "interface_model": spec.interface.model,
         "excavation_method": spec.excavation.method,
+        "water_uplift_N_per_m": float(sol.water_uplift),
         "warnings": warnings,
     }
     if spec.excavation.method == "deconfinement":
@@ -189,6 +215,13 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
         "stress_yy": _var("face", stress[1], "Pa", "normal stress yy (tension positive)", **on_face),
         "stress_xy": _var("face", stress[2], "Pa", "shear stress xy", **on_face),
         "stress_zz": _var("face", stress[3], "Pa", "out-of-plane normal stress zz (plane strain)", **on_face),
+        "pore_pressure": _var("face", pore, "Pa", "pore pressure after stage 2 (compression positive; 0 in the lining)", **on_face),
+        "effective_stress_xx": _var("face", effective[0], "Pa", "effective normal stress xx (tension positive)", **on_face),
+        "effective_stress_yy": _var("face", effective[1], "Pa", "effective normal stress yy (tension positive)", **on_face),
+        "effective_stress_xy": _var("face", effective[2], "Pa", "effective shear stress xy", **on_face),
+        "effective_stress_zz": _var("face", effective[3], "Pa", "effective out-of-plane normal stress zz", **on_face),
+        "layer": _var("face", layer, "1", "index of the ground layer of the face (into ground.layers; -1 in the lining)", **on_face),
+        "water_pressure": _var("interface", sol.water_pressure, "Pa", "water pressure on the lining's extrados (0 when dry or drained)"),
         "normal_x": _var("interface", iface.normal[0], "1", "x of the ground's outward normal"),
         "normal_y": _var("interface", iface.normal[1], "1", "y of the ground's outward normal"),
         "weight": _var("interface", iface.weight, "m", "quadrature weight of the interface node (Simpson's rule per quadratic edge)"),

@@ -303,6 +303,6 @@ def solve_coulomb(fp: FrictionProblem, theta: np.ndarray, *, tol: float, max_ite
         return t[:m], its, t
 
     A, t, trials, total, ok = search_bolt(theta, fp.r[:m], solve_at, tol=tol, p_ref=fp.pressure_scale,
-                                          bolt=bolt, model="coulomb")
+                                          bolt=bolt, model="coulomb", upward=fp.F2 > 0)
     _, a = fp.jumps(t, A)
     return CoulombSolution(t=t, a=a, bolt=A, trials=trials, iterations=total, admissible=ok)

@@ -30,6 +30,7 @@ from .sizing import (
     size_field_distances,
 )
 from .spec import CaseSpec
+from .strata import layer_lines
 
 # gmsh keeps global state: one meshing at a time per process.
 _GMSH_LOCK = threading.Lock()
@@ -97,6 +98,8 @@ class TunnelMesh:
     interface: Interface
     center: tuple[float, float]
     layers: int
+    #: (E,) index of the ground band (layer) of each ground triangle, surface down.
+    ground_band: np.ndarray | None = None
 
 
 def build_mesh(spec: CaseSpec) -> TunnelMesh:
@@ -109,17 +112,30 @@ def build_mesh(spec: CaseSpec) -> TunnelMesh:
             gmsh.option.setNumber("General.Terminal", 0)
             gmsh.option.setNumber("General.Verbosity", 0)
             gmsh.model.add("tunnel")
-            ground_surf, lining_surfs, hole_arcs, outer_arcs, inner_arcs = _geometry(spec)
+            ground_surfs, lining_surfs, hole_arcs, outer_arcs, inner_arcs = _geometry(spec)
             gmsh.model.mesh.generate(2)
             center = (0.0, -spec.geometry.depth)
             model_nodes = _model_nodes()
-            ground, (ground_ring,) = _body_mesh([ground_surf], [hole_arcs], center, model_nodes)
-            lining, (lining_ring, _) = _body_mesh(lining_surfs, [outer_arcs, inner_arcs], center, model_nodes)
+            ground, (ground_ring,), band = _body_mesh(ground_surfs, [hole_arcs], center, model_nodes)
+            lining, (lining_ring, _), _ = _body_mesh(lining_surfs, [outer_arcs, inner_arcs], center, model_nodes)
         finally:
             gmsh.finalize()
     check_mesh_size(ground.t.shape[1] + lining.t.shape[1])
     return TunnelMesh(ground, lining, _interface(ground, lining, ground_ring, lining_ring, center),
-                      center, lining_layers(spec))
+                      center, lining_layers(spec), band)
+
+
+def sector_angles(spec: CaseSpec) -> list[float]:
+    """Angles (deg from the crown) where the lining is cut into structured sectors: crown,
+    springline, invert, and where a layer line meets the excavation boundary (the interface
+    nodes of ground and lining then meet there too)."""
+    g = spec.geometry
+    angles = {0.0, 90.0, 180.0}
+    for z in layer_lines(spec):
+        c = (g.depth - z) / g.hole_radius
+        if -1.0 < c < 1.0:
+            angles.add(float(np.degrees(np.arccos(c))))
+    return sorted(angles)
 
 
 def _geometry(spec: CaseSpec):
@@ -128,16 +144,21 @@ def _geometry(spec: CaseSpec):
     g, m = spec.geometry, spec.mesh
     geo = gmsh.model.geo
     a, b, rh, d = g.inner_radius, g.outer_radius, g.hole_radius, g.depth
-    n_arc = interface_segments(spec) + 1
+    angles = sector_angles(spec)
+    per_quarter = interface_segments(spec)
+    segments = [max(1, round((hi - lo) / 90.0 * per_quarter)) for lo, hi in zip(angles[:-1], angles[1:])]
     n_rad = lining_layers(spec) + 1
 
     c = geo.addPoint(0, -d, 0)
 
     def ring(r):
-        return geo.addPoint(0, -d + r, 0), geo.addPoint(r, -d, 0), geo.addPoint(0, -d - r, 0)
+        return tuple(geo.addPoint(r * np.sin(np.radians(t)), -d + r * np.cos(np.radians(t)), 0)
+                     if t not in (0.0, 90.0, 180.0) else
+                     geo.addPoint({0.0: 0, 90.0: r, 180.0: 0}[t], {0.0: -d + r, 90.0: -d, 180.0: -d - r}[t], 0)
+                     for t in angles)
 
     def arcs(pts):
-        return geo.addCircleArc(pts[0], c, pts[1]), geo.addCircleArc(pts[1], c, pts[2])
+        return tuple(geo.addCircleArc(p, c, q) for p, q in zip(pts[:-1], pts[1:]))
 
     inner_pts, outer_pts = ring(a), ring(b)
     inner, outer = arcs(inner_pts), arcs(outer_pts)
@@ -146,23 +167,29 @@ def _geometry(spec: CaseSpec):
         hole = arcs(hole_pts)
     else:
         hole_pts, hole = outer_pts, outer
-    radial = [geo.addLine(inner_pts[k], outer_pts[k]) for k in range(3)]
+    radial = [geo.addLine(inner_pts[k], outer_pts[k]) for k in range(len(angles))]
 
     lining_surfs = []
-    for q in range(2):
+    for q in range(len(angles) - 1):
         loop = geo.addCurveLoop([outer[q], -radial[q + 1], -inner[q], radial[q]])
         lining_surfs.append(geo.addPlaneSurface([loop]))
 
     p_tl, p_tr = geo.addPoint(0, 0, 0), geo.addPoint(g.width, 0, 0)
     p_br, p_bl = geo.addPoint(g.width, -g.height, 0), geo.addPoint(0, -g.height, 0)
-    border = [geo.addLine(p_tl, p_tr), geo.addLine(p_tr, p_br), geo.addLine(p_br, p_bl),
-              geo.addLine(p_bl, hole_pts[2]), -hole[1], -hole[0], geo.addLine(hole_pts[0], p_tl)]
-    ground_surf = geo.addPlaneSurface([geo.addCurveLoop(border)])
+    lines = layer_lines(spec)
+    if not lines:
+        border = [geo.addLine(p_tl, p_tr), geo.addLine(p_tr, p_br), geo.addLine(p_br, p_bl),
+                  geo.addLine(p_bl, hole_pts[-1]), *(-arc for arc in reversed(hole)),
+                  geo.addLine(hole_pts[0], p_tl)]
+        ground_surfs = [geo.addPlaneSurface([geo.addCurveLoop(border)])]
+    else:
+        ground_surfs = _bands(geo, g, lines, angles, hole_pts, hole, (p_tl, p_tr, p_br, p_bl))
     geo.synchronize()
 
     mesh = gmsh.model.mesh
-    for arc in set(inner + outer + hole):
-        mesh.setTransfiniteCurve(arc, n_arc)
+    for group in (inner, outer, hole):
+        for arc, n in zip(group, segments):
+            mesh.setTransfiniteCurve(arc, n + 1)
     for line in radial:
         mesh.setTransfiniteCurve(line, n_rad)
     for s in lining_surfs:
@@ -172,7 +199,7 @@ def _geometry(spec: CaseSpec):
     fields = gmsh.model.mesh.field
     dist = fields.add("Distance")
     fields.setNumbers(dist, "CurvesList", list(hole))
-    fields.setNumber(dist, "Sampling", 4 * n_arc)
+    fields.setNumber(dist, "Sampling", 4 * (per_quarter + 1))
     thr = fields.add("Threshold")
     fields.setNumber(thr, "InField", dist)
     fields.setNumber(thr, "SizeMin", m.interface_size)
@@ -184,7 +211,56 @@ def _geometry(spec: CaseSpec):
     gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
     gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
     gmsh.option.setNumber("Mesh.Algorithm", 6)
-    return ground_surf, lining_surfs, hole, outer, inner
+    return ground_surfs, lining_surfs, hole, outer, inner
+
+
+def _bands(geo, g, lines: list[float], angles: list[float], hole_pts, hole, corners) -> list[int]:
+    """The ground as horizontal bands between the layer ``lines`` (depths, m), surface down.
+
+    The ground's left edge, from the surface to the bottom, is monotone in depth: the symmetry
+    line down to the crown, the excavation's arcs (``hole``, between ``hole_pts`` at
+    ``angles``) to the invert, the symmetry line to the bottom. Each layer line runs from its
+    point on that edge (on the symmetry line, or on the excavation where it cuts it: a hole
+    point, see :func:`sector_angles`) to the right side. Each band is bounded by its top line,
+    the right side, its bottom line and the piece of the left edge between them."""
+    p_tl, p_tr, p_br, p_bl = corners
+    rh, d = g.hole_radius, g.depth
+    crown, invert = d - rh, d + rh
+    # the left edge as (depth, point) vertices and the curve from each to the next, top down
+    left = [(0.0, p_tl)]
+    curves = []
+
+    def axis_to(z, point):
+        curves.append(geo.addLine(left[-1][1], point))
+        left.append((z, point))
+
+    for z in lines:
+        if z < crown:
+            axis_to(z, geo.addPoint(0, -z, 0))
+    axis_to(crown, hole_pts[0])
+    for k, arc in enumerate(hole):
+        curves.append(arc)
+        left.append((d - rh * np.cos(np.radians(angles[k + 1])), hole_pts[k + 1]))
+    for z in lines:
+        if z > invert:
+            axis_to(z, geo.addPoint(0, -z, 0))
+    axis_to(g.height, p_bl)
+
+    def left_point(z):
+        return min(range(len(left)), key=lambda i: abs(left[i][0] - z))
+
+    rights = [p_tr] + [geo.addPoint(g.width, -z, 0) for z in lines] + [p_br]
+    tops = [geo.addLine(p_tl, p_tr)] + [geo.addLine(left[left_point(z)][1], rights[k + 1])
+                                         for k, z in enumerate(lines)]
+    bottom = geo.addLine(p_br, p_bl)
+    sides = [geo.addLine(rights[k], rights[k + 1]) for k in range(len(rights) - 1)]
+    at = [0] + [left_point(z) for z in lines] + [len(left) - 1]
+    surfaces = []
+    for k in range(len(lines) + 1):
+        lower = -tops[k + 1] if k < len(lines) else bottom
+        up = [-curves[i] for i in range(at[k + 1] - 1, at[k] - 1, -1)]
+        surfaces.append(geo.addPlaneSurface([geo.addCurveLoop([tops[k], sides[k], lower, *up])]))
+    return surfaces
 
 
 def _model_nodes() -> tuple[np.ndarray, np.ndarray]:
@@ -197,9 +273,10 @@ def _model_nodes() -> tuple[np.ndarray, np.ndarray]:
 
 
 def _body_mesh(surfaces, arcs: list, center, model_nodes: tuple[np.ndarray, np.ndarray]
-               ) -> tuple[BodyMesh, list[np.ndarray]]:
-    """A body's P2 mesh from gmsh's linear triangles on ``surfaces``, and the nodes on each
-    group of circle ``arcs`` (vertices and edge nodes); ``model_nodes``: :func:`_model_nodes`.
+               ) -> tuple[BodyMesh, list[np.ndarray], np.ndarray]:
+    """A body's P2 mesh from gmsh's linear triangles on ``surfaces``, the nodes on each
+    group of circle ``arcs`` (vertices and edge nodes) and the index into ``surfaces`` of each
+    triangle; ``model_nodes``: :func:`_model_nodes`.
 
     The edge nodes are made here rather than by gmsh's ``setOrder(2)`` (0.47 of 1.65 s of
     gmsh's time at 152k DOF): the midpoint of each straight edge, and on the circle arcs the
@@ -209,13 +286,14 @@ def _body_mesh(surfaces, arcs: list, center, model_nodes: tuple[np.ndarray, np.n
     import gmsh
     from skfem import MeshTri1
 
-    tris = []
-    for s in surfaces:
+    tris, owner = [], []
+    for k, s in enumerate(surfaces):
         types, _, nodes = gmsh.model.mesh.getElements(2, s)
         for etype, conn in zip(types, nodes):
             if etype != 2:
                 raise RuntimeError(f"unexpected gmsh element type {etype} (expected 3-node triangles)")
             tris.append(np.asarray(conn, dtype=np.int64).reshape(-1, 3))
+            owner.append(np.full(tris[-1].shape[0], k, np.int64))
     tri_tags = np.concatenate(tris)
     tags = np.unique(tri_tags)
     all_tags, xy = model_nodes
@@ -243,7 +321,7 @@ def _body_mesh(surfaces, arcs: list, center, model_nodes: tuple[np.ndarray, np.n
         rings.append(np.r_[np.flatnonzero(on_arc), nv + arc_facets])
     mesh = BodyMesh(p=np.ascontiguousarray(np.hstack([p, edge])),
                     t=np.ascontiguousarray(np.vstack([t, nv + facets.t2f])))
-    return mesh, rings
+    return mesh, rings, np.concatenate(owner)
 
 
 def _arc_vertices(arcs, tags: np.ndarray) -> np.ndarray:

@@ -38,19 +38,18 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as la
 
-from . import friction
+from . import friction, water
 from .assembly import (
     Basis,
     assemble_body,
     gravity_load,
     ground_constraints,
-    initial_stress_forces,
     lining_constraints,
     point_basis,
-    side_pressure_load,
-    surface_load,
     vector_basis,
 )
+from .ground import LOAD_TERMS, load_shapes, moduli
+from .ground import load_coefficients as _layer_coefficients
 from .contact import BoltedSolution, BoltTrial, DualProblem, SolverError, pressure_scale, solve_contact
 from .flexibility import (
     FactoredBody,
@@ -63,23 +62,14 @@ from .flexibility import (
 from .mesh import TunnelMesh, build_mesh
 from .post import kkt_residual
 from .spec import CaseSpec
+from .strata import layer_at, strata
 
-
-def _sigma0_unit(basis, q: float, rho_g: float) -> tuple[np.ndarray, np.ndarray]:
-    """∫Bᵀσ0 split by stress component: (xx part, yy part) of the geostatic stress of
-    (q, ρg) with K0 = 1, so ``∫Bᵀσ0 = K0·xx + yy`` for any K0."""
-    return (initial_stress_forces(basis, q=q, rho_g=rho_g, k0=1.0, vertical=0.0),
-            initial_stress_forces(basis, q=q, rho_g=rho_g, k0=0.0))
-
-
-#: The terms every ground load is linear in: ρg (N/m³), q (Pa), K0·q (Pa), K0·ρg (N/m³).
-LOAD_TERMS = ("rho_g", "q", "k0_q", "k0_rho_g")
+__all__ = ["TunnelModel", "Solution", "model_key", "shared_model", "load_coefficients", "LOAD_TERMS"]
 
 
 def load_coefficients(spec: CaseSpec) -> np.ndarray:
-    """The case's values of :data:`LOAD_TERMS`."""
-    rho_g, q, k0 = spec.ground.density * spec.loads.gravity, spec.loads.surface_load, spec.loads.lateral_ratio
-    return np.array([rho_g, q, k0 * q, k0 * rho_g])
+    """The case's values of :data:`~solver.ground.LOAD_TERMS`, layer after layer."""
+    return _layer_coefficients(spec, strata(spec))
 
 
 #: Relative gap (to the largest displacement) below which a node counts as closed.
@@ -93,6 +83,7 @@ def model_key(spec: CaseSpec) -> str:
         "mesh": spec.mesh.model_dump(mode="json"),
         "boundaries": spec.boundaries.model_dump(mode="json"),
         "ground": {"young": spec.ground.young, "poisson": spec.ground.poisson},
+        "strata": [[s.top, s.bottom, s.young, s.poisson, s.young_gradient] for s in strata(spec)],
         "lining": {"young": spec.lining.young, "poisson": spec.lining.poisson},
     }
     return json.dumps(shared, sort_keys=True, separators=(",", ":"))
@@ -107,6 +98,8 @@ class StageLoads:
     ground: np.ndarray
     lining: np.ndarray
     release: np.ndarray | None
+    #: the seepage force of a drained lining's stage 2 (already in ``ground``), or None
+    seepage: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -151,6 +144,14 @@ class Solution:
     F2: float
     kkt_residual: float
     timings: dict = field(default_factory=dict)
+    #: N/m: the (half) lining's weight, and the upward resultant of the water on its extrados
+    lining_weight: float = 0.0
+    water_uplift: float = 0.0
+    #: water: (N,) pore pressure at the ground's nodes after stage 2 (Pa; hydrostatic unless
+    #: drained), (m,) water pressure on the lining's extrados (Pa), inflow (m³/s per metre)
+    pore: np.ndarray | None = None
+    water_pressure: np.ndarray | None = None
+    water_inflow: float = 0.0
 
     @property
     def gap(self) -> np.ndarray:
@@ -177,9 +178,12 @@ class TunnelModel:
         g = spec.geometry
         gb = vector_basis(self.mesh.ground)
         iface = self.mesh.interface
+        self.layers = strata(spec)
+        self.band = self.mesh.ground_band
+        young, poisson = moduli(self.layers, self.band, np.asarray(gb.global_coordinates())[1])
         # interface nodes carry normal and tangential unknowns (skew basis): each contact row
         # then acts on one unknown, and the normal ones alone can be ordered last
-        ground = assemble_body(self.mesh.ground, spec.ground.young, spec.ground.poisson,
+        ground = assemble_body(self.mesh.ground, young, poisson,
                                ground_constraints(gb, width=g.width, height=g.height,
                                                   side=spec.boundaries.side, bottom=spec.boundaries.bottom), gb,
                                skew=(iface.ground_node, iface.normal))
@@ -202,6 +206,8 @@ class TunnelModel:
         self._factorize(rows_of_model(spec.interface.model))
         self._units: dict[str, np.ndarray] = {}
         self._point_bases: dict = {}
+        self._seepage: "OrderedDict[tuple, water.SeepageModel]" = OrderedDict()
+        self._lock = threading.Lock()
 
     @property
     def m(self) -> int:
@@ -263,44 +269,80 @@ class TunnelModel:
         return self._units[name]
 
     def _shapes(self, spec: CaseSpec, method: str) -> np.ndarray:
-        """(N, 4) full-DOF ground load per :data:`LOAD_TERMS` term, assembled once per model:
-        the applied loads (``method = "wished-in-place"``: gravity, surface load, a
-        'pressure' side) or the excavation load ``f_ext - ∫Bᵀσ0`` (``"deconfinement"``).
-        Every ground load of a case is ``shapes @ load_coefficients(case)``: a sweep over
-        loads and K0 assembles nothing."""
-        return self._unit(f"shapes_{method}", lambda: self._build_shapes(spec, method))
-
-    def _build_shapes(self, spec: CaseSpec, method: str) -> np.ndarray:
-        basis = self.ground.body.basis
-        if method == "deconfinement":
-            # ∫Bᵀσ0 = K0·(xx part) + (yy part), for (q, ρg) = (1, 0) and (0, 1)
-            (q_xx, q_yy), (g_xx, g_yy) = _sigma0_unit(basis, 1.0, 0.0), _sigma0_unit(basis, 0.0, 1.0)
-            return self._shapes(spec, "wished-in-place") - np.column_stack([g_yy, q_yy, q_xx, g_xx])
+        """(N, 4 L) full-DOF ground load per :data:`~solver.ground.LOAD_TERMS` term of each
+        layer, assembled once per model (:func:`solver.ground.load_shapes`): the applied loads
+        (``method = "wished-in-place"``) or the excavation load ``f_ext - ∫Bᵀσ0``
+        (``"deconfinement"``). Every ground load of a case is ``shapes @ load_coefficients(case)``:
+        a sweep over loads, densities and K0 assembles nothing."""
         g = spec.geometry
-        scale = max(g.width, g.height)
-        shapes = np.zeros((basis.N, len(LOAD_TERMS)))
-        shapes[:, 0] = gravity_load(basis, 1.0, 1.0)
-        shapes[:, 1] = surface_load(basis, 1.0, scale=scale)
-        if spec.boundaries.side == "pressure":
-            shapes[:, 2] = side_pressure_load(basis, q=1.0, rho_g=0.0, k0=1.0, width=g.width, scale=scale)
-            shapes[:, 3] = side_pressure_load(basis, q=0.0, rho_g=1.0, k0=1.0, width=g.width, scale=scale)
-        return shapes
+        return self._unit(f"shapes_{method}", lambda: load_shapes(
+            self.ground.body.basis, self.band, self.layers, width=g.width, height=g.height,
+            side=spec.boundaries.side, method=method))
 
     def ground_loads(self, spec: CaseSpec) -> np.ndarray:
         """Full-DOF external loads on the ground (N/m): gravity, surface load, a 'pressure' side."""
         return self._shapes(spec, "wished-in-place") @ load_coefficients(spec)
 
     def excavation_load(self, spec: CaseSpec) -> np.ndarray:
-        """Full-DOF excavation load ``r = f_ext - ∫Bᵀσ0`` (N/m): what σ0 leaves unbalanced."""
-        return self._shapes(spec, "deconfinement") @ load_coefficients(spec)
+        """Full-DOF excavation load (N/m): what the in-situ state leaves unbalanced, ``f_ext -
+        ∫Bᵀσ0``, and below a water table the water's share, so that the effective traction
+        is released (:func:`solver.water.effective_release`)."""
+        r = self._shapes(spec, "deconfinement") @ load_coefficients(spec)
+        if spec.water.table is not None:
+            r = r + self._effective_release(spec)
+        return r
+
+    def _effective_release(self, spec: CaseSpec) -> np.ndarray:
+        layers, w = strata(spec), spec.water
+        k0 = np.array([s.k0 for s in layers])
+        body, iface = self.ground.body, self.mesh.interface
+        return water.effective_release(body, iface.ground_node, self.mesh.center, w.table, w.unit_weight,
+                                       lambda x: k0[layer_at(layers, -x[1])])
 
     def stage_loads(self, spec: CaseSpec) -> StageLoads:
         ground, lining = self.ground.body, self.lining.body
         f_l = lining.restrict(spec.lining.density * spec.loads.gravity * self._lining_shape())
-        loads = ground.restrict(self._shapes(spec, spec.excavation.method) @ load_coefficients(spec))
+        w = spec.water
+        if w.table is not None and w.lining == "watertight":
+            f_l = f_l + lining.restrict(self._water_on_lining(spec))
         if spec.excavation.method == "wished-in-place":
-            return StageLoads(loads, f_l, None)
-        return StageLoads((1.0 - spec.excavation.deconfinement) * loads, f_l, loads)
+            return StageLoads(ground.restrict(self.ground_loads(spec)), f_l, None)
+        loads = ground.restrict(self.excavation_load(spec))
+        stage2 = (1.0 - spec.excavation.deconfinement) * loads
+        seep = None
+        if spec.drained:
+            seep = ground.restrict(self._seepage_force(spec))
+            stage2 = stage2 + seep
+        return StageLoads(stage2, f_l, loads, seep)
+
+    def _water_on_lining(self, spec: CaseSpec) -> np.ndarray:
+        """Full-DOF load of the hydrostatic water on the lining's extrados (watertight)."""
+        return water.pressure_load(self.lining.body, self.mesh.interface.lining_node, self.mesh.center,
+                                   spec.water.table, spec.water.unit_weight)
+
+    def _seepage_model(self, spec: CaseSpec) -> water.SeepageModel:
+        """The head problem of a drained case, its factorization kept per table depth and
+        permeabilities (the two most recent)."""
+        k = np.array([s.permeability for s in strata(spec)])
+        key = (spec.water.table, tuple(k))
+        with self._lock:
+            if key not in self._seepage:
+                g = spec.geometry
+                self._seepage[key] = water.SeepageModel(self.mesh.ground, self.mesh.interface.ground_node,
+                                                        k[self.band], spec.water.table, g.width, g.height)
+                while len(self._seepage) > 2:
+                    self._seepage.popitem(last=False)
+            return self._seepage[key]
+
+    def seepage(self, spec: CaseSpec) -> water.Seepage:
+        """Steady seepage of a drained case (:class:`solver.water.SeepageModel`)."""
+        return self._seepage_model(spec).solve(spec.water.unit_weight)
+
+    def _seepage_force(self, spec: CaseSpec) -> np.ndarray:
+        model = self._seepage_model(spec)
+        seep = model.solve(spec.water.unit_weight)
+        u0 = water.hydrostatic(self.mesh.ground.p[1], spec.water.table, spec.water.unit_weight)
+        return water.seepage_load(self.ground.body.basis, model.basis, seep.pore - u0)
 
     def _lining_shape(self) -> np.ndarray:
         return self._unit("lining_gravity", lambda: gravity_load(self.lining.body.basis, 1.0, 1.0))
@@ -366,7 +408,26 @@ class TunnelModel:
                         in_contact=closed, slipping=slipping, a=float(sol.a), bolt=sol.bolt, trials=sol.trials,
                         iterations=int(sol.iterations), admissible=bool(sol.admissible), F2=F2,
                         kkt_residual=kkt,
-                        timings={"contact": t_solve - t0, "recovery": time.perf_counter() - t_solve})
+                        timings={"contact": t_solve - t0, "recovery": time.perf_counter() - t_solve},
+                        **self._water_state(spec, F2))
+
+    def _water_state(self, spec: CaseSpec, F2: float) -> dict:
+        """The lining's weight and water uplift (N/m), the ground's pore pressure after stage 2
+        at its nodes, the water pressure on the extrados and the inflow (:class:`Solution`)."""
+        w = spec.water
+        y = self.mesh.ground.p[1]
+        out = {"lining_weight": -F2, "water_uplift": 0.0, "pore": water.hydrostatic(y, w.table, w.unit_weight),
+               "water_pressure": np.zeros(self.m), "water_inflow": 0.0}
+        if w.table is not None and w.lining == "watertight":
+            weight = -spec.lining.density * spec.loads.gravity * float(
+                self.rigid @ self.lining.body.restrict(self._lining_shape()))
+            out.update(lining_weight=weight, water_uplift=F2 + weight,
+                       water_pressure=water.hydrostatic(self.mesh.lining.p[1, self.mesh.interface.lining_node],
+                                                        w.table, w.unit_weight))
+        elif w.table is not None:
+            seep = self.seepage(spec)
+            out["pore"], out["water_inflow"] = seep.pore, seep.inflow
+        return out
 
     def _contact_stage(self, spec: CaseSpec, rows: Rows | None = None):
         """Loads, both bodies' loads of the contact stage solved forward (:class:`Forward`),
@@ -382,7 +443,10 @@ class TunnelModel:
         if loads.release is not None:
             ld = spec.excavation.deconfinement
             y_r = ground.forward(loads.release, rows)
-            stage = Forward(ground=(1.0 - ld) * y_r, lining=y_l, release=y_r, deconfinement=ld)
+            y_g = (1.0 - ld) * y_r
+            if loads.seepage is not None:
+                y_g = y_g + ground.forward(loads.seepage, rows)
+            stage = Forward(ground=y_g, lining=y_l, release=y_r, deconfinement=ld)
         else:
             stage = Forward(ground=ground.forward(loads.ground, rows), lining=y_l)
         d = ground.jumps(stage.ground, rows) + lining.jumps(y_l, rows)

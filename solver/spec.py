@@ -464,6 +464,10 @@ class CaseSpec(_Frozen):
                     f"ground.layers.{i}.thickness: the layers down to this one reach {reach:.6g} m, at or "
                     f"below the model's bottom ({height:.6g} m below the surface); the last layer must "
                     "reach the bottom")
+        if self.water.table is not None and self.excavation.method == "wished-in-place":
+            raise ValueError("water.table: groundwater needs excavation.method = 'deconfinement' (the "
+                             "'wished-in-place' method starts from a stress-free ground, which has no "
+                             "hydrostatic pore pressure to start from)")
         if self.water.table is not None and self.water.table >= height:
             raise ValueError(f"water.table: {self.water.table:.6g} m is at or below the model's bottom "
                              f"({height:.6g} m)")

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Stratum", "strata", "layer_at", "geostatic_state", "geostatic_profile"]
+__all__ = ["Stratum", "strata", "layer_lines", "moved_lines", "layer_at", "geostatic_state", "geostatic_profile"]
 
 
 @dataclass(frozen=True)
@@ -41,14 +41,60 @@ class Stratum:
         return self.young + self.young_gradient * (np.asarray(z, dtype=float) - self.top)
 
 
+#: A layer line nearer the excavation's crown or invert level than this many interface sizes is
+#: moved to that distance from it, outside the excavation: a line (nearly) tangent to the
+#: tunnel would leave the mesh a wedge of vanishing angle there.
+TANGENT_CLEARANCE = 0.5
+
+
+def layer_lines(spec) -> list[float]:
+    """Depths (m) of the lines between layers as the mesh draws them, from the surface down.
+
+    A line within :data:`TANGENT_CLEARANCE` interface sizes of the level of the excavation's
+    crown or invert is moved to that distance from it, away from the excavation (see
+    :func:`moved_lines`); every other line lies where the layers put it."""
+    g = spec.geometry
+    layers = spec.ground.layers
+    crown, invert = g.depth - g.hole_radius, g.depth + g.hole_radius
+    clear = TANGENT_CLEARANCE * spec.mesh.interface_size
+    lines, z = [], 0.0
+    for layer in layers[:-1]:
+        z += layer.thickness
+        if abs(z - crown) < clear:
+            z_mesh = crown - clear
+        elif abs(z - invert) < clear:
+            z_mesh = invert + clear
+        else:
+            z_mesh = z
+        if z_mesh <= (lines[-1] if lines else 0.0) + 1e-9 * g.height:
+            raise ValueError(
+                f"ground.layers.{len(lines)}.thickness: the layer is too thin to be drawn where a layer line "
+                f"meets the tunnel's crown or invert level ({z:.6g} m; lines within {clear:.3g} m of that "
+                "level are moved to that distance)")
+        lines.append(z_mesh)
+    return lines
+
+
+def moved_lines(spec) -> list[tuple[int, float, float]]:
+    """``(layer, given depth, drawn depth)`` of each layer top that :func:`layer_lines` moved."""
+    out, z = [], 0.0
+    for i, (layer, drawn) in enumerate(zip(spec.ground.layers[:-1], layer_lines(spec))):
+        z += layer.thickness
+        if drawn != z:
+            out.append((i + 1, z, drawn))
+    return out
+
+
 def strata(spec) -> list[Stratum]:
-    """The case's layers from the surface down (one layer of ``ground`` when none are given)."""
+    """The case's layers from the surface down (one layer of ``ground`` when none are given),
+    bounded by the lines the mesh draws (:func:`layer_lines`)."""
     g, height, k0 = spec.ground, spec.geometry.height, spec.loads.lateral_ratio
     layers = g.layers or (g,)
+    lines = layer_lines(spec) if g.layers else []
     out, top = [], 0.0
     for i, layer in enumerate(layers):
         last = i == len(layers) - 1
-        bottom = height if last else top + layer.thickness
+        bottom = height if last else lines[i]
         lr = getattr(layer, "lateral_ratio", None)
         out.append(Stratum(
             index=i, top=top, bottom=bottom, young=layer.young, poisson=layer.poisson, density=layer.density,
