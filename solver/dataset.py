@@ -19,6 +19,7 @@ import xarray as xr
 from .assembly import SUBTRIANGLES, stress_at
 from .ground import in_situ_stress, moduli
 from .strata import moved_lines, strata
+from .water import hydrostatic
 from .design import design_utilization
 from .model import Solution, TunnelModel
 from .post import contact_extent, lining_forces, surface_trough
@@ -78,10 +79,13 @@ def _ground_state(model: TunnelModel, sol: Solution) -> dict:
     if spec.water.table is None:
         pore, total = np.zeros_like(y), effective
     else:
-        from skfem import Basis, ElementTriP2
+        if spec.drained:  # the seepage's P2 field (clipped: its interpolant may dip below 0 near the wall)
+            from skfem import Basis, ElementTriP2
 
-        scalar = Basis(basis.mesh, ElementTriP2(), quadrature=basis.quadrature)
-        pore = np.asarray(scalar.interpolate(sol.pore))
+            scalar = Basis(basis.mesh, ElementTriP2(), quadrature=basis.quadrature)
+            pore = np.maximum(np.asarray(scalar.interpolate(sol.pore)), 0.0)
+        else:  # hydrostatic, exact at the points
+            pore = hydrostatic(y, spec.water.table, spec.water.unit_weight)
         total = effective - np.stack([pore, pore, np.zeros_like(pore), pore])
     return {"effective": effective.reshape(4, -1), "total": total.reshape(4, -1), "pore": pore.reshape(-1)}
 

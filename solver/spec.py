@@ -494,8 +494,13 @@ class CaseSpec(_Frozen):
         """Values the case ignores take their defaults, so one physical case has one id:
         permeabilities unless the lining drains, load steps unless the ground yields, a joint
         strip as high as the lining (the default)."""
-        ground, solver, lining = self.ground, self.solver, self.lining
-        k0 = self.loads.lateral_ratio  # a layer's K0 equal to the case's is the inherited one
+        ground, solver, lining, loads = self.ground, self.solver, self.lining, self.loads
+        if len(ground.layers) == 1:  # one layer is the ground itself
+            (only,) = ground.layers
+            ground = ground.model_copy(update={**{f: getattr(only, f) for f in LAYER_FIELDS}, "layers": ()})
+            if only.lateral_ratio is not None:
+                loads = loads.model_copy(update={"lateral_ratio": only.lateral_ratio})
+        k0 = loads.lateral_ratio  # a layer's K0 equal to the case's is the inherited one
         ground = ground.model_copy(update={"layers": tuple(
             layer.model_copy(update={"lateral_ratio": None}) if layer.lateral_ratio == k0 else layer
             for layer in ground.layers)})
@@ -508,7 +513,7 @@ class CaseSpec(_Frozen):
         a = lining.joints.contact_height
         if a is not None and abs(a - self.geometry.thickness) <= 1e-12 * self.geometry.thickness:
             lining = lining.model_copy(update={"joints": lining.joints.model_copy(update={"contact_height": None})})
-        for name, value in (("ground", ground), ("solver", solver), ("lining", lining)):
+        for name, value in (("ground", ground), ("solver", solver), ("lining", lining), ("loads", loads)):
             object.__setattr__(self, name, value)
 
     def _mesh_fits(self) -> "CaseSpec":
