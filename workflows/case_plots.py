@@ -20,6 +20,9 @@ _SLIP_COLOR = "tab:orange"
 STATIONS = {"crown": 0.0, "springline": 90.0, "invert": 180.0}
 
 
+_WATER_COLOR = "tab:cyan"
+
+
 def _spans(ax, theta: np.ndarray, on: np.ndarray, *, color: str, label: str, alpha: float = 0.12,
            hatch: str | None = None) -> None:
     """Shade the theta ranges where ``on`` holds (one legend entry)."""
@@ -73,9 +76,16 @@ def plot_contact_pressure(ds: xr.Dataset) -> Figure:
     fig = Figure(figsize=(7.5, 6.5), layout="constrained")
     ax, ax_s = fig.subplots(2, 1, sharex=True, height_ratios=(3, 2))
     _contact_spans(ax, ds)
-    ax.plot(theta, ds["contact_pressure"] / 1e3, color="k", lw=1.5, label="contact pressure λ")
-    ax.set_ylabel("contact pressure λ (kPa)")
-    ax.set_ylim(bottom=0.0, top=1.15 * max(float(np.nanmax(ds["contact_pressure"].values)) / 1e3, 1e-3))
+    ax.plot(theta, ds["contact_pressure"] / 1e3, color="k", lw=1.5, label="contact pressure λ (effective)")
+    top = float(np.nanmax(ds["contact_pressure"].values))
+    water = ds["water_pressure"].values if "water_pressure" in ds else np.zeros_like(theta)
+    if np.any(water > 0):  # a watertight lining below the table: the water acts beside λ
+        ax.plot(theta, water / 1e3, color=_WATER_COLOR, lw=1.2, label="water pressure u")
+        total = ds["contact_pressure"].values + water
+        ax.plot(theta, total / 1e3, color=_WATER_COLOR, lw=1.2, ls=":", label="total λ + u")
+        top = max(top, float(np.nanmax(total)))
+    ax.set_ylabel("pressure on the extrados (kPa)")
+    ax.set_ylim(bottom=0.0, top=1.15 * max(top / 1e3, 1e-3))
     theta_axis(ax)
     ax.set_xlabel("")
     gap_ax = ax.twinx()
@@ -275,6 +285,19 @@ def plot_surface_settlement(ds: xr.Dataset) -> Figure:
     return fig
 
 
+def _ground_lines(ax, ds: xr.Dataset, xlim: tuple[float, float]) -> None:
+    """The lines between layers (brown, dash-dotted) and the water table (blue, dashed) on
+    undeformed axes, where the case has them."""
+    spec = case_spec(ds)
+    depth = 0.0
+    for i, layer in enumerate(spec.get("ground", {}).get("layers", [])[:-1]):
+        depth += float(layer.get("thickness", 0.0))
+        ax.axhline(-depth, color="tab:brown", lw=1.0, ls="-.", label="layer line" if i == 0 else None)
+    table = (spec.get("water") or {}).get("table")
+    if table is not None:
+        ax.axhline(-float(table), color=_WATER_COLOR, lw=1.2, ls="--", label=f"water table ({table:g} m)")
+
+
 def plot_deformed_mesh(ds: xr.Dataset, *, scale: float | None = None) -> Figure:
     """The mesh near the tunnel, deformed by scaled displacements, contact zone marked.
 
@@ -311,6 +334,7 @@ def plot_deformed_mesh(ds: xr.Dataset, *, scale: float | None = None) -> Figure:
     segs = [pts[i:i + 2] for i in range(len(pts) - 1) if on[i] and on[i + 1]]
     ax.add_collection(LineCollection(segs, colors=_CONTACT_COLOR, linewidths=3, label="in contact"))
     ax.plot(pts[on, 0], pts[on, 1], "o", color=_CONTACT_COLOR, ms=2)
+    _ground_lines(ax, ds, (cx - 0.05 * view, cx + view))
     ax.set_xlim(cx - 0.05 * view, cx + view)
     ax.set_ylim(cy - view, cy + view)
     ax.set_aspect("equal")

@@ -1,0 +1,77 @@
+"""What layered, water-bearing ground costs (SPEC §1.4), as ratios measured in one run.
+
+At the default mesh: the whole ``run_case`` of the default (homogeneous, dry, elastic) case, of
+the README's two-layer case with a water table 3 m down (watertight and drained), and the cost
+of a further case on an already built model (a sweep over the water table or K0: no
+meshing, assembly or factorization, only loads, forward / backward solves and the contact
+solve; a drained case also solves its head problem, factorized once per table). Each
+timing is the least of ``--repeat`` runs, alternating the cases so that a busy machine slows
+them alike.
+
+    python -m bench.ground [--repeat N] [--json]
+"""
+from __future__ import annotations
+
+if __name__ == "__main__":
+    from bench import one_blas_thread
+
+    one_blas_thread()
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import time  # noqa: E402
+
+from solver import CaseSpec, run_case  # noqa: E402
+from solver.model import TunnelModel  # noqa: E402
+
+LAYERS = [{"thickness": 6.0, "young": 2.0e7, "density": 1900.0, "lateral_ratio": 0.6},
+          {"thickness": 0.0, "young": 1.2e8, "density": 2100.0, "lateral_ratio": 0.45}]
+CASES = {
+    "default": {},
+    "layered-watertight": {"ground": {"layers": LAYERS}, "water": {"table": 3.0}},
+    "layered-drained": {"ground": {"layers": LAYERS}, "water": {"table": 3.0, "lining": "drained"}},
+}
+
+
+def _least(fn, repeat: int) -> float:
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args(argv)
+    specs = {name: CaseSpec.model_validate(d) for name, d in CASES.items()}
+    whole = {name: float("inf") for name in specs}
+    for _ in range(args.repeat):
+        for name, spec in specs.items():
+            t0 = time.perf_counter()
+            run_case(spec)
+            whole[name] = min(whole[name], time.perf_counter() - t0)
+    on_model = {}
+    for name, spec in specs.items():
+        model = TunnelModel(spec)
+        model.solve(spec)
+        table = spec.water.table
+        other = spec if table is None else spec.model_copy(
+            update={"water": spec.water.model_copy(update={"table": table + 1.0})})
+        model.solve(other)  # a drained case factorizes the new table's head problem once
+        on_model[name] = _least(lambda: model.solve(other), args.repeat)
+    rows = {name: {"run_case_s": whole[name], "ratio_to_default": whole[name] / whole["default"],
+                   "next_case_on_model_s": on_model[name]} for name in specs}
+    if args.json:
+        print(json.dumps(rows, indent=2))
+        return
+    print(f"{'case':22s} {'run_case s':>11s} {'/ default':>10s} {'next case on model s':>21s}")
+    for name, r in rows.items():
+        print(f"{name:22s} {r['run_case_s']:11.3f} {r['ratio_to_default']:10.2f} {r['next_case_on_model_s']:21.4f}")
+
+
+if __name__ == "__main__":
+    main()
