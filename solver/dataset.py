@@ -20,6 +20,7 @@ from .assembly import SUBTRIANGLES, stress_at
 from .ground import in_situ_stress, moduli
 from .strata import moved_lines, strata
 from .water import hydrostatic
+from .settlement import TROUGH_WIDTH_FACTOR, gaussian_trough, ground_loss, surface_warnings
 from .design import design_utilization
 from .model import Solution, TunnelModel
 from .post import contact_extent, lining_forces, surface_trough
@@ -46,6 +47,10 @@ SCALARS = {
     "max_surface_settlement": ("m", "largest settlement of the ground surface since excavation"),
     "volume_loss": ("1", "settlement trough area over excavated area (the trough: where the surface settles)"),
     "ground_crown_settlement": ("m", "settlement of the ground at the tunnel crown since excavation"),
+    "ground_loss": ("1", "area lost at the excavation boundary over the excavated area (since excavation)"),
+    "gaussian_max_settlement": ("m", "largest settlement of the Gaussian trough holding the ground loss"),
+    "axis_settlement": ("m", "FE ground surface settlement above the tunnel axis (downward positive)"),
+    "max_surface_heave": ("m", "largest upward displacement of the FE ground surface (>= 0)"),
     "water_inflow": ("m3 s-1", "steady water inflow into the whole tunnel per metre (0 unless the lining drains)"),
 }
 
@@ -138,6 +143,8 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
     forces = lining_forces(spec, model.lining.body, iface, mesh.center, sol.u_lining, sol.lam, sol.shear)
     eta, env_n, env_m = design_utilization(forces.thrust, forces.moment, g.thickness, spec.design)
     surf_x, settlement = surface_trough(mg.p, sol.u_ground, scale=max(g.width, g.height))
+    loss = ground_loss(sol.u_ground, iface.ground_node, iface.normal, iface.weight, g.hole_radius)
+    trough, trough_max = gaussian_trough(surf_x, loss, g.hole_radius, g.depth)
     gap, in_contact = sol.gap, sol.in_contact
     crown = iface.lining_node[0]
     max_eta = float(np.max(eta))
@@ -159,10 +166,15 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
         "volume_loss": volume_loss(surf_x, settlement, g.hole_radius),
         "ground_crown_settlement": float(-sol.u_ground[1, iface.ground_node[0]]),
         "water_inflow": float(sol.water_inflow),
+        "ground_loss": loss,
+        "gaussian_max_settlement": trough_max,
+        "axis_settlement": float(settlement[0]),
+        "max_surface_heave": float(max(-settlement.min(), 0.0)),
     }
     warnings = [f"the line between layers {i - 1} and {i} ({z:.4g} m deep) is drawn at {drawn:.4g} m: it met the "
                 "tunnel's crown or invert level, where the mesh cannot follow a line tangent to the excavation"
                 for i, z, drawn in moved_lines(spec)]
+    warnings += surface_warnings(surf_x, settlement)
     largest = float(np.max(np.hypot(u[0], u[1])))
     if largest > SMALL_DISPLACEMENT_LIMIT * g.hole_radius:
         warnings.append(
@@ -244,7 +256,12 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
         "utilization": _var("interface", eta, "1", "EN 1992-1-1 utilization of the lining section (<= 1 passes)"),
         "capacity_thrust": _var("envelope", env_n, "N m-1", "design N-M resistance envelope: thrust (compression positive)"),
         "capacity_moment": _var("envelope", env_m, "N m m-1", "design N-M resistance envelope: moment"),
-        "surface_settlement": _var("surface", settlement, "m", f"ground surface settlement (downward positive, {since})"),
+        "surface_settlement": _var("surface", settlement, "m", f"FE ground surface settlement (downward positive, {since}; "
+                                   "depends on the model's size, see gaussian_settlement)"),
+        "gaussian_settlement": _var("surface", trough, "m", "Gaussian settlement trough holding the ground loss "
+                                    "(Peck; O'Reilly and New), downward positive",
+                                    trough_width_factor=TROUGH_WIDTH_FACTOR,
+                                    trough_width_m=TROUGH_WIDTH_FACTOR * g.depth),
     }
     for name, (units, long_name) in SCALARS.items():
         data[name] = _var((), scalars[name], units, long_name)

@@ -259,13 +259,21 @@ def plot_interaction(ds: xr.Dataset) -> Figure:
 
 
 def plot_surface_settlement(ds: xr.Dataset) -> Figure:
-    """Settlement trough of the ground surface (mm, downward), mirrored about the tunnel axis."""
+    """Settlement trough of the ground surface (mm, downward), mirrored about the tunnel axis:
+    first the Gaussian trough of practice holding the ground loss (what to assess settlement
+    on), then the FE surface, labelled for what it is (its far field depends on the model's size)."""
     x, s = ds["surface_x"].values, ds["surface_settlement"].values * 1e3
-    fig = Figure(figsize=(7.5, 4), layout="constrained")
+    fig = Figure(figsize=(7.5, 4.3), layout="constrained")
     ax = fig.add_subplot()
-    ax.plot(x, s, color="k", lw=1.5, marker="o", ms=2.5, label="computed (half model)")
-    ax.plot(-x, s, color="k", lw=1.0, ls="--", label="mirror image")
-    ax.fill_between(np.concatenate([-x[::-1], x]), np.concatenate([s[::-1], s]), color="tab:brown", alpha=0.15)
+    xx = np.concatenate([-x[::-1], x])
+    if "gaussian_settlement" in ds:
+        gs = ds["gaussian_settlement"].values * 1e3
+        K = ds["gaussian_settlement"].attrs.get("trough_width_factor", float("nan"))
+        ax.plot(xx, np.concatenate([gs[::-1], gs]), color="tab:red", lw=2.0,
+                label=f"Gaussian trough from the ground loss (K = {K:g})")
+        ax.fill_between(xx, np.concatenate([gs[::-1], gs]), color="tab:red", alpha=0.10)
+    ax.plot(x, s, color="k", lw=1.2, marker="o", ms=2, label="FE surface (depends on the model's size)")
+    ax.plot(-x, s, color="k", lw=0.8, ls="--")
     ax.axhline(0.0, color="0.5", lw=0.8)
     ax.axvline(0.0, color="0.6", lw=0.8, ls="-.")
     ax.invert_yaxis()
@@ -275,13 +283,14 @@ def plot_surface_settlement(ds: xr.Dataset) -> Figure:
     ax.legend(loc="lower right", fontsize="small")
     since = "since excavation" if ds.attrs.get("excavation_method", "deconfinement") != "wished-in-place" \
         else "since the stress-free start"
-    extras = ""
-    if "volume_loss" in ds:
-        extras += f", volume loss {100 * float(ds['volume_loss']):.3g} %"
-    if "ground_crown_settlement" in ds:
-        extras += f", ground at crown {1e3 * float(ds['ground_crown_settlement']):.3g} mm"
-    ax.set_title(f"Surface settlement trough ({since}), {_title(ds)}\nmax {float(np.max(s)):.3g} mm{extras}",
-                 fontsize="medium")
+    lead = ""
+    if "ground_loss" in ds:
+        lead = (f"ground loss {100 * float(ds['ground_loss']):.3g} %, trough max "
+                f"{1e3 * float(ds['gaussian_max_settlement']):.3g} mm; ")
+    fe = f"FE surface at the axis {s[0]:.3g} mm"
+    if "max_surface_heave" in ds and float(ds["max_surface_heave"]) > 0:
+        fe += f", heave up to {1e3 * float(ds['max_surface_heave']):.3g} mm"
+    ax.set_title(f"Surface settlement ({since}), {_title(ds)}\n{lead}{fe}", fontsize="medium")
     return fig
 
 

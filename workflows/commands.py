@@ -39,8 +39,9 @@ TABLE_COLUMNS: tuple[tuple[str, str, str, float], ...] = (
     ("max_utilization", "max η", "≤ 1", 1.0),
     ("crown_settlement", "lining crown", "mm", 1e-3),
     ("ground_crown_settlement", "ground crown", "mm", 1e-3),
-    ("max_surface_settlement", "surface", "mm", 1e-3),
-    ("volume_loss", "vol. loss", "%", 1e-2),
+    ("ground_loss", "ground loss", "%", 1e-2),
+    ("gaussian_max_settlement", "trough max", "mm", 1e-3),
+    ("axis_settlement", "FE surface", "mm", 1e-3),
 )
 
 

@@ -157,19 +157,20 @@ def test_table_has_the_design_and_settlement_columns(store):
     header, units = table[0], table[1]
     for _, name, unit, _ in TABLE_COLUMNS:
         assert name in header and unit in units
-    assert [c[0] for c in TABLE_COLUMNS][-5:] == ["max_utilization", "crown_settlement", "ground_crown_settlement",
-                                                  "max_surface_settlement", "volume_loss"]
+    # settlements lead with the ground loss and the Gaussian trough, the FE surface last
+    assert [c[0] for c in TABLE_COLUMNS][-6:] == ["max_utilization", "crown_settlement", "ground_crown_settlement",
+                                                  "ground_loss", "gaussian_max_settlement", "axis_settlement"]
     by_id = {line.split()[0]: line.split() for line in table[3:]}
     first = rows[0]["summary"]
-    cells = by_id[grid[0]][-5:]
+    cells = by_id[grid[0]][-6:]
     assert cells == [f"{first['max_utilization']:.4g}", f"{first['crown_settlement'] * 1e3:.4g}",
-                     f"{first['ground_crown_settlement'] * 1e3:.4g}",
-                     f"{first['max_surface_settlement'] * 1e3:.4g}", f"{first['volume_loss'] * 100:.4g}"]
-    assert by_id[plain][-5] == "inf"
+                     f"{first['ground_crown_settlement'] * 1e3:.4g}", f"{first['ground_loss'] * 100:.4g}",
+                     f"{first['gaussian_max_settlement'] * 1e3:.4g}", f"{first['axis_settlement'] * 1e3:.4g}"]
+    assert by_id[plain][-6] == "inf"
     # the service's rows carry None (JSON has no inf) or text: shown as '-' and 'inf'
-    rest = {**rows[0], "summary": {**first, "max_utilization": None, "volume_loss": "inf"}}
+    rest = {**rows[0], "summary": {**first, "max_utilization": None, "axis_settlement": "inf"}}
     cells = comparison_table([rest]).splitlines()[3].split()
-    assert cells[-5] == "-" and cells[-1] == "inf"
+    assert cells[-6] == "-" and cells[-1] == "inf"
 
 
 def test_design_sweep_utilization_against_thickness_and_ground(store):
