@@ -27,6 +27,7 @@ from typing import Sequence
 
 import xarray as xr
 
+from .combine import for_netcdf
 from .plots import PLOTS, SWEEP_PLOT_NAMES, SWEEP_PLOTS, case_labels, plot_interaction
 from .store import ResultStore, StoreLike, as_store, netcdf_lock, write_atomically
 
@@ -86,7 +87,7 @@ def write_combined(root: StoreLike, sweep_id: str, case_ids: Sequence[str]) -> P
         if not target.is_file():
             combined = store.open_results(list(case_ids))
             with netcdf_lock:
-                write_atomically(target, lambda tmp: combined.to_netcdf(tmp, engine="netcdf4"))
+                write_atomically(target, lambda tmp: for_netcdf(combined).to_netcdf(tmp, engine="netcdf4"))
             logger.info("combined %d cases of sweep %s into %s", len(case_ids), sweep_id, target.name)
             for old in target.parent.glob(f"{sweep_id}-*.nc"):
                 if old != target and time.time() - old.stat().st_mtime > _STALE_AFTER:

@@ -25,6 +25,11 @@ logger = logging.getLogger(__name__)
 
 #: The common interface grid (deg).
 THETA = np.arange(0.0, 181.0, 1.0)
+#: The common ground-surface grid (m from the tunnel axis): both settlement profiles of every
+#: case are combined on it (NaN beyond a case's model width).
+SURFACE_X = np.arange(0.0, 200.25, 0.5)
+#: Variables on ``surface`` combined on :data:`SURFACE_X`.
+SURFACE_VARIABLES = ("surface_settlement", "gaussian_settlement")
 #: Variables on ``interface`` that describe a case's mesh, not its results: not combined.
 MESH_VARIABLES = frozenset({"normal_x", "normal_y", "weight", "ground_node", "lining_node"})
 #: Dataset attributes a reduced case keeps.
@@ -56,7 +61,15 @@ def reduce_case(ds: xr.Dataset) -> xr.Dataset:
         data.update({name: ("theta", var[name].values[station], dict(var[name].attrs)) for name in nearest})
     data.update({name: ((), v.values, dict(v.attrs)) for name, v in ds.data_vars.items()
                  if v.ndim == 0 and name != "mesh"})
-    return xr.Dataset(data, coords={"theta": ("theta", THETA, dict(var["theta"].attrs))},
+    coords = {"theta": ("theta", THETA, dict(var["theta"].attrs))}
+    if "surface_x" in var:
+        x = var["surface_x"].values
+        for name in SURFACE_VARIABLES:
+            if name in var:
+                data[name] = ("surface_x", np.interp(SURFACE_X, x, var[name].values, right=np.nan),
+                              dict(var[name].attrs))
+        coords["surface_x"] = ("surface_x", SURFACE_X, dict(var["surface_x"].attrs))
+    return xr.Dataset(data, coords=coords,
                       attrs={k: ds.attrs[k] for k in CASE_ATTRS if k in ds.attrs})
 
 
@@ -86,6 +99,10 @@ def label_cases(stacked: xr.Dataset, case_ids: Sequence[str], specs: Sequence[st
         attrs = parameter_attrs(name, numeric=numeric)
         combined = combined.assign_coords({name: ("case", np.asarray(values), attrs)})
     combined = combined.assign_coords(case_id=("case", np.asarray(list(case_ids))))
+    varied = varying_parameters(flat)
+    if varied and len({tuple(f[name] for name in varied) for f in flat}) == len(flat):
+        # the varied parameters identify the cases: select by them, ds.sel(a=..., b=...)
+        combined = combined.set_xindex(varied)
     combined["case_id"].attrs["long_name"] = "case id (hash of the canonical case JSON)"
     combined["case_spec"] = ("case", np.asarray(list(specs)), {"long_name": "canonical case JSON"})
     combined.attrs = {
@@ -120,6 +137,12 @@ def combine_files(root: StoreLike, case_ids: Sequence[str] | None = None) -> xr.
     parts = [read_reduced(store, c) for c in ids]
     return label_cases(stack_cases(parts), ids, [p.attrs["case_spec"] for p in parts],
                        parts[0].attrs.get("software_version", ""))
+
+
+def for_netcdf(combined: xr.Dataset) -> xr.Dataset:
+    """Combined results as netCDF can hold them: the ``case`` MultiIndex (a pandas object)
+    dropped, its levels kept as plain coordinates along ``case``."""
+    return combined.reset_index("case") if "case" in combined.indexes else combined
 
 
 def open_results(root: StoreLike, case_ids: Sequence[str] | None = None) -> xr.Dataset:

@@ -31,7 +31,7 @@ def plot_comparison(combined: xr.Dataset, variable: str = "contact_pressure") ->
     if variable not in combined or "theta" not in combined[variable].dims:
         raise ValueError(f"{variable!r} is not an interface quantity of the combined results")
     da = combined[variable]
-    params = [n for n in combined.coords if combined[n].dims == ("case",) and n != "case_id"]
+    params = [n for n in combined.coords if combined[n].dims == ("case",) and n not in ("case_id", "case")]
     fig = Figure(figsize=(7, 4.5), layout="constrained")
     ax = fig.add_subplot()
     for i in range(combined.sizes["case"]):
@@ -76,7 +76,7 @@ def display_unit(units: str) -> tuple[str, float]:
 
 def case_parameters(combined: xr.Dataset) -> list[str]:
     """Names of the varied parameters of combined results (coordinates along ``case``)."""
-    return [str(n) for n in combined.coords if combined[n].dims == ("case",) and n != "case_id"]
+    return [str(n) for n in combined.coords if combined[n].dims == ("case",) and n not in ("case_id", "case")]
 
 
 def case_labels(combined: xr.Dataset) -> list[str]:

@@ -7,7 +7,7 @@ import xarray as xr
 
 from solver import CaseSpec
 from workflows import open_case, open_results, run_and_store
-from workflows.combine import THETA, interface_quantities
+from workflows.combine import THETA, for_netcdf, interface_quantities
 
 # the interface quantities of SPEC §3 that are interpolated linearly
 INTERPOLATED = ("contact_pressure", "normal_jump", "gap", "thrust", "moment", "shear")
@@ -34,8 +34,16 @@ def test_layout(store):
     assert list(combined["case_id"].values) == ids
     np.testing.assert_array_equal(combined["theta"], np.arange(0.0, 181.0))
     # exactly the parameters that vary become coordinates, under their flat names
-    params = {n for n in combined.coords if combined[n].dims == ("case",)} - {"case_id"}
+    params = {n for n in combined.coords if combined[n].dims == ("case",)} - {"case_id", "case"}
     assert params == {"lining_thickness", "mesh_interface_size"}
+    # they identify the cases: a MultiIndex on case selects one case by both
+    one = combined.sel(lining_thickness=0.35, mesh_interface_size=0.3)
+    assert str(one["case_id"].values) == ids[2] and "case" not in one.dims
+    assert combined.sel(lining_thickness=0.35).sizes["mesh_interface_size"] == 2  # pandas drops the level
+    # both settlement profiles on one x grid
+    assert combined["gaussian_settlement"].dims == ("case", "surface_x") == combined["surface_settlement"].dims
+    assert float(combined["gaussian_settlement"].isel(case=0, surface_x=0)) == pytest.approx(
+        float(combined["gaussian_max_settlement"].isel(case=0)))
     np.testing.assert_array_equal(combined["lining_thickness"], [0.25, 0.35, 0.35])
     np.testing.assert_array_equal(combined["mesh_interface_size"], [0.25, 0.25, 0.3])
     for name in INTERPOLATED + ("in_contact",):
@@ -92,9 +100,9 @@ def test_all_cases_by_default_and_netcdf_round_trip(store, tmp_path):
     root, ids = store
     combined = open_results(root)
     assert sorted(combined["case_id"].values) == sorted(ids)
-    combined.to_netcdf(tmp_path / "combined.nc", engine="netcdf4")
+    for_netcdf(combined).to_netcdf(tmp_path / "combined.nc", engine="netcdf4")
     with xr.open_dataset(tmp_path / "combined.nc", engine="netcdf4") as back:
-        xr.testing.assert_allclose(back.load(), combined)
+        xr.testing.assert_allclose(back.load(), for_netcdf(combined))
 
 
 def test_subset_and_errors(store, tmp_path):
