@@ -51,6 +51,8 @@ SCALARS = {
     "gaussian_max_settlement": ("m", "largest settlement of the Gaussian trough holding the ground loss"),
     "axis_settlement": ("m", "FE ground surface settlement above the tunnel axis (downward positive)"),
     "max_surface_heave": ("m", "largest upward displacement of the FE ground surface (>= 0)"),
+    "plastic_area": ("m2", "area of yielded ground around the whole tunnel"),
+    "max_plastic_extent": ("m", "largest distance of a yielded face from the tunnel axis (0 if none)"),
     "water_inflow": ("m3 s-1", "steady water inflow into the whole tunnel per metre (0 unless the lining drains)"),
 }
 
@@ -78,8 +80,11 @@ def _ground_state(model: TunnelModel, sol: Solution) -> dict:
     basis = model.point_basis("ground")
     y = np.asarray(basis.global_coordinates())[1]
     young, poisson = moduli(model.layers, model.band, y)
-    effective = stress_at(model.ground.body, young, poisson, sol.u_ground, basis)  # (4, E, 4)
-    if spec.excavation.method == "deconfinement":
+    if sol.plastic is not None:  # the return-mapped history at these points, not Hooke's law
+        effective = sol.plastic["stress"].reshape((4,) + y.shape)
+    else:
+        effective = stress_at(model.ground.body, young, poisson, sol.u_ground, basis)  # (4, E, 4)
+    if spec.excavation.method == "deconfinement" and sol.plastic is None:
         effective = effective + in_situ_stress(spec, strata(spec), model.band, y)["effective"]
     if spec.water.table is None:
         pore, total = np.zeros_like(y), effective
@@ -93,6 +98,18 @@ def _ground_state(model: TunnelModel, sol: Solution) -> dict:
             pore = hydrostatic(y, spec.water.table, spec.water.unit_weight)
         total = effective - np.stack([pore, pore, np.zeros_like(pore), pore])
     return {"effective": effective.reshape(4, -1), "total": total.reshape(4, -1), "pore": pore.reshape(-1)}
+
+
+def _plastic_scalars(sol: Solution, node_xy: np.ndarray, ground_faces: np.ndarray, center) -> dict:
+    """``plastic_area`` (m², both halves) and ``max_plastic_extent`` (m from the tunnel axis)."""
+    if sol.plastic is None or not sol.plastic["at_yield"].any():
+        return {"plastic_area": 0.0, "max_plastic_extent": 0.0}
+    on = sol.plastic["at_yield"]
+    xy = node_xy[:, ground_faces[on]]  # (2, F, 3)
+    e1, e2 = xy[:, :, 1] - xy[:, :, 0], xy[:, :, 2] - xy[:, :, 0]
+    area = 0.5 * np.abs(e1[0] * e2[1] - e1[1] * e2[0])
+    reach = np.hypot(xy[0] - center[0], xy[1] - center[1]).mean(axis=1)
+    return {"plastic_area": float(2.0 * area.sum()), "max_plastic_extent": float(reach.max())}
 
 
 def volume_loss(x: np.ndarray, settlement: np.ndarray, hole_radius: float) -> float:
@@ -140,6 +157,10 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
     n_fl = faces.shape[0] - n_fg
     pore = np.r_[state["pore"], np.zeros(n_fl)]
     layer = np.r_[np.repeat(model.band, 4), np.full(n_fl, -1)].astype(np.int16)
+    if sol.plastic is not None:
+        plastic, eqps = sol.plastic["at_yield"].astype(np.int8), sol.plastic["eqps"]
+    else:
+        plastic, eqps = np.zeros(n_fg, np.int8), np.zeros(n_fg)
     forces = lining_forces(spec, model.lining.body, iface, mesh.center, sol.u_lining, sol.lam, sol.shear)
     eta, env_n, env_m = design_utilization(forces.thrust, forces.moment, g.thickness, spec.design)
     surf_x, settlement = surface_trough(mg.p, sol.u_ground, scale=max(g.width, g.height))
@@ -166,6 +187,7 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
         "volume_loss": volume_loss(surf_x, settlement, g.hole_radius),
         "ground_crown_settlement": float(-sol.u_ground[1, iface.ground_node[0]]),
         "water_inflow": float(sol.water_inflow),
+        **_plastic_scalars(sol, node_xy, faces[:n_fg], mesh.center),
         "ground_loss": loss,
         "gaussian_max_settlement": trough_max,
         "axis_settlement": float(settlement[0]),
@@ -190,6 +212,9 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
         "lining_translation_m": float(sol.a),
         "interface_model": spec.interface.model,
         "excavation_method": spec.excavation.method,
+        **({"plastic_iterations": int(sol.plastic["iterations"]),
+            "ground_reaction_curve": [{"released": f, "wall_convergence_m": c} for f, c in sol.plastic["ground_reaction"]]}
+           if sol.plastic is not None else {}),
         "water_uplift_N_per_m": float(sol.water_uplift),
         "warnings": warnings,
     }
@@ -237,6 +262,9 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
         "effective_stress_xy": _var("face", effective[2], "Pa", "effective shear stress xy", **on_face),
         "effective_stress_zz": _var("face", effective[3], "Pa", "effective out-of-plane normal stress zz", **on_face),
         "layer": _var("face", layer, "1", "index of the ground layer of the face (into ground.layers; -1 in the lining)", **on_face),
+        "plastic": _var("face", np.r_[plastic, np.zeros(n_fl, np.int8)], "1", "1 where the ground is at yield at the end", **on_face),
+        "equivalent_plastic_strain": _var("face", np.r_[eqps, np.zeros(n_fl)], "1",
+                                          "accumulated equivalent plastic strain sqrt(2/3 dep:dep)", **on_face),
         "water_pressure": _var("interface", sol.water_pressure, "Pa", "water pressure on the lining's extrados (0 when dry or drained)"),
         "normal_x": _var("interface", iface.normal[0], "1", "x of the ground's outward normal"),
         "normal_y": _var("interface", iface.normal[1], "1", "y of the ground's outward normal"),

@@ -152,6 +152,9 @@ class Solution:
     pore: np.ndarray | None = None
     water_pressure: np.ndarray | None = None
     water_inflow: float = 0.0
+    #: yielding ground (:func:`solver.plastic.solve_staged`): effective stress, yield flags and
+    #: equivalent plastic strain at the sub-triangle centroids, iterations, ground reaction curve
+    plastic: dict | None = None
 
     @property
     def gap(self) -> np.ndarray:
@@ -355,7 +358,19 @@ class TunnelModel:
         t0 = time.perf_counter()
         rows = rows_of_model(spec.interface.model)
         self._factorize(rows)
+        if spec.plastic:
+            raise SolverError(
+                "ground.model: 'mohr-coulomb' ground is accepted and validated (its in-situ state is checked "
+                "against the yield surface) but this version does not solve yielding ground yet; the case is "
+                "not computed rather than answered as if the ground were elastic")
         loads, stage, d, F2 = self._contact_stage(spec, rows)
+        return self._finish(spec, rows, loads, stage, d, F2, t0)
+
+    def _finish(self, spec: CaseSpec, rows: Rows, loads: StageLoads, stage: Forward, d: np.ndarray, F2: float,
+                t0: float, u1: np.ndarray | None = None) -> Solution:
+        """The contact stage solved from its forward-solved loads: the contact problem, the
+        backward solves, the checks. ``u1`` (free DOFs) is a stage-1 displacement computed
+        elsewhere (the yielding ground's), else stage 1 is ``λd K⁻¹ r``."""
         ground, lining = self.ground, self.lining
         iface = self.mesh.interface
         m, g0, sv = self.m, spec.geometry.gap, spec.solver
@@ -376,7 +391,9 @@ class TunnelModel:
             t = sol.t
         t_solve = time.perf_counter()
         Wt = self.w * t
-        if stage.release is not None and stage.deconfinement > 0.0:
+        if u1 is not None:
+            u_g = ground.backward(stage.ground, rows, Wt)
+        elif stage.release is not None and stage.deconfinement > 0.0:
             # the contact stage and stage 1 (λd r alone) in one backward sweep over the factor
             u = ground.backward(np.column_stack([stage.ground, stage.release]), rows,
                                 np.column_stack([Wt, np.zeros_like(Wt)]))

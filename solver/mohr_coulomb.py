@@ -1,0 +1,156 @@
+"""Mohr–Coulomb return mapping (SPEC §1.5) at many points at once: elastic–perfectly plastic,
+non-associated flow (dilatancy ψ ≤ φ), Rankine tension cut-off, on the three principal
+stresses of plane strain (σzz included).
+
+Stresses are tension positive; sorted principal stresses σ1 ≥ σ2 ≥ σ3. The surfaces:
+
+- Mohr–Coulomb planes ``f = (σi - σj) + (σi + σj) sin φ - 2 c cos φ ≤ 0``; with sorted stresses
+  the governing one is (1, 3) (*main*), and (2, 3) (*right edge*, σ1 = σ2) or (1, 2) (*left
+  edge*, σ2 = σ3) join it at the edges; flow along ``g`` with ψ in place of φ;
+- tension cut-off ``σi ≤ σt`` (associated).
+
+The return is a multi-surface one: for a candidate set of active surfaces the plastic
+multipliers solve ``a_j · (s - D Σ_l Δγ_l b_l) = k_j`` (j in the set; ``a`` the surface's
+normal, ``b`` its flow direction, ``D`` the isotropic elasticity in principal axes); the
+first candidate whose multipliers are non-negative, whose stress satisfies every surface
+and keeps the principal order is the answer (Koiter's rule). Each candidate is exact (the
+surfaces are planes in principal space), so the answer is exact: edges and apex included.
+The in-plane principal directions of the trial stress are kept (isotropy).
+"""
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+#: Relative tolerance of "on or inside a surface" (to the stresses' scale).
+YIELD_TOL = 1e-9
+
+
+def principal(stress: np.ndarray):
+    """Principal values of plane-strain stresses (4, ...) = (xx, yy, xy, zz): the in-plane pair
+    (major, minor), the angle of the major direction and σzz."""
+    sxx, syy, sxy, szz = stress
+    c = 0.5 * (sxx + syy)
+    r = np.hypot(0.5 * (sxx - syy), sxy)
+    angle = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)
+    return c + r, c - r, angle, szz
+
+
+def from_principal(major, minor, angle, szz) -> np.ndarray:
+    """Plane-strain stress components (4, ...) from in-plane principal values along ``angle``."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.stack([major * c * c + minor * s * s, major * s * s + minor * c * c, (major - minor) * s * c, szz])
+
+
+def yield_values(s: np.ndarray, cohesion, sin_phi, cos_phi, tensile) -> np.ndarray:
+    """(4, n) values of the main Mohr–Coulomb plane and the three tension cut-offs at sorted
+    principal stresses ``s`` (3, n); ≤ 0 inside."""
+    main = (s[0] - s[2]) + (s[0] + s[2]) * sin_phi - 2.0 * cohesion * cos_phi
+    return np.vstack([main, s - tensile])
+
+
+def _surfaces(sin_phi, sin_psi):
+    """Normals ``a`` and flow directions ``b`` (3,) of: 0 main, 1 right edge, 2 left edge,
+    3-5 tension cut-offs of σ1, σ2, σ3; and which constant each compares with."""
+    def plane(i, j, s):
+        v = np.zeros(3)
+        v[i], v[j] = 1.0 + s, -(1.0 - s)
+        return v
+
+    a = [plane(0, 2, sin_phi), plane(1, 2, sin_phi), plane(0, 1, sin_phi), *np.eye(3)]
+    b = [plane(0, 2, sin_psi), plane(1, 2, sin_psi), plane(0, 1, sin_psi), *np.eye(3)]
+    return np.array(a), np.array(b)
+
+
+#: Candidate active sets, tried in order, fewest surfaces first (indices: 0 main, 1 right edge,
+#: 2 left edge, 3-5 tension cut-offs of σ1, σ2, σ3); sets whose system is singular (the three
+#: Mohr–Coulomb planes together) are skipped.
+CANDIDATES = tuple(c for k in (1, 2, 3, 4) for c in itertools.combinations(range(6), k))
+
+
+def return_map(trial: np.ndarray, lam, mu, cohesion, friction_angle, dilatancy, tensile):
+    """Return trial stresses (4, n) to the Mohr–Coulomb surface with tension cut-off.
+
+    ``lam``, ``mu`` (Lamé, Pa), ``cohesion`` (Pa), angles (deg), ``tensile`` (Pa): scalars or
+    (n,) arrays. Returns ``(stress (4, n), plastic_strain (3, n) in principal axes (the
+    increment Σ Δγ b), at_yield (n,) bool)``. Points whose trial stress is inside stay as
+    they are. Raises ``ArithmeticError`` if some point finds no admissible return.
+    """
+    n = trial.shape[1]
+    bc = lambda v: np.broadcast_to(np.asarray(v, dtype=float), (n,)).copy()  # noqa: E731
+    lam, mu, c, t = bc(lam), bc(mu), bc(cohesion), bc(tensile)
+    phi, psi = np.radians(bc(friction_angle)), np.radians(bc(dilatancy))
+    sp, cp, sq = np.sin(phi), np.cos(phi), np.sin(psi)
+    major, minor, angle, szz = principal(trial)
+    vals = np.stack([major, minor, szz])  # (3, n)
+    order = np.argsort(-vals, axis=0, kind="stable")
+    s = np.take_along_axis(vals, order, axis=0)  # sorted σ1 ≥ σ2 ≥ σ3
+    scale = np.maximum(np.max(np.abs(s), axis=0), np.maximum(c, 1.0))
+    f = yield_values(s, c, sp, cp, t)
+    out = s.copy()
+    dep = np.zeros((3, n))
+    at_yield = np.max(f, axis=0) > -YIELD_TOL * scale
+    todo = np.flatnonzero(np.max(f, axis=0) > YIELD_TOL * scale)
+    if todo.size:
+        # surfaces per point (angles may vary): a, b (n, 6, 3)
+        A = np.zeros((todo.size, 6, 3))
+        B = np.zeros((todo.size, 6, 3))
+        sp_t, sq_t = sp[todo], sq[todo]
+        for j, (i1, i2) in enumerate(((0, 2), (1, 2), (0, 1))):
+            A[:, j, i1], A[:, j, i2] = 1.0 + sp_t, -(1.0 - sp_t)
+            B[:, j, i1], B[:, j, i2] = 1.0 + sq_t, -(1.0 - sq_t)
+        for j in range(3):
+            A[:, 3 + j, j] = B[:, 3 + j, j] = 1.0
+        k_const = np.zeros((todo.size, 6))
+        k_const[:, :3] = (2.0 * c * cp)[todo, None]
+        k_const[:, 3:] = t[todo, None]
+        # isotropic elasticity in principal axes: D = λ 1 1ᵀ + 2μ I
+        lt, mt = lam[todo], mu[todo]
+        st = s[:, todo].T  # (m, 3)
+        pending = np.ones(todo.size, bool)
+        res = np.empty((todo.size, 3))
+        gam_strain = np.zeros((todo.size, 3))
+        for cand in CANDIDATES:
+            p = np.flatnonzero(pending)
+            if p.size == 0:
+                break
+            cs = list(cand)
+            a, b = A[p][:, cs], B[p][:, cs]  # (P, k, 3)
+            Db = lt[p, None, None] * b.sum(axis=2, keepdims=True) + 2.0 * mt[p, None, None] * b  # (P, k, 3)
+            M = np.einsum("pjx,plx->pjl", a, Db)
+            rhs = np.einsum("pjx,px->pj", a, st[p]) - k_const[p][:, cs]
+            with np.errstate(all="ignore"):
+                try:
+                    gam = np.linalg.solve(M, rhs[..., None])[..., 0]
+                except np.linalg.LinAlgError:
+                    continue
+            sig = st[p] - np.einsum("pl,plx->px", gam, Db)
+            fv = yield_values(sig.T, c[todo][p], sp[todo][p], cp[todo][p], t[todo][p])
+            sc = scale[todo][p]
+            ok = (np.all(gam >= -YIELD_TOL, axis=1) & np.all(fv <= YIELD_TOL * sc * 10, axis=0)
+                  & (sig[:, 0] >= sig[:, 1] - YIELD_TOL * sc) & (sig[:, 1] >= sig[:, 2] - YIELD_TOL * sc)
+                  & np.all(np.isfinite(sig), axis=1))
+            hit = p[ok]
+            res[hit] = sig[ok]
+            gam_strain[hit] = np.einsum("pl,plx->px", gam[ok], b[ok])
+            pending[hit] = False
+        if pending.any():
+            raise ArithmeticError(f"Mohr-Coulomb return mapping found no admissible stress at {pending.sum()} points")
+        out[:, todo] = res.T
+        dep[:, todo] = gam_strain.T
+        at_yield[todo] = True
+    # back to the trial's axes: undo the sort, then the in-plane directions
+    back = np.empty_like(out)
+    np.put_along_axis(back, order, out, axis=0)
+    dep_back = np.empty_like(dep)
+    np.put_along_axis(dep_back, order, dep, axis=0)
+    stress = np.array(trial, dtype=float)  # a state inside stays exactly as it was
+    if todo.size:
+        stress[:, todo] = from_principal(back[0, todo], back[1, todo], angle[todo], back[2, todo])
+    return stress, dep_back, at_yield
+
+
+def equivalent(plastic_strain: np.ndarray) -> np.ndarray:
+    """Equivalent plastic strain increment sqrt(2/3 Δεp : Δεp) of principal increments (3, n)."""
+    return np.sqrt(2.0 / 3.0 * np.sum(plastic_strain**2, axis=0))
