@@ -363,6 +363,10 @@ class TunnelModel:
                 "ground.model: 'mohr-coulomb' ground is accepted and validated (its in-situ state is checked "
                 "against the yield surface) but this version does not solve yielding ground yet; the case is "
                 "not computed rather than answered as if the ground were elastic")
+        if spec.lining.joints.count:
+            raise SolverError(
+                "lining.joints: a segmental lining is accepted and validated but this version does not solve its "
+                "joints yet; the case is not computed rather than answered as if the lining were monolithic")
         loads, stage, d, F2 = self._contact_stage(spec, rows)
         return self._finish(spec, rows, loads, stage, d, F2, t0)
 

@@ -63,3 +63,9 @@ def test_a_yielding_case_is_refused_not_answered_as_elastic():
                                     "mesh": {"interface_size": 0.2, "far_size": 8.0}})
     with pytest.raises(SolverError, match=r"^ground\.model: "):
         TunnelModel(spec).solve(spec)
+
+
+def test_a_segmental_lining_is_refused_not_answered_as_monolithic():
+    spec = CaseSpec.model_validate({"lining": {"joints": {"count": 6}}, "mesh": {"interface_size": 0.2, "far_size": 8.0}})
+    with pytest.raises(SolverError, match=r"^lining\.joints: "):
+        TunnelModel(spec).solve(spec)
