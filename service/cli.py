@@ -18,6 +18,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "results, serve the REST API.")
     parser.add_argument("-v", "--verbose", action="count", default=0,
                         help="more log output (-v info, -vv debug)")
+    from solver.run import SOFTWARE_VERSION
+
+    parser.add_argument("--version", action="version", version=f"tunnel-contact {SOFTWARE_VERSION}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     def results(p: argparse.ArgumentParser) -> None:
@@ -45,7 +48,10 @@ def build_parser() -> argparse.ArgumentParser:
     results(p)
 
     p = sub.add_parser("show", help="print a stored case's summary and write its plots")
-    p.add_argument("case_id", metavar="CASE_ID")
+    p.add_argument("case_id", metavar="CASE_ID", help="a case id or a unique prefix of one (4+ hex digits)")
+    results(p)
+
+    p = sub.add_parser("list", help="list the cases of the result store (done and failed) as a table")
     results(p)
 
     p = sub.add_parser("serve", help="run the REST service")
@@ -81,6 +87,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "sweep":
             return commands.sweep_command(args.sweep, args.results, scheduler=args.scheduler,
                                           progress=not args.no_progress, retry_failed=args.retry_failed)
+        if args.command == "list":
+            return commands.list_command(args.results)
         return commands.show_command(args.case_id, args.results)
     except commands.InputError as exc:
         print(f"tunnel-contact: error: {exc}", file=sys.stderr)

@@ -145,7 +145,10 @@ def return_map(trial: np.ndarray, lam, mu, cohesion, friction_angle, dilatancy, 
     np.put_along_axis(back, order, out, axis=0)
     dep_back = np.empty_like(dep)
     np.put_along_axis(dep_back, order, dep, axis=0)
-    return from_principal(back[0], back[1], angle, back[2]), dep_back, at_yield
+    stress = np.array(trial, dtype=float)  # a state inside stays exactly as it was
+    if todo.size:
+        stress[:, todo] = from_principal(back[0, todo], back[1, todo], angle[todo], back[2, todo])
+    return stress, dep_back, at_yield
 
 
 def equivalent(plastic_strain: np.ndarray) -> np.ndarray:

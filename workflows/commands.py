@@ -149,16 +149,52 @@ def sweep_command(sweep_file: str, results: str, *, scheduler: str | None = None
     return 1 if failed else 0
 
 
+def known_case_ids(store: ResultStore) -> list[str]:
+    """Every case the store knows: stored results and failed cases (error records), sorted."""
+    failed = {p.name[:-len(".error.json")] for p in store.cases_dir.glob("*.error.json")} \
+        if store.cases_dir.is_dir() else set()
+    return sorted(set(store.case_ids()) | failed)
+
+
+def resolve_case_id(store: ResultStore, text: str) -> str:
+    """The full case id of an id or a unique prefix of one (at least 4 hex digits)."""
+    text = text.strip().lower()
+    if len(text) == 16:
+        try:
+            return check_case_id(text)
+        except ValueError as exc:
+            raise InputError(str(exc)) from None
+    if not 4 <= len(text) < 16 or any(ch not in "0123456789abcdef" for ch in text):
+        raise InputError(f"case id {text!r}: a case id is 16 lowercase hex digits; give it or a unique prefix of at least 4")
+    matches = [c for c in known_case_ids(store) if c.startswith(text)]
+    if not matches:
+        raise InputError(f"no case id in {store.root} starts with {text!r}")
+    if len(matches) > 1:
+        raise InputError(f"case id prefix {text!r} is ambiguous: {', '.join(matches[:8])}"
+                         + (" ..." if len(matches) > 8 else ""))
+    return matches[0]
+
+
+def list_command(results: str, *, out: TextIO = sys.stdout) -> int:
+    """Print every case of the store (done and failed) as the comparison table."""
+    store = ResultStore(results)
+    ids = known_case_ids(store)
+    if not ids:
+        print(f"no cases in {results}", file=out)
+        return 0
+    print(comparison_table(case_rows(store, ids)), file=out)
+    print(f"{len(ids)} cases in {results}", file=out)
+    return 0
+
+
 def show_command(case_id: str, results: str, *, out: TextIO = sys.stdout) -> int:
-    """Print a stored case's summary and write its plots to ``<results>/plots/<case_id>/``."""
+    """Print a stored case's summary and write its plots to ``<results>/plots/<case_id>/``;
+    ``case_id`` may be a unique prefix of the id."""
     from .artifacts import render_plot
     from .plots import PLOTS
 
-    try:
-        check_case_id(case_id)
-    except ValueError as exc:
-        raise InputError(str(exc)) from None
     store = ResultStore(results)
+    case_id = resolve_case_id(store, case_id)
     if not store.is_stored(case_id):
         error = store.read_error(case_id)
         if error is None:

@@ -90,6 +90,13 @@ def test_cli_run_sweep_show(tmp_path):
         png = tmp_path / "out" / "plots" / ids[1] / f"{name}.png"
         assert png.is_file() and png.stat().st_size > 1000
     assert "lining_thickness = 0.3" in show.stdout
+    # an id prefix does, the whole store is listed, the version is printed
+    again = cli("show", ids[1][:6], "--results", "out", cwd=tmp_path)
+    assert again.returncode == 0 and "lining_thickness = 0.3" in again.stdout, again.stderr
+    listed = cli("list", "--results", "out", cwd=tmp_path)
+    assert listed.returncode == 0 and all(i in listed.stdout for i in ids) and "2 cases in out" in listed.stdout
+    version = cli("--version", cwd=tmp_path)
+    assert version.returncode == 0 and version.stdout.startswith("tunnel-contact ")
 
 
 @pytest.mark.parametrize("args, content, message", [
@@ -101,6 +108,7 @@ def test_cli_run_sweep_show(tmp_path):
     (["sweep", "bad.json"], '{"vary": {}}', "name"),
     (["show", "not-an-id"], None, "16 lowercase hex"),
     (["show", "0123456789abcdef"], None, "not in"),
+    (["show", "01234"], None, "no case id"),
 ])
 def test_cli_bad_input_is_one_line_and_exit_2(tmp_path, args, content, message):
     if content is not None:

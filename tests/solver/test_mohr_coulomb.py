@@ -1,0 +1,71 @@
+"""The Mohr–Coulomb return mapping (SPEC §1.5): plastic consistency and the flow rule at every
+point, apex and tension cut-off, and the refusal to answer a yielding case as an elastic one."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from solver import CaseSpec
+from solver.contact import SolverError
+from solver.model import TunnelModel
+from solver.mohr_coulomb import from_principal, principal, return_map, yield_values
+
+E, NU = 5.0e7, 0.3
+LAM, MU = E * NU / ((1 + NU) * (1 - 2 * NU)), E / (2 * (1 + NU))
+
+
+def _sorted_principal(stress):
+    major, minor, _, zz = principal(stress)
+    return np.sort(np.stack([major, minor, zz]), axis=0)[::-1]
+
+
+@pytest.mark.parametrize("c, phi, psi, t", [(2e4, 30, 0, 0), (2e4, 30, 30, 0), (1e4, 25, 10, 5e3), (5e4, 0, 0, 2e4),
+                                             (1e4, 35, 35, 1e4 / np.tan(np.radians(35)))])
+def test_consistency_and_flow_rule_at_random_states(c, phi, psi, t):
+    rng = np.random.default_rng(7)
+    trial = rng.normal(0, 2e5, (4, 5000)) - np.array([1e5, 1e5, 0, 1e5])[:, None]
+    stress, dep, at_yield = return_map(trial, LAM, MU, c, phi, psi, t)
+    s = _sorted_principal(stress)
+    f = yield_values(s, c, np.sin(np.radians(phi)), np.cos(np.radians(phi)), t)
+    assert f.max() <= 1e-9 * 2e5  # every returned state on or inside every surface
+    inside = _sorted_principal(trial)
+    f_trial = yield_values(inside, c, np.sin(np.radians(phi)), np.cos(np.radians(phi)), t).max(axis=0)
+    elastic = f_trial <= 0
+    np.testing.assert_array_equal(stress[:, elastic], trial[:, elastic])  # elastic states untouched
+    assert np.all(np.abs(f.max(axis=0)[~elastic]) <= 1e-9 * 2e5)  # plastic ones on the surface
+    assert at_yield[~elastic].all() and 0.3 < (~elastic).mean() < 1
+    # the flow rule: trial - stress = D Δεp in the trial's principal axes, Δεp = Σ Δγ b, Δγ ≥ 0
+    ta, ti, _, tz = principal(trial)
+    sa, si, _, sz = principal(stress)
+    drop = np.stack([ta - sa, ti - si, tz - sz])
+    np.testing.assert_allclose(drop, LAM * dep.sum(axis=0) + 2 * MU * dep, rtol=0, atol=1e-9 * 2e5)
+    # with ψ = 0 no volume change, with ψ = φ dilation
+    vol = dep.sum(axis=0)[~elastic]
+    if psi == 0 and t == 0 and phi > 0:
+        shear_only = np.abs(s[0, ~elastic]) > 1.0  # off the tension cut-off
+        assert np.abs(vol[shear_only]).max() <= 1e-12
+    if psi == phi and phi > 0:
+        assert vol.min() >= -1e-15
+
+
+def test_hydrostatic_tension_returns_to_the_apex_or_the_cut_off():
+    c, phi = 1e4, 30
+    apex = c / np.tan(np.radians(phi))
+    trial = from_principal(np.full(3, 5e5), np.full(3, 5e5), np.zeros(3), np.full(3, 5e5))
+    for t, expected in ((apex, apex), (2e3, 2e3), (0.0, 0.0)):
+        stress, _, _ = return_map(trial, LAM, MU, c, phi, 0, t)
+        np.testing.assert_allclose(stress[[0, 1, 3]], expected, rtol=1e-12, atol=1e-6)
+        np.testing.assert_allclose(stress[2], 0.0, atol=1e-6)
+
+
+def test_a_yielding_case_is_refused_not_answered_as_elastic():
+    spec = CaseSpec.model_validate({"ground": {"model": "mohr-coulomb", "cohesion": 5e4, "friction_angle": 30},
+                                    "mesh": {"interface_size": 0.2, "far_size": 8.0}})
+    with pytest.raises(SolverError, match=r"^ground\.model: "):
+        TunnelModel(spec).solve(spec)
+
+
+def test_a_segmental_lining_is_refused_not_answered_as_monolithic():
+    spec = CaseSpec.model_validate({"lining": {"joints": {"count": 6}}, "mesh": {"interface_size": 0.2, "far_size": 8.0}})
+    with pytest.raises(SolverError, match=r"^lining\.joints: "):
+        TunnelModel(spec).solve(spec)
