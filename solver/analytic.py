@@ -405,3 +405,39 @@ def interface_mean(ds, values) -> float:
     """Mean of interface ``values`` over the half ring, weighted by the interface quadrature."""
     w = ds.weight.values
     return float(np.sum(w * np.asarray(values)) / np.sum(w))
+
+
+def salencon(P0: float, c: float, phi: float, psi: float, E: float, nu: float, a: float, p: float = 0.0,
+             n: int = 4001) -> dict:
+    """Salençon's hole of radius ``a`` in an isotropic Mohr–Coulomb medium under ``P0``, supported
+    by ``p`` (compression positive, Pa; angles in degrees; plane strain, σzz intermediate):
+    the plastic radius ``R0``, the wall's inward displacement ``u_wall`` (m) and the stresses
+    ``sigma_r(r)``, ``sigma_theta(r)`` as functions (``../shared/reference/closed-forms.md``)."""
+    sp, sq = np.sin(np.radians(phi)), np.sin(np.radians(psi))
+    Kp, Kq = (1 + sp) / (1 - sp), (1 + sq) / (1 - sq)
+    sc = 2 * c * np.cos(np.radians(phi)) / (1 - sp)
+    G = E / (2 * (1 + nu))
+    p_cr = (2 * P0 - sc) / (1 + Kp)
+    if p >= p_cr:
+        return {"R0": a, "u_wall": (P0 - p) * a / (2 * G), "p_cr": p_cr,
+                "sigma_r": lambda r: P0 - (P0 - p) * (a / r) ** 2, "sigma_theta": lambda r: P0 + (P0 - p) * (a / r) ** 2}
+    R0 = a * (2 * (P0 * (Kp - 1) + sc) / ((1 + Kp) * ((Kp - 1) * p + sc))) ** (1 / (Kp - 1))
+
+    def sigma_r(r):
+        r = np.asarray(r, dtype=float)
+        plastic = (p + sc / (Kp - 1)) * (r / a) ** (Kp - 1) - sc / (Kp - 1)
+        return np.where(r <= R0, plastic, P0 - (P0 - p_cr) * (R0 / r) ** 2)
+
+    def sigma_theta(r):
+        r = np.asarray(r, dtype=float)
+        return np.where(r <= R0, Kp * sigma_r(r) + sc, P0 + (P0 - p_cr) * (R0 / r) ** 2)
+
+    # compatibility: d(w r^Kq)/dr = (eps_r^e + Kq eps_theta^e) r^Kq from R0 (w outward, strains tension positive)
+    r = np.linspace(R0, a, n)
+    dr_, dt_ = sigma_r(r) - P0, sigma_theta(r) - P0  # compression-positive changes
+    e_r = -(1 + nu) / E * ((1 - nu) * dr_ - nu * dt_)
+    e_t = -(1 + nu) / E * ((1 - nu) * dt_ - nu * dr_)
+    integrand = (e_r + Kq * e_t) * r**Kq
+    w_R0 = -(P0 - p_cr) * R0 / (2 * G)
+    w_a = (w_R0 * R0**Kq + np.trapezoid(integrand, r)) / a**Kq
+    return {"R0": R0, "u_wall": -w_a, "p_cr": p_cr, "sigma_r": sigma_r, "sigma_theta": sigma_theta}

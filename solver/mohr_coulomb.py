@@ -69,13 +69,16 @@ def _surfaces(sin_phi, sin_psi):
 CANDIDATES = tuple(c for k in (1, 2, 3, 4) for c in itertools.combinations(range(6), k))
 
 
-def return_map(trial: np.ndarray, lam, mu, cohesion, friction_angle, dilatancy, tensile):
+def return_map(trial: np.ndarray, lam, mu, cohesion, friction_angle, dilatancy, tensile,
+               flag_tolerance: float = YIELD_TOL):
     """Return trial stresses (4, n) to the Mohr–Coulomb surface with tension cut-off.
 
     ``lam``, ``mu`` (Lamé, Pa), ``cohesion`` (Pa), angles (deg), ``tensile`` (Pa): scalars or
     (n,) arrays. Returns ``(stress (4, n), plastic_strain (3, n) in principal axes (the
     increment Σ Δγ b), at_yield (n,) bool)``. Points whose trial stress is inside stay as
-    they are. Raises ``ArithmeticError`` if some point finds no admissible return.
+    they are; ``at_yield`` flags the points whose trial lies within ``flag_tolerance`` (relative)
+    of the surface or outside it. Raises ``ArithmeticError`` if some point finds no admissible
+    return.
     """
     n = trial.shape[1]
     bc = lambda v: np.broadcast_to(np.asarray(v, dtype=float), (n,)).copy()  # noqa: E731
@@ -90,7 +93,7 @@ def return_map(trial: np.ndarray, lam, mu, cohesion, friction_angle, dilatancy, 
     f = yield_values(s, c, sp, cp, t)
     out = s.copy()
     dep = np.zeros((3, n))
-    at_yield = np.max(f, axis=0) > -YIELD_TOL * scale
+    at_yield = np.max(f, axis=0) > -flag_tolerance * scale
     todo = np.flatnonzero(np.max(f, axis=0) > YIELD_TOL * scale)
     if todo.size:
         # surfaces per point (angles may vary): a, b (n, 6, 3)

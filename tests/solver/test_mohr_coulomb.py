@@ -58,13 +58,6 @@ def test_hydrostatic_tension_returns_to_the_apex_or_the_cut_off():
         np.testing.assert_allclose(stress[2], 0.0, atol=1e-6)
 
 
-def test_a_yielding_case_is_refused_not_answered_as_elastic():
-    spec = CaseSpec.model_validate({"ground": {"model": "mohr-coulomb", "cohesion": 5e4, "friction_angle": 30},
-                                    "mesh": {"interface_size": 0.2, "far_size": 8.0}})
-    with pytest.raises(SolverError, match=r"^ground\.model: "):
-        TunnelModel(spec).solve(spec)
-
-
 def test_a_segmental_lining_is_refused_not_answered_as_monolithic():
     spec = CaseSpec.model_validate({"lining": {"joints": {"count": 6}}, "mesh": {"interface_size": 0.2, "far_size": 8.0}})
     with pytest.raises(SolverError, match=r"^lining\.joints: "):

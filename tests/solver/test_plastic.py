@@ -1,0 +1,117 @@
+"""Ground that yields through the stages (SPEC §1.5): Salençon's hole, the elastic limit, stored
+stresses inside the yield surface, load-step convergence, contact on yielding ground, failure
+with the reason."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import solver.plastic as plastic
+from solver import CaseSpec
+from solver.analytic import salencon
+from solver.contact import NotConvergedError
+from solver.mohr_coulomb import principal, yield_values
+from solver.run import run_case
+
+P0, C, PHI, E, NU = 1.0e6, 1.0e5, 30.0, 5.0e7, 0.3
+A = 2.8
+
+
+def _hole(psi: float, steps: int = 5) -> dict:
+    """A deep hole under isotropic P0 (weightless ground: K0 = 1, surface load P0), unloaded to
+    zero in stage 1 (λd = 1)."""
+    return {"geometry": {"depth": 40.0, "width": 60.0, "height": 80.0},
+            "ground": {"density": 0.0, "young": E, "poisson": NU, "model": "mohr-coulomb", "cohesion": C,
+                       "friction_angle": PHI, "dilatancy": psi, "tensile_strength": 1.0e5},
+            "loads": {"surface_load": P0, "lateral_ratio": 1.0}, "excavation": {"deconfinement": 1.0},
+            "lining": {"density": 1.0}, "mesh": {"interface_size": 0.1, "far_size": 6.0},
+            "solver": {"load_steps": steps}}
+
+
+def _wall(ds) -> float:
+    return json.loads(ds.attrs["ground_reaction_curve"])[-1]["wall_convergence_m"]
+
+
+@pytest.fixture(scope="module")
+def hole_psi0():
+    return run_case(CaseSpec.model_validate(_hole(0.0)))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("psi", [0.0, PHI])
+def test_salencon_hole(psi, hole_psi0):
+    ds = hole_psi0 if psi == 0.0 else run_case(CaseSpec.model_validate(_hole(psi)))
+    exact = salencon(P0, C, PHI, psi, E, NU, A)
+    assert 1.5 < exact["R0"] / A < 2.5  # a real plastic zone
+    assert _wall(ds) == pytest.approx(exact["u_wall"], rel=0.02)
+    # the plastic zone reaches R0 (its outermost face centroid lies within a face of it)
+    assert float(ds["max_plastic_extent"]) == pytest.approx(exact["R0"], rel=0.03)
+    assert float(ds["plastic_area"]) == pytest.approx(np.pi * (exact["R0"] ** 2 - A**2), rel=0.06)
+    # hoop stress beside the wall and mid-zone
+    faces = ds["face_nodes"].values
+    x, y = ds["node_x"].values[faces].mean(axis=1), ds["node_y"].values[faces].mean(axis=1) + 40.0
+    r = np.hypot(x, y)
+    et = np.stack([-y / r, x / r])
+    sxx, syy, sxy = (ds[f"effective_stress_{c}"].values for c in ("xx", "yy", "xy"))
+    hoop = -(sxx * et[0] ** 2 + syy * et[1] ** 2 + 2 * sxy * et[0] * et[1])
+    ground = ds["body"].values == 0
+    for r0 in (A + 0.1, 0.5 * (A + exact["R0"])):
+        ring = ground & (np.abs(r - r0) < 0.05)
+        assert np.median(hoop[ring]) == pytest.approx(float(exact["sigma_theta"](r0)), rel=0.03)
+
+
+def test_every_stored_ground_stress_is_inside_the_yield_surface(hole_psi0):
+    ds = hole_psi0
+    g = ds["body"].values == 0
+    stress = np.stack([ds[f"effective_stress_{c}"].values[g] for c in ("xx", "yy", "xy", "zz")])
+    major, minor, _, zz = principal(stress)
+    s = np.sort(np.stack([major, minor, zz]), axis=0)[::-1]
+    f = yield_values(s, C, np.sin(np.radians(PHI)), np.cos(np.radians(PHI)), 1.0e5)
+    assert f.max() <= 1e-6 * P0
+    at_yield = ds["plastic"].values[g].astype(bool)
+    # at yield: on the surface to the plastic iteration's tolerance (1e-3 of the stress level)
+    assert at_yield.any() and np.all(f.max(axis=0)[at_yield] >= -1e-3 * P0)
+    eqps = ds["equivalent_plastic_strain"].values[g]
+    assert np.mean(eqps[at_yield] > 0) > 0.95 and np.all(eqps >= 0)
+    assert np.all(eqps[f.max(axis=0) < -1e-2 * P0] == 0)  # well inside the surface: never yielded
+
+
+@pytest.mark.slow
+def test_results_converge_as_load_steps_double(hole_psi0):
+    """Report: the wall convergence changes by less than 0.5 % from 5 to 10 increments (a perfectly
+    plastic hole under radial unloading is nearly path independent)."""
+    finer = run_case(CaseSpec.model_validate(_hole(0.0, steps=10)))
+    change = _wall(finer) / _wall(hole_psi0) - 1.0
+    assert abs(change) < 5e-3
+    assert float(finer["max_plastic_extent"]) == pytest.approx(float(hole_psi0["max_plastic_extent"]), rel=0.02)
+
+
+COARSE = {"interface_size": 0.15, "far_size": 6.0}
+
+
+def test_a_very_strong_ground_gives_the_elastic_results():
+    elastic = run_case(CaseSpec.model_validate({"mesh": COARSE}))
+    strong = run_case(CaseSpec.model_validate({"mesh": COARSE, "ground": {
+        "model": "mohr-coulomb", "cohesion": 1.0e9, "friction_angle": 30.0, "tensile_strength": 1.0e8}}))
+    assert float(strong["plastic_area"]) == 0.0
+    for name in ("max_thrust", "max_abs_moment", "max_contact_pressure", "crown_settlement"):
+        assert float(strong[name]) == pytest.approx(float(elastic[name]), rel=1e-7), name
+
+
+def test_contact_on_yielding_ground_holds_its_kkt_conditions():
+    ds = run_case(CaseSpec.model_validate({"mesh": COARSE, "ground": {
+        "model": "mohr-coulomb", "cohesion": 3.0e4, "friction_angle": 28.0, "tensile_strength": 1.0e4}}))
+    assert float(ds["plastic_area"]) > 0.5 and float(ds["converged"]) == 1
+    assert float(ds["kkt_residual"]) <= 1e-6
+    assert ds["contact_pressure"].values.min() >= 0
+    # yielding lets the ground load the lining more than the elastic ground does
+    elastic = run_case(CaseSpec.model_validate({"mesh": COARSE}))
+    assert float(ds["max_thrust"]) > float(elastic["max_thrust"])
+
+
+def test_a_case_that_does_not_converge_fails_with_the_reason(monkeypatch):
+    monkeypatch.setattr(plastic, "MAX_STEP_ITERATIONS", 2)
+    with pytest.raises(NotConvergedError, match=r"^solver\.load_steps: .*stage 1"):
+        run_case(CaseSpec.model_validate(_hole(0.0)))
