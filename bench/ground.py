@@ -1,4 +1,5 @@
-"""What layered, water-bearing ground costs (SPEC §1.4), as ratios measured in one run.
+"""What layered, water-bearing and yielding ground costs (SPEC §1.4, §1.5), as ratios measured in
+one run.
 
 At the default mesh: the whole ``run_case`` of the default (homogeneous, dry, elastic) case, of
 the README's two-layer case with a water table 3 m down (watertight and drained), and the cost
@@ -30,6 +31,8 @@ CASES = {
     "default": {},
     "layered-watertight": {"ground": {"layers": LAYERS}, "water": {"table": 3.0}},
     "layered-drained": {"ground": {"layers": LAYERS}, "water": {"table": 3.0, "lining": "drained"}},
+    "mohr-coulomb": {"ground": {"model": "mohr-coulomb", "cohesion": 3.0e4, "friction_angle": 28.0,
+                                "tensile_strength": 1.0e4}},
 }
 
 
@@ -61,16 +64,20 @@ def main(argv=None) -> None:
         table = spec.water.table
         other = spec if table is None else spec.model_copy(
             update={"water": spec.water.model_copy(update={"table": table + 1.0})})
+        if name == "mohr-coulomb":  # a sweep's next case: another K0
+            other = spec.model_copy(update={"loads": spec.loads.model_copy(update={"lateral_ratio": 0.6})})
         model.solve(other)  # a drained case factorizes the new table's head problem once
         on_model[name] = _least(lambda: model.solve(other), args.repeat)
     rows = {name: {"run_case_s": whole[name], "ratio_to_default": whole[name] / whole["default"],
-                   "next_case_on_model_s": on_model[name]} for name in specs}
+                   "next_case_on_model_s": on_model[name],
+                   "next_ratio": on_model[name] / on_model["default"]} for name in specs}
     if args.json:
         print(json.dumps(rows, indent=2))
         return
-    print(f"{'case':22s} {'run_case s':>11s} {'/ default':>10s} {'next case on model s':>21s}")
+    print(f"{'case':22s} {'run_case s':>11s} {'/ default':>10s} {'next case on model s':>21s} {'/ default':>10s}")
     for name, r in rows.items():
-        print(f"{name:22s} {r['run_case_s']:11.3f} {r['ratio_to_default']:10.2f} {r['next_case_on_model_s']:21.4f}")
+        print(f"{name:22s} {r['run_case_s']:11.3f} {r['ratio_to_default']:10.2f} {r['next_case_on_model_s']:21.4f}"
+              f" {r['next_ratio']:10.1f}")
 
 
 if __name__ == "__main__":
