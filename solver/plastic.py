@@ -161,8 +161,10 @@ def _fixed_point(G, x0: np.ndarray, K, atol: float, where: str):
         x = acc.step(x, gx)
     raise NotConvergedError(
         f"solver.load_steps: the yielding ground did not reach equilibrium in {where} (out-of-balance force "
-        f"{force:.3g} N/m > {atol:.3g} after {MAX_STEP_ITERATIONS} iterations): the ground may be collapsing; "
-        "raise its strength, the support (lower lambda_d) or the load steps")
+        f"{force:.3g} N/m > {atol:.3g} after {MAX_STEP_ITERATIONS} iterations): far above the tolerance the "
+        "ground is collapsing (raise its strength or the support: a lower excavation.deconfinement); just above "
+        "it the iteration has stalled where points cross the yield surface (more solver.load_steps, or a "
+        f"coarser solver.tolerance: the plastic iteration's is max(solver.tolerance, {MIN_TOLERANCE:g}))")
 
 
 def solve_staged(model, spec, rows, t0: float):
