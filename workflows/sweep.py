@@ -18,13 +18,14 @@ import math
 import os
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager, nullcontext
-from typing import Any, Literal
+from typing import Any, Literal, Optional
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from solver.errors import field_errors
 from solver.spec import CaseSpec, canonical_json, content_id
 
+from .sampling import SAMPLED_MODES, Distribution, sample_errors, sampled_values
 from .parameters import PATH_ALIASES, canonical_path, is_parameter, parameter_paths, set_parameter
 from .store import ResultStore, StoreLike, as_store
 
@@ -41,15 +42,51 @@ class Sweep(BaseModel):
 
     name: str = Field(min_length=1, max_length=200, description="label of the study")
     base: CaseSpec = Field(default_factory=CaseSpec, description="the case the variations start from")
-    vary: dict[str, list[Any]] = Field(
+    vary: dict[str, Any] = Field(
         default_factory=dict,
-        description="dotted parameter path (e.g. 'lining.thickness', 'ground.young') -> list of values")
-    mode: Literal["grid", "zip"] = Field(
-        "grid", description="'grid': cartesian product of the lists; 'zip': equal-length lists taken together")
+        description="dotted parameter path (e.g. 'lining.thickness', 'ground.young') -> list of values "
+                    "(grid, zip) or a distribution (sobol, lhs, random)")
+    mode: Literal["grid", "zip", "sobol", "lhs", "random"] = Field(
+        "grid", description="'grid': cartesian product of the lists; 'zip': equal-length lists taken together; "
+                            "'sobol', 'lhs', 'random': samples drawn from each parameter's distribution")
+    samples: Optional[int] = Field(None, description="number of sampled cases (sobol: a power of 2)")
+    seed: int = Field(0, ge=0, le=2**32 - 1, description="seed of the sample (same seed, same cases)")
+
+    @field_validator("vary", mode="before")
+    @classmethod
+    def _entries(cls, vary):
+        if not isinstance(vary, dict):
+            return vary
+        out = {}
+        for path, entry in vary.items():
+            if isinstance(entry, dict):
+                try:
+                    entry = Distribution.model_validate(entry)
+                except ValidationError as exc:
+                    err = exc.errors()[0]
+                    where = ".".join(str(p) for p in err["loc"])
+                    msg = err["msg"].removeprefix("Value error, ")
+                    raise ValueError(f"{path}{'.' + where if where else ''}: {msg}") from None
+            elif not isinstance(entry, (list, tuple)):
+                raise ValueError(f"{path}: expected a list of values or a distribution")
+            out[path] = entry if isinstance(entry, Distribution) else list(entry)
+        return out
 
     def canonical_json(self) -> str:
-        """Defaults filled, keys sorted, no whitespace."""
-        return canonical_json(self)
+        """Defaults filled, keys sorted, no whitespace (a grid or zip sweep's without the sampling
+        settings it ignores, so its id is what it was before sampled sweeps)."""
+        if self.mode in SAMPLED_MODES:
+            return canonical_json(self)
+        data = json.loads(canonical_json(self))
+        data.pop("samples", None)
+        data.pop("seed", None)
+        return json.dumps(data, sort_keys=True, separators=(",", ":"))
+
+    def table(self) -> dict[str, list[Any]]:
+        """The values of each varied parameter: the lists, or a sampled sweep's samples."""
+        if self.mode in SAMPLED_MODES and not sample_errors(self.mode, self.samples, self.vary):
+            return sampled_values(self.mode, self.samples, self.seed, self.vary)
+        return {p: v for p, v in self.vary.items() if not isinstance(v, Distribution)}
 
     @property
     def sweep_id(self) -> str:
@@ -67,7 +104,9 @@ class SweepError(ValueError):
 
 def sweep_size(sweep: Sweep) -> int:
     """Number of combinations ``sweep`` describes (before validating the cases)."""
-    lengths = [len(v) for v in sweep.vary.values()]
+    if sweep.mode in SAMPLED_MODES:
+        return sweep.samples or 0
+    lengths = [len(v) for v in sweep.vary.values() if not isinstance(v, Distribution)]
     if not lengths:
         return 1
     return math.prod(lengths) if sweep.mode == "grid" else max(lengths)
@@ -88,8 +127,9 @@ def expand_sweep(sweep: Sweep | dict[str, Any]) -> list[CaseSpec]:
     sweep = Sweep.model_validate(sweep)
     base = sweep.base.model_dump(mode="json")
     errors = _structure_errors(sweep, base)
+    table = sweep.table()
     # each value on its own first: the errors then name the varied path and value
-    for path, values in sweep.vary.items():
+    for path, values in table.items():
         target = canonical_path(path)
         if not is_parameter(target, base):
             continue
@@ -101,15 +141,15 @@ def expand_sweep(sweep: Sweep | dict[str, Any]) -> list[CaseSpec]:
     if errors:
         raise SweepError(errors)
 
-    paths = [canonical_path(p) for p in sweep.vary]
-    rows = (itertools.product(*sweep.vary.values()) if sweep.mode == "grid"
-            else zip(*sweep.vary.values()))
+    paths = [canonical_path(p) for p in table]
+    rows = (itertools.product(*table.values()) if sweep.mode == "grid"
+            else zip(*table.values()))
     cases: dict[str, CaseSpec] = {}
     for row in rows:
         try:
             spec = CaseSpec.model_validate(_with_values(base, dict(zip(paths, row))))
         except ValidationError as exc:  # a combination that is invalid only together
-            where = ", ".join(f"{p}={v!r}" for p, v in zip(sweep.vary, row))
+            where = ", ".join(f"{p}={v!r}" for p, v in zip(table, row))
             for loc, msg in _messages(exc):
                 if (loc, f"{msg} (case {where})") not in errors:
                     errors.append((loc, f"{msg} (case {where})"))
@@ -126,8 +166,16 @@ def _structure_errors(sweep: Sweep, base: dict[str, Any]) -> list[tuple[str, str
     errors: list[tuple[str, str]] = []
     known = parameter_paths()
     seen: dict[str, str] = {}
+    sampled = sweep.mode in SAMPLED_MODES
+    if sampled:
+        errors.extend(sample_errors(sweep.mode, sweep.samples, sweep.vary))
+    elif any(isinstance(v, Distribution) for v in sweep.vary.values()):
+        errors.extend((f"vary.{p}", f"a distribution needs mode 'sobol', 'lhs' or 'random' (mode is {sweep.mode!r})")
+                      for p, v in sweep.vary.items() if isinstance(v, Distribution))
     for path, values in sweep.vary.items():
         target = canonical_path(path)
+        if sampled and is_parameter(target, base) and not _numeric(target, base):
+            errors.append((path, "a sampled parameter must be a number"))
         if not is_parameter(target, base):
             errors.append((path, "unknown parameter; expected '<section>.<field>' of the case "
                                  f"(e.g. {known[0]}, ..., {known[-1]}), or ground.layers.<i>.<field> "
@@ -136,9 +184,9 @@ def _structure_errors(sweep: Sweep, base: dict[str, Any]) -> list[tuple[str, str
             errors.append((path, f"the same parameter as {seen[target]!r}"))
         else:
             seen[target] = path
-        if not values:
+        if not isinstance(values, Distribution) and not values:
             errors.append((path, "empty list of values"))
-    lengths = [len(v) for v in sweep.vary.values()]
+    lengths = [len(v) for v in sweep.vary.values() if not isinstance(v, Distribution)]
     if sweep.mode == "zip" and len(set(lengths)) > 1:
         errors.extend((path, f"has {len(values)} values; in zip mode all lists must be equally "
                              f"long (lengths {lengths})") for path, values in sweep.vary.items())
@@ -146,6 +194,14 @@ def _structure_errors(sweep: Sweep, base: dict[str, Any]) -> list[tuple[str, str
     if size > MAX_SWEEP_CASES:
         errors.append(("vary", f"the sweep has {size:,} cases, over the cap of {MAX_SWEEP_CASES:,}"))
     return errors
+
+
+def _numeric(path: str, base: dict[str, Any]) -> bool:
+    """Whether the case parameter at ``path`` takes a number (its value in the base case)."""
+    node: Any = base
+    for part in path.split("."):
+        node = node[int(part)] if isinstance(node, list) else node.get(part)
+    return isinstance(node, (int, float)) and not isinstance(node, bool)
 
 
 def _with_values(base: dict[str, Any], values: dict[str, Any]) -> dict[str, Any]:
