@@ -115,3 +115,28 @@ def test_a_case_that_does_not_converge_fails_with_the_reason(monkeypatch):
     monkeypatch.setattr(plastic, "MAX_STEP_ITERATIONS", 2)
     with pytest.raises(NotConvergedError, match=r"^solver\.load_steps: .*stage 1"):
         run_case(CaseSpec.model_validate(_hole(0.0)))
+
+
+@pytest.mark.slow
+def test_convergence_confinement_equilibrium_on_yielding_ground():
+    """A lining placed at λd = 0.8 on yielding ground under isotropic P0 carries the pressure where
+    the closed-form ground reaction curve meets the lining's characteristic line."""
+    from scipy.optimize import brentq
+
+    ld = 0.8
+    case = _hole(0.0)
+    case["excavation"] = {"deconfinement": ld}
+    ds = run_case(CaseSpec.model_validate(case))
+    spec = CaseSpec.model_validate(json.loads(ds.attrs["case_spec"]))
+    b, a_l = spec.geometry.outer_radius, spec.geometry.inner_radius
+    El, nl = spec.lining.young, spec.lining.poisson
+    k_s = El * (b**2 - a_l**2) / ((1 + nl) * b * ((1 - 2 * nl) * b**2 + a_l**2))
+    u_grc = lambda p: salencon(P0, C, PHI, 0.0, E, NU, b, p)["u_wall"]  # noqa: E731
+    u_in = u_grc((1 - ld) * P0)
+    assert salencon(P0, C, PHI, 0.0, E, NU, b, (1 - ld) * P0)["R0"] > 1.15 * b  # yielded before the lining
+    p_s = brentq(lambda p: u_grc(p) - u_in - p / k_s, 0.0, (1 - ld) * P0)
+    w = ds["weight"].values
+    mean_pressure = float(np.sum(w * ds["contact_pressure"].values) / np.sum(w))
+    mean_thrust = float(np.sum(w * ds["thrust"].values) / np.sum(w))
+    assert mean_pressure == pytest.approx(p_s, rel=0.02)  # -0.24 % measured
+    assert mean_thrust == pytest.approx(p_s * b, rel=0.02)
