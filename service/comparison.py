@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import csv
 import io
+import math
 from typing import Literal, Optional, Union
 
 from pydantic import BaseModel, Field
@@ -122,6 +123,41 @@ def table_csv(table: ComparisonTable) -> str:
     for row in table.rows:
         writer.writerow(["" if row.get(n) is None else _csv_value(row[n]) for n in names])
     return out.getvalue()
+
+
+def table_xlsx(table: ComparisonTable) -> bytes:
+    """The table as an Excel workbook: a header row of column names, a row of units (the
+    dashboard's engineering units), then one row per case with numbers in those units (blank
+    where there is no value; inf and nan as text). The header and units rows are frozen."""
+    from openpyxl import Workbook
+    from openpyxl.styles import Font
+
+    wb = Workbook()
+    ws = wb.active
+    ws.title = f"sweep {table.sweep_id}"[:31]
+    names = [c.name for c in table.columns]
+    shown = [(c.display_unit, c.display_factor) if c.display_unit else display_unit(c.units) if c.units
+             else ("", 1.0) for c in table.columns]
+    ws.append(names)
+    ws.append([unit for unit, _ in shown])
+    for cell in ws[1]:
+        cell.font = Font(bold=True)
+    for cell in ws[2]:
+        cell.font = Font(italic=True)
+    for row in table.rows:
+        out = []
+        for c, (_, factor) in zip(table.columns, shown):
+            value = row.get(c.name)
+            if isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value):
+                value = value * factor
+            elif isinstance(value, float):
+                value = str(value)
+            out.append(value)
+        ws.append(out)
+    ws.freeze_panes = "A3"
+    buffer = io.BytesIO()
+    wb.save(buffer)
+    return buffer.getvalue()
 
 
 def _csv_value(value: Value) -> str:

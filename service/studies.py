@@ -13,7 +13,7 @@ from fastapi.responses import FileResponse, Response
 from workflows.artifacts import render_sweep_plot
 from workflows.plots import SWEEP_PLOT_NAMES
 
-from .comparison import ComparisonTable, comparison_table, table_csv
+from .comparison import ComparisonTable, comparison_table, table_csv, table_xlsx
 from .errors import responses
 from .guards import require_token
 from .params import Offset, SweepId, jobs_of, sweep_or_404, sweep_results
@@ -56,6 +56,21 @@ async def get_sweep_csv(sweep_id: SweepId, request: Request) -> Response:
     table = await get_sweep_table(sweep_id, request)
     return Response(table_csv(table), media_type="text/csv; charset=utf-8",
                     headers={"Content-Disposition": f'attachment; filename="sweep-{sweep_id}.csv"'})
+
+
+XLSX = "application/vnd.openxmlformats-officedocument.spreadsheetml.sheet"
+
+
+@router.get("/{sweep_id}/summary.xlsx", response_class=Response, responses={
+    200: {"content": {XLSX: {}},
+          "description": "the comparison table as a workbook: a row of column names, a row of units "
+                         "(engineering units: kPa, kN/m, mm, ...), then one row per case"},
+    **responses(404)})
+async def get_sweep_xlsx(sweep_id: SweepId, request: Request) -> Response:
+    """The comparison table as an Excel workbook in engineering units with a units row."""
+    table = await get_sweep_table(sweep_id, request)
+    return Response(table_xlsx(table), media_type=XLSX,
+                    headers={"Content-Disposition": f'attachment; filename="sweep-{sweep_id}.xlsx"'})
 
 
 @router.get("/{sweep_id}/plots/{name}.png", response_class=FileResponse, responses={

@@ -125,3 +125,31 @@ def test_a_page_of_sweeps_and_their_counts_match_the_sweeps_one_by_one(tmp_path)
             assert counts[record.id] == store.status_counts(record.case_ids)
     assert store.sweep_status_counts([f"{1:016x}"])[f"{1:016x}"] == {"queued": 1, "running": 0, "done": 1,
                                                                       "failed": 0, "cancelled": 0}
+
+
+def test_summary_xlsx_opens_in_openpyxl_with_a_units_row(tmp_path):
+    from openpyxl import load_workbook
+
+    from service.comparison import table_xlsx
+
+    store = JobStore(tmp_path / "jobs.sqlite")
+    cases = specs(2e7, 5e7)
+    record, _ = store.add_sweep("0123456789abcdef", "t", "{}", cases)
+    store.finish(cases[0][0], status="done", summary={"max_contact_pressure": 2.5e5, "max_thrust": 6.24e5,
+                                                      "max_utilization": math.inf})
+    table = comparison_table(store, record)
+    wb = load_workbook(io.BytesIO(table_xlsx(table)))
+    ws = wb.active
+    rows = list(ws.iter_rows(values_only=True))
+    names, units = rows[0], rows[1]
+    col = {n: i for i, n in enumerate(names)}
+    assert names[:3] == ("case_id", "status", "ground_young")
+    assert units[col["max_contact_pressure"]] == "kPa" and units[col["max_thrust"]] == "kN/m"
+    assert units[col["ground_young"]] == "kPa"
+    first = rows[2]
+    assert first[col["case_id"]] == cases[0][0] and first[col["status"]] == "done"
+    assert first[col["max_contact_pressure"]] == 250.0 and first[col["max_thrust"]] == 624.0
+    assert first[col["ground_young"]] == 20000.0
+    assert first[col["max_utilization"]] == "inf"  # no infinity in a spreadsheet cell: text
+    assert rows[3][col["max_thrust"]] is None  # the second case is not done
+    assert ws.freeze_panes == "A3"
