@@ -60,7 +60,7 @@ def test_openapi_lists_every_endpoint_with_response_models(client):
     assert set(schema["paths"]) == {
         "/cases", "/cases/{case_id}", "/cases/{case_id}/result.nc", "/cases/{case_id}/plots/{name}.png",
         "/sweeps", "/sweeps/{sweep_id}", "/sweeps/{sweep_id}/result.nc", "/health",
-        "/sweeps/{sweep_id}/table", "/sweeps/{sweep_id}/summary.csv", "/sweeps/{sweep_id}/plots/{name}.png",
+        "/sweeps/{sweep_id}/table", "/sweeps/{sweep_id}/summary.csv", "/sweeps/{sweep_id}/summary.xlsx", "/sweeps/{sweep_id}/plots/{name}.png",
         "/sweeps/{sweep_id}/cancel"}
     post = schema["paths"]["/cases"]["post"]
     assert "202" in post["responses"] and "422" in post["responses"]

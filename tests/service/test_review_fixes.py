@@ -46,7 +46,15 @@ def sweep_finished(client, sweep_id: str) -> dict:
 def csv_rows(client, sweep_id: str) -> list[dict]:
     response = client.get(f"/sweeps/{sweep_id}/summary.csv")
     assert response.status_code == 200
-    return list(csv.DictReader(io.StringIO(response.text)))
+    rows = list(csv.DictReader(io.StringIO(response.text)))
+    # the workbook holds the same cases, with a units row
+    from openpyxl import load_workbook
+
+    book = client.get(f"/sweeps/{sweep_id}/summary.xlsx")
+    assert book.status_code == 200 and book.headers["content-type"].startswith("application/vnd.openxml")
+    sheet = list(load_workbook(io.BytesIO(book.content)).active.iter_rows(values_only=True))
+    assert [r[0] for r in sheet[2:]] == [r["case_id"] for r in rows]
+    return rows
 
 
 # -- 1, 2: a sweep whose cases all failed -------------------------------------------------------
