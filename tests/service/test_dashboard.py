@@ -193,6 +193,15 @@ def test_submit_a_sweep_watch_it_sort_it_open_a_case_download_the_csv(service, b
     assert browser.find_element(By.ID, "download-nc").get_attribute("href").endswith(f"/cases/{case_id}/result.nc")
     spec = json.loads(browser.find_element(By.ID, "case-json").text)
     assert spec["mesh"]["interface_size"] == 0.2
+    # the design answer is stated: PASS or FAIL with the utilization, as the summary has it
+    verdict = browser.find_element(By.ID, "design-verdict")
+    word = verdict.find_element(By.TAG_NAME, "strong").text
+    assert word in ("PASS", "FAIL") and "max utilization" in verdict.text
+    cells = {td.find_element(By.XPATH, "following-sibling::td[2]").text: td for td in
+             browser.find_elements(By.CSS_SELECTOR, "#summary td.num")}
+    eta = float(cells["max_utilization"].get_attribute("data-value"))
+    assert word == ("PASS" if eta <= 1 else "FAIL")
+    assert ("over" in cells["max_utilization"].get_attribute("class")) == (eta > 1)
     screenshot(browser, tmp_path / "case.png")
 
     browser.get(url + "/")
