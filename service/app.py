@@ -66,7 +66,7 @@ def create_app(settings: Optional[Settings] = None) -> FastAPI:
         app_version = version("tunnel-contact")
     except PackageNotFoundError:
         app_version = "0"
-    app = FastAPI(title="tunnel-contact", version=app_version, lifespan=lifespan,
+    app = FastAPI(title="tunnel-contact", version=app_version, lifespan=lifespan, docs_url=None, redoc_url=None,
                   description="Tunnel lining / ground unilateral contact: submit cases and sweeps, "
                               "fetch results (netCDF) and plots. Work runs on a dask cluster.")
     app.state.settings = settings or get_settings()
@@ -80,4 +80,32 @@ def create_app(settings: Optional[Settings] = None) -> FastAPI:
     for module in (cases, sweeps, studies, health, pages):
         app.include_router(module.router)
     pages.mount_static(app)
+    serve_docs_offline(app)
     return app
+
+
+def serve_docs_offline(app: FastAPI) -> None:
+    """``/docs`` (Swagger UI) and ``/redoc`` from assets shipped with the service (the
+    ``fastapi-offline`` wheel's copies of swagger-ui and redoc): the pages work without any
+    outside network, as SPEC §6 asks, where FastAPI's defaults load them from a CDN."""
+    from pathlib import Path
+
+    import fastapi_offline
+    from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html
+    from fastapi.staticfiles import StaticFiles
+
+    assets = Path(fastapi_offline.__file__).parent / "static"
+    app.mount("/docs-assets", StaticFiles(directory=assets), name="docs-assets")
+
+    @app.get("/docs", include_in_schema=False)
+    async def swagger_ui():
+        return get_swagger_ui_html(openapi_url=app.openapi_url, title=f"{app.title} - API",
+                                   swagger_js_url="/docs-assets/swagger-ui-bundle.js",
+                                   swagger_css_url="/docs-assets/swagger-ui.css",
+                                   swagger_favicon_url="/docs-assets/favicon.png")
+
+    @app.get("/redoc", include_in_schema=False)
+    async def redoc():
+        return get_redoc_html(openapi_url=app.openapi_url, title=f"{app.title} - API",
+                              redoc_js_url="/docs-assets/redoc.standalone.js",
+                              redoc_favicon_url="/docs-assets/favicon.png", with_google_fonts=False)

@@ -374,3 +374,17 @@ def test_a_section_that_fails_at_any_load_is_not_shown_as_blank(app, client):
     row = page[page.index("<code>max_utilization</code>") - 300:page.index("<code>max_utilization</code>")]
     assert ">inf</td>" in row
     assert ">nan</td>" in page[page.index("<code>bolt_theta</code>") - 300:page.index("<code>bolt_theta</code>")]
+
+
+def test_docs_and_redoc_load_nothing_from_outside(client):
+    import re
+
+    for path in ("/docs", "/redoc"):
+        page = client.get(path)
+        assert page.status_code == 200
+        urls = re.findall(r"""(?:src|href)=["']([^"']+)["']|url: *['"]([^'"]+)['"]""", page.text)
+        flat = [u for pair in urls for u in pair if u]
+        assert flat and not [u for u in flat if u.startswith(("http:", "https:", "//"))], flat
+        for url in flat:
+            if url.startswith("/docs-assets/"):
+                assert client.get(url).status_code == 200, url
