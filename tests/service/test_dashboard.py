@@ -149,6 +149,11 @@ def test_submit_a_sweep_watch_it_sort_it_open_a_case_download_the_csv(service, b
     assert headers[:4] == ["case_id", "status", "lining_thickness", "ground_young"]
     assert headers[4] == "max_contact_pressure"
     assert column(browser, "status") == ["done"] * 4
+    k = headers.index("max_utilization")
+    for tr in browser.find_elements(By.CSS_SELECTOR, "#comparison-table tbody tr"):
+        td = tr.find_elements(By.TAG_NAME, "td")[k]
+        value = float(td.get_attribute("data-value"))
+        assert ("over" in td.get_attribute("class")) == (value > 1)  # red where the section fails
 
     # sort by a scalar, both ways
     browser.find_element(By.CSS_SELECTOR, "th[data-col=max_abs_moment]").click()
@@ -207,6 +212,11 @@ def test_submit_a_sweep_watch_it_sort_it_open_a_case_download_the_csv(service, b
     browser.get(url + "/")
     assert sweep_id in browser.find_element(By.ID, "sweeps").text
     assert case_id in browser.find_element(By.ID, "cases").text
+    # the recent cases show each case's utilization, red above 1
+    row = browser.find_element(By.CSS_SELECTOR, f"#cases tr[data-key='{case_id}']")
+    eta_cell = row.find_element(By.CSS_SELECTOR, "td[data-field='summary.max_utilization']")
+    assert eta_cell.text and ("over" in eta_cell.get_attribute("class")) == (float(eta_cell.text) > 1)
+    assert float(eta_cell.text) == pytest.approx(eta, rel=1e-2)
     screenshot(browser, tmp_path / "index.png")
     print(f"screenshots in {tmp_path}")
 
