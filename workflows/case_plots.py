@@ -10,9 +10,7 @@ import json
 
 import numpy as np
 import xarray as xr
-from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.figure import Figure
-from matplotlib.tri import Triangulation
 
 _CONTACT_COLOR = "tab:red"
 _SLIP_COLOR = "tab:orange"
@@ -161,6 +159,14 @@ def _force_diagram(ax, theta_deg: np.ndarray, values: np.ndarray, radius: float,
     ax.set_title(f"{title}\nlargest |{symbol}| = {abs(values[k]):.1f} {unit} at θ = {theta_deg[k]:.0f}° (dot)\n"
                  f"blue +, red −; {outward}", fontsize="small")
     reach = 1.75 * radius  # the offsets (0.35 radius) and the station labels beyond them
+    if peak > 0:  # a scale bar of a round value, as on a drawing
+        step = 10.0 ** np.floor(np.log10(peak))
+        bar = max(m * step for m in (1, 2, 5) if m * step <= peak)
+        y0 = -0.93 * reach
+        x0 = 0.9 * radius
+        ax.plot([x0, x0 + scale * bar], [y0, y0], color="k", lw=2.5, solid_capstyle="butt", gid="scale")
+        ax.annotate(f"scale: {bar:g} {unit}", (x0, y0), xytext=(0, 4), textcoords="offset points",
+                    fontsize="small", va="bottom")
     ax.set_xlim(-0.15 * radius, 1.9 * radius)
     ax.set_ylim(-reach, reach)
     ax.set_aspect("equal")
@@ -305,50 +311,3 @@ def _ground_lines(ax, ds: xr.Dataset, xlim: tuple[float, float]) -> None:
     table = (spec.get("water") or {}).get("table")
     if table is not None:
         ax.axhline(-float(table), color=_WATER_COLOR, lw=1.2, ls="--", label=f"water table ({table:g} m)")
-
-
-def plot_deformed_mesh(ds: xr.Dataset, *, scale: float | None = None) -> Figure:
-    """The mesh near the tunnel, deformed by scaled displacements, contact zone marked.
-
-    Parameters
-    ----------
-    ds : a case result.
-    scale : displacement magnification; default makes the largest displacement near
-        the tunnel 8 % of the lining outer radius.
-    """
-    x, y = ds["node_x"].values, ds["node_y"].values
-    ux, uy = ds["displacement_x"].values, ds["displacement_y"].values
-    tri = ds["face_nodes"].values.astype(np.int64)
-    body = ds["body"].values
-    lining_nodes = ds["lining_node"].values.astype(np.int64)
-    cx = 0.0
-    cy = float(np.mean(ds["interface_y"].values[[0, -1]]))
-    radius = float(np.max(np.hypot(ds["interface_x"].values - cx, ds["interface_y"].values - cy)))
-    view = 2.2 * radius
-    near = np.hypot(x - cx, y - cy) < view
-    umax = float(np.max(np.hypot(ux[near], uy[near]))) if near.any() else 0.0
-    if scale is None:
-        scale = 0.08 * radius / umax if umax > 0 else 1.0
-    xd, yd = x + scale * ux, y + scale * uy
-
-    fig = Figure(figsize=(6, 7), layout="constrained")
-    ax = fig.add_subplot()
-    ax.triplot(Triangulation(x, y, tri), color="0.85", lw=0.3)
-    ax.triplot(Triangulation(xd, yd, tri[body == 0]), color="tab:brown", lw=0.3, alpha=0.6)
-    lining = tri[body == 1]
-    ax.add_collection(PolyCollection(np.stack([xd[lining], yd[lining]], axis=-1), facecolors="0.75",
-                                     edgecolors="0.35", linewidths=0.3, label="lining"))
-    on = ds["in_contact"].values.astype(bool)
-    pts = np.column_stack([xd[lining_nodes], yd[lining_nodes]])
-    segs = [pts[i:i + 2] for i in range(len(pts) - 1) if on[i] and on[i + 1]]
-    ax.add_collection(LineCollection(segs, colors=_CONTACT_COLOR, linewidths=3, label="in contact"))
-    ax.plot(pts[on, 0], pts[on, 1], "o", color=_CONTACT_COLOR, ms=2)
-    _ground_lines(ax, ds, (cx - 0.05 * view, cx + view))
-    ax.set_xlim(cx - 0.05 * view, cx + view)
-    ax.set_ylim(cy - view, cy + view)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    ax.legend(loc="upper right", fontsize="small")
-    ax.set_title(f"Deformed mesh ×{scale:.3g} (grey: undeformed), {_title(ds)}", fontsize="medium")
-    return fig

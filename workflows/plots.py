@@ -18,12 +18,12 @@ from .case_plots import (
     draw_envelope,
     load_factor,
     plot_contact_pressure,
-    plot_deformed_mesh,
     plot_lining_forces,
     plot_surface_settlement,
     theta_axis,
 )
 from .case_plots import plot_interaction as plot_case_interaction
+from .field_plots import plot_contours, plot_deformed_mesh
 
 
 def plot_comparison(combined: xr.Dataset, variable: str = "contact_pressure") -> Figure:
@@ -53,6 +53,7 @@ PLOTS: dict[str, Callable[[xr.Dataset], Figure]] = {
     "interaction": plot_case_interaction,
     "surface_settlement": plot_surface_settlement,
     "deformed_mesh": plot_deformed_mesh,
+    "contours": plot_contours,
 }
 
 
@@ -98,39 +99,101 @@ def _case_colors(n: int) -> list:
     return [colormaps["viridis"](i / (n - 1)) for i in range(n)]
 
 
-def plot_contact_pressure_comparison(combined: xr.Dataset) -> Figure:
-    """Contact pressure (kPa) against theta for every case of a combined result."""
-    fig = Figure(figsize=(7, 4.5), layout="constrained")
-    ax = fig.add_subplot()
-    labels, colors = case_labels(combined), _case_colors(combined.sizes["case"])
-    for i in range(combined.sizes["case"]):
-        ax.plot(combined["theta"], combined["contact_pressure"].isel(case=i) / 1e3, lw=1.2, color=colors[i],
-                label=labels[i])
-    ax.set_ylabel("contact pressure λ (kPa)")
-    theta_axis(ax)
-    if combined.sizes["case"] <= _LEGEND_CASES:
-        ax.legend(fontsize="x-small")
-    ax.set_title(f"Contact pressure: {combined.sizes['case']} cases", fontsize="medium")
+class CaseColours:
+    """How a sweep's figures tell cases apart: coloured by one varied parameter (a colour bar
+    when it is a number, a legend when it is a choice) and faceted by a second one with at
+    most :data:`MAX_FACETS` values; by case (legend up to :data:`_LEGEND_CASES`) when no
+    parameter varies."""
+
+    def __init__(self, combined: xr.Dataset):
+        from matplotlib import colormaps
+        from matplotlib.colors import LogNorm, Normalize
+
+        n = combined.sizes["case"]
+        varied = [p for p in case_parameters(combined) if len(set(combined[p].values.tolist())) > 1]
+        numeric = [p for p in varied if np.issubdtype(combined[p].dtype, np.number)]
+        self.param = max(numeric, key=lambda p: np.unique(combined[p].values).size) if numeric else \
+            (varied[0] if varied else None)
+        self.facet = next((p for p in varied if p != self.param
+                           and len(set(combined[p].values.tolist())) <= MAX_FACETS), None)
+        self.labels = case_labels(combined)
+        self.norm = None
+        self.cmap = colormaps["viridis"]
+        if self.param is not None and self.param in numeric:
+            v = combined[self.param].values.astype(float)
+            log = bool(np.all(v > 0) and v.max() > 5 * v.min())
+            self.norm = (LogNorm if log else Normalize)(v.min(), v.max())
+            self.colors = [self.cmap(self.norm(x)) for x in v]
+            self.legend = False
+        elif self.param is not None:
+            categories = list(dict.fromkeys(combined[self.param].values.tolist()))
+            self.colors = [colormaps["tab10"](categories.index(x) % 10) for x in combined[self.param].values.tolist()]
+            self.labels = [f"{self.param}={x}" for x in combined[self.param].values.tolist()]
+            self.legend = True
+        else:
+            self.colors = _case_colors(n)
+            self.legend = n <= _LEGEND_CASES
+        self.facets: list[tuple[str | None, list[int]]] = [(None, list(range(n)))]
+        if self.facet is not None:
+            values = combined[self.facet].values.tolist()
+            self.facets = [(f"{self.facet} = {_format_value(v)}", [i for i in range(n) if values[i] == v])
+                           for v in dict.fromkeys(values)]
+
+    def finish(self, fig: Figure, axes) -> None:
+        """The colour bar (numeric colouring) or one legend of unique labels (otherwise)."""
+        from matplotlib.cm import ScalarMappable
+
+        if self.norm is not None:
+            bar = fig.colorbar(ScalarMappable(norm=self.norm, cmap=self.cmap), ax=axes, shrink=0.9)
+            bar.set_label(self.param, fontsize="small")
+        elif self.legend:
+            handles, labels = axes.flat[0].get_legend_handles_labels()
+            unique = dict(zip(labels, handles))
+            axes.flat[0].legend(unique.values(), unique.keys(), fontsize="x-small")
+
+
+#: Most values of a parameter that still facets a sweep's figures (one panel column each).
+MAX_FACETS = 4
+
+
+def _curves(combined: xr.Dataset, rows: tuple[tuple[str, str, float], ...], title: str) -> Figure:
+    """``rows`` of (variable, axis label, factor) against theta, one column per facet."""
+    colours = CaseColours(combined)
+    ncols = len(colours.facets)
+    fig = Figure(figsize=(5.2 * ncols + 1.8, 3.4 * len(rows) + 0.6), layout="constrained")
+    axes = fig.subplots(len(rows), ncols, sharex=True, sharey="row", squeeze=False)
+    for col, (facet, members) in enumerate(colours.facets):
+        for row, (name, label, factor) in enumerate(rows):
+            ax = axes[row, col]
+            for i in members:
+                ax.plot(combined["theta"], combined[name].isel(case=i) * factor, lw=1.1, color=colours.colors[i],
+                        label=colours.labels[i])
+            ax.axhline(0.0, color="0.5", lw=0.8)
+            theta_axis(ax)
+            if row < len(rows) - 1:
+                ax.set_xlabel("")
+            if col == 0:
+                ax.set_ylabel(label)
+            if facet and row == 0:
+                ax.set_title(facet, fontsize="small")
+    colours.finish(fig, axes)
+    by = f", colour: {colours.param}" if colours.param else ""
+    by += f", one column per {colours.facet}" if colours.facet else ""
+    fig.suptitle(f"{title}: {combined.sizes['case']} cases{by}", fontsize="medium")
     return fig
+
+
+def plot_contact_pressure_comparison(combined: xr.Dataset) -> Figure:
+    """Contact pressure (kPa) against theta for every case of a combined result, coloured by a
+    varied parameter (colour bar) and faceted by a second (:class:`CaseColours`)."""
+    return _curves(combined, (("contact_pressure", "contact pressure λ (kPa)", 1e-3),), "Contact pressure")
 
 
 def plot_lining_forces_comparison(combined: xr.Dataset) -> Figure:
-    """Thrust and moment against theta for every case of a combined result."""
-    fig = Figure(figsize=(7, 6), layout="constrained")
-    ax_n, ax_m = fig.subplots(2, 1, sharex=True)
-    labels, colors = case_labels(combined), _case_colors(combined.sizes["case"])
-    for ax, name, label in ((ax_n, "thrust", "thrust N (kN/m)"),
-                            (ax_m, "moment", "moment M (kN·m/m),\n+ = inner fibre compressed")):
-        for i in range(combined.sizes["case"]):
-            ax.plot(combined["theta"], combined[name].isel(case=i) / 1e3, lw=1.2, color=colors[i], label=labels[i])
-        ax.axhline(0.0, color="0.5", lw=0.8)
-        ax.set_ylabel(label)
-        theta_axis(ax)
-    ax_n.set_xlabel("")
-    if combined.sizes["case"] <= _LEGEND_CASES:
-        ax_n.legend(fontsize="x-small")
-    ax_n.set_title(f"Lining forces: {combined.sizes['case']} cases", fontsize="medium")
-    return fig
+    """Thrust and moment against theta for every case of a combined result, coloured and
+    faceted as :func:`plot_contact_pressure_comparison`."""
+    return _curves(combined, (("thrust", "thrust N (kN/m)", 1e-3),
+                              ("moment", "moment M (kN·m/m),\n+ = inner fibre compressed", 1e-3)), "Lining forces")
 
 
 def plot_interaction(cases: list[xr.Dataset], labels: list[str] | None = None, *,
@@ -233,6 +296,18 @@ def _scalar_panel(ax, combined: xr.Dataset, scalar: str, param: str, *, legend: 
     for i in range(combined.sizes["case"]):
         groups.setdefault(tuple(_format_value(combined[o].values[i]) for o in others), []).append(i)
     colors = _case_colors(len(groups))
+    by_value = len(groups) > 6 and len(others) == 1 and np.issubdtype(combined[others[0]].dtype, np.number)
+    if by_value:  # many lines of one other number: coloured by it, with a colour bar
+        from matplotlib import colormaps
+        from matplotlib.cm import ScalarMappable
+        from matplotlib.colors import Normalize
+
+        values = [float(key[0]) for key in groups]
+        norm = Normalize(min(values), max(values))
+        colors = [colormaps["viridis"](norm(v)) for v in values]
+        bar = ax.figure.colorbar(ScalarMappable(norm=norm, cmap="viridis"), ax=ax, pad=0.01)
+        bar.set_label(others[0], fontsize="xx-small")
+        bar.ax.tick_params(labelsize="xx-small")
     for color, (key, members) in zip(colors, groups.items()):
         members = sorted(members, key=lambda i: x[i])
         ax.plot(x[members], y[members], "o-", ms=3, lw=1, color=color,

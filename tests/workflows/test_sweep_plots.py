@@ -71,3 +71,47 @@ def test_interaction_draws_every_station_and_the_envelopes_when_present(envelope
 @pytest.mark.parametrize("name", sorted(SWEEP_PLOTS))
 def test_every_sweep_plot_draws_from_combined_results(name):
     assert SWEEP_PLOTS[name](combined_results()).axes
+
+
+def design_sweep() -> xr.Dataset:
+    """15 cases: 5 thicknesses x 3 lateral ratios (the README's design sweep shape)."""
+    thickness = np.repeat([0.2, 0.25, 0.3, 0.35, 0.4], 3)
+    ratio = np.tile([0.5, 0.7, 1.0], 5)
+    moment = 1e4 * (1 - ratio[:, None]) * thickness[:, None] * np.cos(np.radians(2 * THETA))[None, :]
+    return xr.Dataset(
+        {"contact_pressure": (("case", "theta"), 1e5 * (1 + thickness[:, None] + 0 * THETA), {"units": "Pa"}),
+         "thrust": (("case", "theta"), 4e5 + 0 * moment, {"units": "N m-1"}),
+         "moment": (("case", "theta"), moment, {"units": "N m m-1"})},
+        coords={"theta": THETA, "case_id": ("case", [f"{i:016x}" for i in range(15)]),
+                "lining_thickness": ("case", thickness), "loads_lateral_ratio": ("case", ratio)})
+
+
+@pytest.mark.parametrize("name", ["contact_pressure", "lining_forces"])
+def test_sweep_curves_coloured_by_a_parameter_with_a_colour_bar_and_faceted_by_another(name):
+    combined = design_sweep()
+    figure = SWEEP_PLOTS[name](combined)
+    bars = [ax for ax in figure.axes if ax.get_label() == "<colorbar>"]
+    assert len(bars) == 1 and bars[0].get_ylabel() == "lining_thickness"
+    panels = [ax for ax in figure.axes if ax.get_label() != "<colorbar>"]
+    assert len(panels) == (3 if name == "contact_pressure" else 6)  # one column per lateral ratio
+    assert [ax.get_title() for ax in panels[:3]] == [f"loads_lateral_ratio = {k}" for k in (0.5, 0.7, 1)]
+    lines = [line for line in panels[0].get_lines() if len(line.get_xdata()) == THETA.size]
+    assert len(lines) == 5  # the five thicknesses at K0 = 0.5
+    colours = [line.get_color() for line in lines]
+    assert len({tuple(c) for c in colours}) == 5  # thinnest to thickest: five colours of the bar
+    # a lining-thickness value maps to the same colour in every facet
+    other = [line for line in panels[1].get_lines() if len(line.get_xdata()) == THETA.size]
+    assert [tuple(line.get_color()) for line in other] == [tuple(c) for c in colours]
+
+
+def test_scalars_over_many_values_of_the_other_parameter_get_a_colour_bar():
+    n = 12
+    thickness = np.repeat(np.linspace(0.2, 0.42, n), 2)
+    young = np.tile([2e7, 5e7], n)
+    combined = xr.Dataset({"max_abs_moment": ("case", 1e4 * thickness * young / 2e7, {"units": "N m m-1"})},
+                          coords={"case_id": ("case", [f"{i:016x}" for i in range(2 * n)]),
+                                  "lining_thickness": ("case", thickness), "ground_young": ("case", young)})
+    figure = plot_scalars(combined)
+    bars = [ax for ax in figure.axes if ax.get_label() == "<colorbar>"]
+    # against ground_young: 12 lines, one per thickness, coloured by it
+    assert [bar.get_ylabel() for bar in bars] == ["lining_thickness"]

@@ -1,0 +1,184 @@
+"""Figures of the fields of one case on its mesh: contours near the tunnel and the deformed mesh.
+
+Displacements are node values (contoured on the mesh's triangles); stresses, pore pressure
+and plastic strain are face values (one colour per triangle, as the FE stores them). The
+view is the half plane x ≥ 0 (the model's symmetry) around the tunnel; the yielded zone, if
+the ground yields, is outlined on every panel. Units: mm, kPa.
+"""
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+from matplotlib.collections import LineCollection, PolyCollection
+from matplotlib.figure import Figure
+from matplotlib.tri import Triangulation
+
+from .case_plots import _CONTACT_COLOR, _ground_lines, _title
+
+#: Half width of the view around the tunnel, in excavation radii.
+VIEW_RADII = 2.6
+
+
+def _frame(ds: xr.Dataset) -> tuple[float, float, float]:
+    """``(centre y, excavation radius, view half width)`` of the tunnel (m)."""
+    cy = float(np.mean(ds["interface_y"].values[[0, -1]]))
+    radius = float(np.max(np.hypot(ds["interface_x"].values, ds["interface_y"].values - cy)))
+    return cy, radius, VIEW_RADII * radius
+
+
+def _window(ax, ds: xr.Dataset) -> None:
+    cy, _, view = _frame(ds)
+    ax.set_xlim(0.0, view)
+    ax.set_ylim(cy - view, min(cy + view, 0.0 + 0.02 * view))
+    ax.set_aspect("equal")
+    ax.tick_params(labelsize="x-small")
+
+
+def _near(ds: xr.Dataset) -> np.ndarray:
+    """Faces with a corner inside the view (their values set the colour range)."""
+    cy, _, view = _frame(ds)
+    tri = ds["face_nodes"].values.astype(np.int64)
+    x, y = ds["node_x"].values[tri], ds["node_y"].values[tri]
+    return np.any((x < 1.05 * view) & (np.abs(y - cy) < 1.05 * view), axis=1)
+
+
+def _yielded_outline(ax, ds: xr.Dataset, tri: np.ndarray, x: np.ndarray, y: np.ndarray) -> bool:
+    """Outline the yielded zone (edges between a plastic and an elastic face); True if drawn."""
+    if "plastic" not in ds or not np.any(ds["plastic"].values > 0):
+        return False
+    plastic = ds["plastic"].values > 0
+    edges = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+    owner = np.tile(np.arange(tri.shape[0]), 3)
+    keys, inverse, counts = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
+    state = np.zeros(keys.shape[0], dtype=int)
+    np.add.at(state, inverse.ravel(), plastic[owner].astype(int))
+    # an edge on the boundary of the zone: one plastic face beside it (of two, or of one at a boundary)
+    border = ((counts == 2) & (state == 1)) | ((counts == 1) & (state == 1))
+    segs = np.stack([np.column_stack([x[keys[border, 0]], y[keys[border, 0]]]),
+                     np.column_stack([x[keys[border, 1]], y[keys[border, 1]]])], axis=1)
+    ax.add_collection(LineCollection(segs, colors="magenta", linewidths=1.2, label="yielded zone"))
+    return True
+
+
+def _lining(ax, ds: xr.Dataset, tri: np.ndarray, x: np.ndarray, y: np.ndarray) -> None:
+    lining = tri[ds["body"].values == 1]
+    ax.add_collection(PolyCollection(np.stack([x[lining], y[lining]], axis=-1), facecolors="0.8",
+                                     edgecolors="none", label="lining"))
+
+
+def _panel(fig, ax, ds, tri, values, *, label: str, cmap: str, faces: bool, symmetric: bool = False) -> None:
+    x, y = ds["node_x"].values, ds["node_y"].values
+    ground = ds["body"].values == 0
+    near = _near(ds) & ground
+    shown = values[near] if faces else values[np.unique(tri[near])]
+    lo, hi = (float(np.min(shown)), float(np.max(shown))) if shown.size else (0.0, 1.0)
+    if symmetric:
+        top = max(abs(lo), abs(hi)) or 1.0
+        lo, hi = -top, top
+    elif hi <= lo:
+        hi = lo + (abs(lo) or 1.0) * 1e-6
+    levels = np.linspace(lo, hi, 13)
+    if faces:
+        art = ax.tripcolor(Triangulation(x, y, tri[ground]), facecolors=values[ground], cmap=cmap,
+                           vmin=lo, vmax=hi, shading="flat", rasterized=True)
+    else:
+        art = ax.tricontourf(Triangulation(x, y, tri[ground]), values, levels=levels, cmap=cmap, extend="both")
+    _lining(ax, ds, tri, x, y)
+    _yielded_outline(ax, ds, tri, x, y)
+    _ground_lines(ax, ds, (0.0, 1.0))
+    _window(ax, ds)
+    bar = fig.colorbar(art, ax=ax, shrink=0.85)
+    bar.ax.tick_params(labelsize="x-small")
+    ax.set_title(label, fontsize="small")
+
+
+def plot_contours(ds: xr.Dataset) -> Figure:
+    """Contours near the tunnel: displacement magnitude (mm), effective stresses σ'xx, σ'yy,
+    τxy (kPa, compression negative), and where the case has them pore pressure (kPa) and
+    equivalent plastic strain, the yielded zone outlined in magenta on every panel."""
+    tri = ds["face_nodes"].values.astype(np.int64)[:, :3]
+    stress = "effective_stress" if "effective_stress_xx" in ds else "stress"
+    panels = [("displacement", "|u| displacement magnitude (mm)", "viridis", False, False,
+               1e3 * np.hypot(ds["displacement_x"].values, ds["displacement_y"].values)),
+              (f"{stress}_xx", "σ'xx horizontal effective stress (kPa)", "plasma", True, False,
+               ds[f"{stress}_xx"].values / 1e3),
+              (f"{stress}_yy", "σ'yy vertical effective stress (kPa)", "plasma", True, False,
+               ds[f"{stress}_yy"].values / 1e3),
+              (f"{stress}_xy", "τxy shear stress (kPa)", "PuOr", True, True, ds[f"{stress}_xy"].values / 1e3)]
+    if "pore_pressure" in ds and np.any(ds["pore_pressure"].values != 0):
+        panels.append(("pore_pressure", "p pore pressure (kPa)", "Blues", True, False,
+                       ds["pore_pressure"].values / 1e3))
+    if "equivalent_plastic_strain" in ds and np.any(ds["plastic"].values > 0):
+        panels.append(("equivalent_plastic_strain", "ε̄p equivalent plastic strain (%)", "magma_r", True, False,
+                       100 * ds["equivalent_plastic_strain"].values))
+    ncols = 3 if len(panels) > 4 else 2
+    nrows = -(-len(panels) // ncols)
+    fig = Figure(figsize=(4.2 * ncols, 4.4 * nrows + 0.5), layout="constrained")
+    axes = fig.subplots(nrows, ncols, squeeze=False).ravel()
+    for ax in axes[len(panels):]:
+        ax.set_visible(False)
+    for ax, (_, label, cmap, faces, symmetric, values) in zip(axes, panels):
+        _panel(fig, ax, ds, tri, values, label=label, cmap=cmap, faces=faces, symmetric=symmetric)
+    for ax in axes[len(panels) - ncols:len(panels)]:
+        ax.set_xlabel("x (m)", fontsize="x-small")
+    yielded = "plastic" in ds and bool(np.any(ds["plastic"].values > 0))
+    fig.suptitle(f"Fields near the tunnel, {_title(ds)} (lining grey"
+                 + ("; yielded zone outlined in magenta" if yielded else "; the ground stays elastic")
+                 + "; stresses: compression negative)", fontsize="medium")
+    return fig
+
+
+def plot_deformed_mesh(ds: xr.Dataset, *, scale: float | None = None) -> Figure:
+    """The ground and lining near the tunnel deformed by scaled displacements, coloured by the
+    displacement magnitude (mm); the undeformed excavation boundary dashed, the contact zone red.
+
+    The lining's own deformation (its ovalization, the displacement less the ring's mean
+    translation) is what the eye should see, so by default the scale makes the largest of it
+    12 % of the radius; the translation is stated in the title.
+
+    Parameters
+    ----------
+    ds : a case result.
+    scale : displacement magnification (default as above).
+    """
+    x, y = ds["node_x"].values, ds["node_y"].values
+    ux, uy = ds["displacement_x"].values, ds["displacement_y"].values
+    tri = ds["face_nodes"].values.astype(np.int64)[:, :3]
+    body = ds["body"].values
+    cy, radius, view = _frame(ds)
+    ring = ds["lining_node"].values.astype(np.int64)
+    shift = np.array([0.0, float(np.mean(uy[ring]))])  # symmetric: no mean horizontal motion
+    own = float(np.max(np.hypot(ux[ring] - shift[0], uy[ring] - shift[1])))
+    if scale is None:
+        scale = 0.12 * radius / own if own > 0 else 1.0
+    xd, yd = x + scale * ux, y + scale * uy
+    magnitude = 1e3 * np.hypot(ux, uy)
+
+    fig = Figure(figsize=(6.4, 7), layout="constrained")
+    ax = fig.add_subplot()
+    ground = body == 0
+    art = ax.tripcolor(Triangulation(xd, yd, tri[ground]), magnitude, cmap="viridis", shading="gouraud",
+                       rasterized=True)
+    ax.triplot(Triangulation(xd, yd, tri[ground]), color="w", lw=0.15, alpha=0.5)
+    lining = tri[body == 1]
+    ax.add_collection(PolyCollection(np.stack([xd[lining], yd[lining]], axis=-1), facecolors="0.75",
+                                     edgecolors="0.45", linewidths=0.2, label="lining (deformed)"))
+    ix, iy = ds["interface_x"].values, ds["interface_y"].values
+    ax.plot(ix, iy, color="k", lw=1.0, ls="--", label="excavation boundary (undeformed)")
+    on = ds["in_contact"].values.astype(bool)
+    pts = np.column_stack([xd[ring], yd[ring]])
+    segs = [pts[i:i + 2] for i in range(len(pts) - 1) if on[i] and on[i + 1]]
+    ax.add_collection(LineCollection(segs, colors=_CONTACT_COLOR, linewidths=2.5, label="in contact"))
+    _yielded_outline(ax, ds, tri, xd, yd)
+    _ground_lines(ax, ds, (0.0, view))
+    ax.set_xlim(0.0, view)
+    ax.set_ylim(cy - view, cy + view)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    bar = fig.colorbar(art, ax=ax, shrink=0.8)
+    bar.set_label("displacement magnitude |u| (mm)", fontsize="small")
+    ax.legend(loc="upper right", fontsize="x-small")
+    ax.set_title(f"Deformed mesh ×{scale:.3g}, {_title(ds)}\nring translation {1e3 * shift[1]:+.3g} mm "
+                 f"(up +), ring deformation up to {1e3 * own:.3g} mm", fontsize="medium")
+    return fig
