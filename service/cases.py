@@ -13,7 +13,7 @@ from solver.spec import CaseSpec, content_id
 from workflows.plots import PLOTS
 from workflows.store import case_path
 
-from workflows.artifacts import render_plot
+from workflows.artifacts import render_plot, render_report
 from .errors import responses
 from .guards import check_capacity, require_token
 from .params import NETCDF, CaseId, Offset, jobs_of, not_found, not_ready
@@ -108,11 +108,29 @@ async def get_case_result(case_id: CaseId, request: Request) -> FileResponse:
     return FileResponse(path, media_type=NETCDF, filename=f"{case_id}.nc")
 
 
+@router.get("/{case_id}/report.pdf", response_class=FileResponse, responses={
+    200: {"content": {"application/pdf": {}}, "description": "the case's printable report, written once and cached"},
+    **responses(404, 409)})
+async def get_case_report(case_id: CaseId, request: Request) -> FileResponse:
+    """The printable report of a finished case: the design answer (PASS/FAIL), the results in
+    engineering units, the warnings, every input and every figure, on A4 pages."""
+    await _result_of_done_case(request, case_id)
+    jobs = jobs_of(request)
+    try:
+        path = await asyncio.to_thread(render_report, jobs.root, case_id)
+    except Exception:
+        if await jobs.recompute_broken(case_id):
+            raise not_ready(f"case {case_id}", "its stored result was missing or unreadable; "
+                                               "it is being recomputed") from None
+        raise
+    return FileResponse(path, media_type="application/pdf", filename=f"{case_id}.pdf")
+
+
 @router.get("/{case_id}/plots/{name}.png", response_class=FileResponse, responses={
     200: {"content": {"image/png": {}}, "description": "the figure, rendered once and cached"},
     **responses(404, 409)})
 async def get_case_plot(case_id: CaseId, name: PlotName, request: Request) -> FileResponse:
-    """A figure of a finished case: ``contact_pressure``, ``lining_forces`` or ``deformed_mesh``."""
+    """A figure of a finished case (one of :data:`workflows.plots.PLOTS`)."""
     await _result_of_done_case(request, case_id)
     jobs = jobs_of(request)
     try:

@@ -51,6 +51,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("case_id", metavar="CASE_ID", help="a case id or a unique prefix of one (4+ hex digits)")
     results(p)
 
+    p = sub.add_parser("report", help="write a stored case's printable report (PDF)")
+    p.add_argument("case_id", metavar="CASE_ID", help="a case id or a unique prefix of one (4+ hex digits)")
+    p.add_argument("-o", "--output", default=None, metavar="FILE.pdf",
+                   help="where to write it (default: CASE_ID.pdf in the current folder)")
+    results(p)
+
     p = sub.add_parser("list", help="list the cases of the result store (done and failed) as a table")
     results(p)
 
@@ -89,6 +95,8 @@ def main(argv: list[str] | None = None) -> int:
                                           progress=not args.no_progress, retry_failed=args.retry_failed)
         if args.command == "list":
             return commands.list_command(args.results)
+        if args.command == "report":
+            return commands.report_command(args.case_id, args.results, output=args.output)
         return commands.show_command(args.case_id, args.results)
     except commands.InputError as exc:
         print(f"tunnel-contact: error: {exc}", file=sys.stderr)

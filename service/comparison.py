@@ -36,7 +36,7 @@ from pydantic import BaseModel, Field
 
 from solver.dataset import SCALARS
 from workflows.parameters import flat_parameters, parameter_attrs, varying_parameters
-from workflows.plots import display_unit
+from workflows.units import display_unit
 
 from .results import non_finite_text
 from .store import JobStore, SweepRecord
@@ -78,7 +78,7 @@ class ComparisonTable(BaseModel):
 def scalar_column(name: str) -> Column:
     """The column of result scalar ``name`` (units from the contract, names from the solver)."""
     units, long_name = SCALARS.get(name, ("", name.replace("_", " ")))
-    shown, factor = display_unit(units)
+    shown, factor = display_unit(units, name)
     return Column(name=name, kind="scalar", units=units, long_name=long_name, display_unit=shown,
                   display_factor=factor)
 

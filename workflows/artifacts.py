@@ -68,6 +68,23 @@ def render_plot(root: StoreLike, case_id: str, name: str, ds=None) -> Path:
     return target
 
 
+def render_report(root: StoreLike, case_id: str, ds=None) -> Path:
+    """The cached PDF report of a stored case (:func:`workflows.report.case_report`), written
+    first if missing; kept beside the case's plots (removed with them when the case is)."""
+    from .report import case_report
+
+    store = as_store(root)
+    target = store.plot_dir(case_id) / "report.pdf"
+    if target.is_file():
+        return target
+    with _BUILD_LOCK:
+        if not target.is_file():
+            pdf = case_report(store.open_case(case_id) if ds is None else ds)
+            write_atomically(target, lambda tmp: Path(tmp).write_bytes(pdf))
+            logger.info("wrote the report of case %s", case_id)
+    return target
+
+
 def combined_path(root: StoreLike, sweep_id: str, case_ids: Sequence[str]) -> Path:
     """Where the combined file of ``sweep_id`` over exactly ``case_ids`` is kept."""
     return as_store(root).combined_path(sweep_id, case_ids)

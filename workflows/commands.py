@@ -28,6 +28,7 @@ from .parameters import flat_parameters, parameter_attrs, varying_parameters
 from .store import ResultStore, StoreLike, as_store, case_warnings, check_case_id
 from .summary import summarize
 from .sweep import Sweep, SweepError, run_sweep
+from .units import DIAGNOSTICS, shown_value
 
 
 #: Columns of the comparison table: (summary scalar, header, unit, divisor to the shown unit).
@@ -195,17 +196,9 @@ def show_command(case_id: str, results: str, *, out: TextIO = sys.stdout) -> int
 
     store = ResultStore(results)
     case_id = resolve_case_id(store, case_id)
-    if not store.is_stored(case_id):
-        error = store.read_error(case_id)
-        if error is None:
-            raise InputError(f"case {case_id} is not in {results}")
-        print(f"case {case_id} failed: {error['error']}", file=out)
+    ds = _open_stored(store, case_id, results, out)
+    if ds is None:
         return 1
-    try:
-        ds = store.open_case(case_id)
-    except Exception as exc:  # truncated or corrupted: say so, and how to get it back
-        raise InputError(f"the stored result of case {case_id} cannot be read ({type(exc).__name__}: {exc}); "
-                         "tunnel-contact run (or sweep) with its case recomputes it") from None
     params = flat_parameters(ds.attrs["case_spec"])
     print(f"case {case_id}", file=out)
     print("\n".join(f"  {k} = {_with_unit(v, parameter_attrs(k, numeric=is_number(v)).get('units'))}"
@@ -220,16 +213,52 @@ def show_command(case_id: str, results: str, *, out: TextIO = sys.stdout) -> int
     return 0
 
 
-def format_summary(summary: dict[str, float]) -> str:
-    """The scalars of one case, one ``name = value unit`` per line.
+def _open_stored(store: ResultStore, case_id: str, results: str, out: TextIO) -> xr.Dataset | None:
+    """The stored result of ``case_id`` (None, with the failure printed, if the case failed)."""
+    if not store.is_stored(case_id):
+        error = store.read_error(case_id)
+        if error is None:
+            raise InputError(f"case {case_id} is not in {results}")
+        print(f"case {case_id} failed: {error['error']}", file=out)
+        return None
+    try:
+        return store.open_case(case_id)
+    except Exception as exc:  # truncated or corrupted: say so, and how to get it back
+        raise InputError(f"the stored result of case {case_id} cannot be read ({type(exc).__name__}: {exc}); "
+                         "tunnel-contact run (or sweep) with its case recomputes it") from None
 
-    Values in the SI units the solver writes them in (:data:`solver.dataset.SCALARS`); no
-    unit is shown for a dimensionless (``1``) or unknown one; non-finite values as
-    ``inf``/``nan``.
+
+def report_command(case_id: str, results: str, *, output: str | None = None, out: TextIO = sys.stdout) -> int:
+    """Write the PDF report of a stored case (``case_id`` may be a unique prefix) to ``output``
+    (default ``<case_id>.pdf``); 1 if the case failed."""
+    from .artifacts import render_report
+
+    store = ResultStore(results)
+    case_id = resolve_case_id(store, case_id)
+    ds = _open_stored(store, case_id, results, out)
+    if ds is None:
+        return 1
+    target = Path(output or f"{case_id}.pdf")
+    if target.is_dir():
+        target = target / f"{case_id}.pdf"
+    import shutil
+
+    shutil.copyfile(render_report(store, case_id, ds), target)
+    print(f"wrote {target} (report of case {case_id})", file=out)
+    return 0
+
+
+def format_summary(summary: dict[str, float]) -> str:
+    """The scalars of one case, one ``name = value unit`` per line, in the engineering units
+    of every table and page (:mod:`workflows.units`: kPa, kN/m, kN·m/m, mm, %), the
+    solver's diagnostics after a blank line; non-finite values as ``inf``/``nan``.
     """
     width = max((len(k) for k in summary), default=0)
-    return "\n".join(f"  {k:<{width}} = {_with_unit(_summary_value(v), SCALARS.get(k, (None,))[0])}"
-                     for k, v in summary.items())
+    results = [k for k in summary if k not in DIAGNOSTICS]
+    lines = [f"  {k:<{width}} = {shown_value(summary[k], SCALARS.get(k, (None,))[0], k, 6)}" for k in results]
+    lines += ["  solver:"] + [f"  {k:<{width}} = {shown_value(summary[k], SCALARS.get(k, (None,))[0], k, 6)}"
+                              for k in summary if k in DIAGNOSTICS]
+    return "\n".join(lines)
 
 
 def _unit_label(units: str | None) -> str:
@@ -240,13 +269,6 @@ def _unit_label(units: str | None) -> str:
 def _with_unit(value: Any, units: str | None) -> str:
     label = _unit_label(units)
     return f"{value} {label}" if label else str(value)
-
-
-def _summary_value(value: Any) -> str:
-    try:
-        return f"{float(value):.6g}"
-    except (TypeError, ValueError):
-        return "-"
 
 
 def utilization_report(ds: xr.Dataset) -> str:

@@ -24,6 +24,7 @@ from .case_plots import (
 )
 from .case_plots import plot_interaction as plot_case_interaction
 from .field_plots import plot_contours, plot_deformed_mesh
+from .units import DIAGNOSTICS, display_unit
 
 
 def plot_comparison(combined: xr.Dataset, variable: str = "contact_pressure") -> Figure:
@@ -59,20 +60,8 @@ PLOTS: dict[str, Callable[[xr.Dataset], Figure]] = {
 
 # -- figures of a sweep (many cases) ------------------------------------------------------
 
-#: CF units of the results -> (unit shown to people, factor from SI).
-DISPLAY_UNITS: dict[str, tuple[str, float]] = {
-    "Pa": ("kPa", 1e-3), "N m-1": ("kN/m", 1e-3), "N m m-1": ("kN·m/m", 1e-3),
-    "m": ("mm", 1e3), "degree": ("°", 1.0), "s": ("s", 1.0), "1": ("", 1.0),
-}
-#: Scalars that describe the solve rather than the tunnel.
-_DIAGNOSTICS = ("bolt_theta", "bolt_trials", "iterations", "converged", "kkt_residual", "solve_seconds")
 #: Most cases for which a figure still gets a legend (more: colour only).
 _LEGEND_CASES = 10
-
-
-def display_unit(units: str) -> tuple[str, float]:
-    """``(unit label, factor)`` to show a quantity stored in CF ``units`` (e.g. Pa -> kPa, 1e-3)."""
-    return DISPLAY_UNITS.get(units, (units, 1.0))
 
 
 def case_parameters(combined: xr.Dataset) -> list[str]:
@@ -288,7 +277,7 @@ def _parameter_axis(values: np.ndarray) -> tuple[np.ndarray, list[str] | None]:
 def _scalar_panel(ax, combined: xr.Dataset, scalar: str, param: str, *, legend: bool) -> None:
     """``scalar`` against ``param``; cases sharing the other varied parameters joined by a line."""
     params = case_parameters(combined)
-    unit, factor = display_unit(combined[scalar].attrs.get("units", ""))
+    unit, factor = display_unit(combined[scalar].attrs.get("units", ""), scalar)
     y = combined[scalar].values.astype(float) * factor
     x, categories = _parameter_axis(combined[param].values)
     others = [p for p in params if p != param]
@@ -346,7 +335,7 @@ def plot_scalars(combined: xr.Dataset, scalars: list[str] | None = None) -> Figu
     if scalars is None:
         scalars = [str(n) for n, v in combined.data_vars.items()
                    if v.dims == ("case",) and v.dtype.kind in "biuf"]
-        scalars.sort(key=lambda name: name in _DIAGNOSTICS)
+        scalars.sort(key=lambda name: name in DIAGNOSTICS)
     constant = [s for s in scalars if np.allclose(combined[s].values.astype(float),
                                                   float(combined[s].values[0]), rtol=1e-9, atol=0)]
     panels = [(s, p) for s in scalars if s not in constant for p in params]

@@ -7,6 +7,8 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
+
 import pytest
 import xarray as xr
 
@@ -59,7 +61,7 @@ def test_openapi_lists_every_endpoint_with_response_models(client):
     schema = client.get("/openapi.json").json()
     assert set(schema["paths"]) == {
         "/cases", "/cases/{case_id}", "/cases/{case_id}/result.nc", "/cases/{case_id}/plots/{name}.png",
-        "/sweeps", "/sweeps/{sweep_id}", "/sweeps/{sweep_id}/result.nc", "/health",
+        "/cases/{case_id}/report.pdf", "/sweeps", "/sweeps/{sweep_id}", "/sweeps/{sweep_id}/result.nc", "/health",
         "/sweeps/{sweep_id}/table", "/sweeps/{sweep_id}/summary.csv", "/sweeps/{sweep_id}/summary.xlsx", "/sweeps/{sweep_id}/plots/{name}.png",
         "/sweeps/{sweep_id}/cancel"}
     post = schema["paths"]["/cases"]["post"]
@@ -170,7 +172,8 @@ def test_result_file_of_a_done_case(client, done_case, tmp_path):
 def test_result_and_plots_of_an_unfinished_case_are_409(client, app):
     case_id = plant(app, coarse_case(loads={"surface_load": 7.77e4}))
     assert client.get(f"/cases/{case_id}").json()["status"] == "queued"
-    for url in (f"/cases/{case_id}/result.nc", f"/cases/{case_id}/plots/contact_pressure.png"):
+    for url in (f"/cases/{case_id}/result.nc", f"/cases/{case_id}/plots/contact_pressure.png",
+                f"/cases/{case_id}/report.pdf"):
         response = client.get(url)
         assert response.status_code == 409
         assert "queued" in response.json()["detail"]
@@ -187,6 +190,34 @@ def test_plots_are_png_rendered_once_and_cached(client, app, done_case, name):
     stamp = cached.stat().st_mtime_ns
     assert client.get(url).content == response.content
     assert cached.stat().st_mtime_ns == stamp
+
+
+def test_report_is_a_printable_pdf_of_every_figure_rendered_once(client, app, done_case):
+    """The report read as a person would: its pages rendered to images, none blank, the first
+    stating the verdict the summary gives (pdfium renders, pdfium extracts the text)."""
+    import pypdfium2 as pdfium
+
+    url = f"/cases/{done_case['id']}/report.pdf"
+    response = client.get(url)
+    assert response.status_code == 200 and response.headers["content-type"] == "application/pdf"
+    assert response.content.startswith(b"%PDF")
+    cached = app.state.jobs.root / "plots" / done_case["id"] / "report.pdf"
+    stamp = cached.stat().st_mtime_ns
+    assert client.get(url).content == response.content and cached.stat().st_mtime_ns == stamp
+    pdf = pdfium.PdfDocument(response.content)
+    assert len(pdf) == 2 + len(PLOTS)
+    for i in range(len(pdf)):
+        pixels = np.asarray(pdf[i].render(scale=0.5).to_pil().convert("L"), dtype=float)
+        inked = (pixels < 200).mean()
+        assert 0.01 < inked < 0.6, f"page {i + 1} looks blank or black ({inked:.1%} inked)"
+    first = pdf[0].get_textpage().get_text_range()
+    eta = done_case["summary"]["max_utilization"]
+    assert ("PASS" if eta <= 1 else "FAIL") in first and f"{eta:.3g}" in first
+    assert "max_thrust" in first and "kN/m" in first
+    assert "ground_young" in pdf[1].get_textpage().get_text_range()
+    for i, name in enumerate(PLOTS, start=2):  # a page per figure, named
+        assert name.replace("_", " ") in pdf[i].get_textpage().get_text_range()
+    pdf.close()
 
 
 def test_unknown_plot_name_is_404(client, done_case):

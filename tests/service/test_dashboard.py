@@ -196,6 +196,9 @@ def test_submit_a_sweep_watch_it_sort_it_open_a_case_download_the_csv(service, b
                timeout=60, what="the case plots to load")
     assert browser.find_element(By.ID, "summary").text.count("\n") >= 10
     assert browser.find_element(By.ID, "download-nc").get_attribute("href").endswith(f"/cases/{case_id}/result.nc")
+    report = browser.find_element(By.ID, "download-report").get_attribute("href")
+    assert report.endswith(f"/cases/{case_id}/report.pdf")
+    assert httpx.get(report, timeout=120).content.startswith(b"%PDF")
     spec = json.loads(browser.find_element(By.ID, "case-json").text)
     assert spec["mesh"]["interface_size"] == 0.2
     # the design answer is stated: PASS or FAIL with the utilization, as the summary has it
@@ -207,6 +210,10 @@ def test_submit_a_sweep_watch_it_sort_it_open_a_case_download_the_csv(service, b
     eta = float(cells["max_utilization"].get_attribute("data-value"))
     assert word == ("PASS" if eta <= 1 else "FAIL")
     assert ("over" in cells["max_utilization"].get_attribute("class")) == (eta > 1)
+    # the solver's diagnostics in their own table, not among the engineering results
+    solver_rows = {td.find_element(By.XPATH, "following-sibling::td[2]").text for td in
+                   browser.find_elements(By.CSS_SELECTOR, "#diagnostics td.num")}
+    assert {"kkt_residual", "iterations", "solve_seconds"} <= solver_rows and not solver_rows & set(cells)
     screenshot(browser, tmp_path / "case.png")
 
     browser.get(url + "/")

@@ -95,3 +95,14 @@ def test_operator_errors_are_one_line_not_a_traceback(tmp_path, capsys):
     assert main(["run", str(tmp_path / "case.json"), "--results", str(tmp_path / "afile")]) == 1
     err = capsys.readouterr().err
     assert err.startswith("tunnel-contact: error:") and "Traceback" not in err
+
+
+def test_report_command_writes_the_pdf_of_a_case_by_id_prefix(tmp_path):
+    results = str(tmp_path / "results")
+    (tmp_path / "case.json").write_text(json.dumps({"mesh": {"interface_size": 0.2, "far_size": 6.0}}))
+    assert main(["run", str(tmp_path / "case.json"), "--results", results]) == 0
+    case_id = ResultStore(results).case_ids()[0]
+    target = tmp_path / "out.pdf"
+    assert main(["report", case_id[:6], "--results", results, "-o", str(target)]) == 0
+    assert target.read_bytes().startswith(b"%PDF") and target.stat().st_size > 50_000
+    assert main(["report", "ffff", "--results", results]) == 2  # no such case: an input error

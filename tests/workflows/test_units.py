@@ -20,6 +20,7 @@ from workflows.combine import combine_files
 from workflows.commands import comparison_table as cli_table
 from workflows.commands import run_command, show_command
 from workflows.parameters import LAYER_ATTRS, PARAMETER_ATTRS, flat_name, parameter_attrs, parameter_paths
+from workflows.units import display_unit
 
 COARSE = {"mesh": {"interface_size": 0.25, "far_size": 8.0}}
 
@@ -155,18 +156,22 @@ def test_run_and_show_print_each_scalar_with_its_unit(tmp_path):
     case_id = CaseSpec.model_validate({**COARSE, "geometry": {"gap": 0.005}}).case_id
     ds = ResultStore(results).open_case(case_id)
     ran = parse(out.getvalue())
-    assert ran["max_contact_pressure"][1] == "Pa" and ran["crown_settlement"][1] == "m"
-    assert ran["contact_extent"][1] == ds["contact_extent"].attrs["units"] == "degree"
+    # results in the engineering units of the sweep table and the pages, the same in run and show
+    assert ran["max_contact_pressure"][1] == "kPa" and ran["crown_settlement"][1] == "mm"
+    assert ran["max_thrust"][1] == "kN/m" and ran["max_abs_moment"][1] == "kN·m/m"
+    assert ran["ground_loss"][1] == "%" and ran["contact_extent"][1] == "°"
     assert ran["converged"][1] == ""  # dimensionless: no unit
     for name, (value, unit) in ran.items():
-        assert float(value) == pytest.approx(float(ds[name]), rel=1e-5, nan_ok=True)
-        assert unit == ("" if ds[name].attrs["units"] == "1" else ds[name].attrs["units"])
+        expected, factor = display_unit(ds[name].attrs["units"], name)
+        assert unit == expected
+        assert float(value) == pytest.approx(float(ds[name]) * factor, rel=1e-5, nan_ok=True)
+    assert out.getvalue().index("solver:") > out.getvalue().index("max_utilization")  # diagnostics apart
 
     out = io.StringIO()
     assert show_command(case_id, results, out=out) == 0
     shown = parse(out.getvalue())
     line = next(l for l in out.getvalue().splitlines() if l.strip().startswith("max_contact_pressure"))
-    assert line.endswith(" Pa")
+    assert line.endswith(" kPa")
     assert {k: shown[k] for k in ran} == ran
     assert shown["geometry_gap"] == ("0.005", "m") and shown["ground_young"][1] == "Pa"
     assert shown["interface_model"] == ("frictionless", "")

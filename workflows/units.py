@@ -1,0 +1,57 @@
+"""The units people read: results stored in SI (CF ``units``) are shown in engineering units
+(kPa, kN/m, kN·m/m, mm) by every table, page, plot and workbook, through one table here.
+
+Inputs keep the units of the case JSON (SPEC §1: SI); results are shown as below.
+"""
+from __future__ import annotations
+
+import math
+
+#: CF units of the results -> (unit shown to people, factor from SI).
+DISPLAY_UNITS: dict[str, tuple[str, float]] = {
+    "Pa": ("kPa", 1e-3), "N m-1": ("kN/m", 1e-3), "N m m-1": ("kN·m/m", 1e-3),
+    "m": ("mm", 1e3), "degree": ("°", 1.0), "s": ("s", 1.0), "1": ("", 1.0),
+    "m2": ("m²", 1.0), "m3 s-1": ("L/s per m", 1e3),
+}
+#: Scalars that describe the solve rather than the tunnel (shown apart from the results).
+DIAGNOSTICS = ("bolt_theta", "bolt_trials", "iterations", "converged", "kkt_residual", "solve_seconds")
+#: Dimensionless results shown in per cent.
+PERCENT = ("ground_loss", "volume_loss")
+#: Lengths read in metres (sizes of zones), not millimetres (displacements).
+METRES = ("max_plastic_extent",)
+
+
+def display_unit(units: str, name: str | None = None) -> tuple[str, float]:
+    """``(unit label, factor)`` to show a quantity stored in CF ``units`` (e.g. Pa -> kPa, 1e-3);
+    ``name`` lets a dimensionless ratio be shown in per cent."""
+    if name in PERCENT:
+        return "%", 100.0
+    if name in METRES:
+        return "m", 1.0
+    return DISPLAY_UNITS.get(units, (units, 1.0))
+
+
+def shown_value(value, units: str | None, name: str | None = None, digits: int = 4) -> str:
+    """``value`` in its display unit with ``digits`` significant digits and the unit
+    (``"624.3 kN/m"``); ``-`` when missing or NaN, ``inf`` when infinite."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return "-"
+    unit, factor = display_unit(units or "", name)
+    if math.isnan(number):
+        return "-"
+    text = f"{number * factor:.{digits}g}" if math.isfinite(number) else ("inf" if number > 0 else "-inf")
+    return f"{text} {unit}" if unit else text
+
+
+def input_unit(name: str, units: str | None) -> tuple[str, float]:
+    """``(unit label, factor from SI)`` in which people read and type input ``name`` (a flat
+    parameter name, e.g. ``ground_young``): moduli and concrete/steel strengths in MPa, other
+    stresses in kPa, reinforcement in cm²/m; everything else as stored."""
+    if units == "Pa":
+        return ("MPa", 1e-6) if name.endswith("young") or name.startswith("design_") else ("kPa", 1e-3)
+    if units == "Pa m-1":
+        return "MPa/m", 1e-6
+    return {"m2 m-1": ("cm²/m", 1e4), "kg m-3": ("kg/m³", 1.0), "m s-2": ("m/s²", 1.0), "m s-1": ("m/s", 1.0),
+            "degree": ("°", 1.0), "1": ("", 1.0)}.get(units or "", (units or "", 1.0))
