@@ -25,6 +25,7 @@ from workflows.units import DIAGNOSTICS
 
 from . import cases, studies
 from .comparison import comparison_table, ordered_scalars, scalar_column, shown
+from .form import case_form
 from .params import CaseId, SweepId, jobs_of, sweep_or_404
 from .schemas import SweepStatus
 
@@ -128,5 +129,5 @@ async def case_page(case_id: CaseId, request: Request) -> HTMLResponse:
 
 @router.get("/ui/submit", response_class=HTMLResponse)
 async def submit_page(request: Request) -> HTMLResponse:
-    return await _render(request, "submit.html", example_sweep=json.dumps(EXAMPLE_SWEEP, indent=2),
+    return await _render(request, "submit.html", form=case_form(), example_sweep=json.dumps(EXAMPLE_SWEEP, indent=2),
                    example_case=json.dumps(EXAMPLE_CASE, indent=2))

@@ -158,21 +158,56 @@
     const examples = JSON.parse(document.getElementById("examples").textContent);
     token.value = TC.token();
     token.addEventListener("change", () => localStorage.setItem("tunnel-contact-token", token.value));
+    const fields = document.getElementById("case-fields");
+    const jsonField = document.getElementById("json-field");
+    const showKind = () => {
+      const byForm = form.elements.kind.value === "form";
+      fields.hidden = !byForm;
+      jsonField.hidden = byForm;
+    };
+    form.addEventListener("change", (event) => { if (event.target.name === "kind") showKind(); });
     form.addEventListener("click", (event) => {
       const which = event.target.dataset.example;
       if (!which) return;
       text.value = examples[which];
       form.elements.kind.value = which === "case" ? "cases" : "sweeps";
+      showKind();
     });
+    showKind();
+    // the form's case as JSON in SI: typed value x factor; a unit weight (factor 0) -> density
+    const formCase = () => {
+      const inputs = [...fields.querySelectorAll("[data-path]")];
+      const gravityInput = inputs.find((i) => i.dataset.path === "loads.gravity");
+      const gravity = gravityInput ? Number(gravityInput.value) : 9.81;
+      const body = {};
+      for (const input of inputs) {
+        const raw = input.value.trim();
+        if (raw === "") continue;
+        const factor = Number(input.dataset.factor);
+        let value = raw;
+        if (input.tagName !== "SELECT") {
+          const number = Number(raw.replace(",", "."));
+          // not a number: sent as typed, so the service names the field and the reason
+          value = Number.isFinite(number) ? (factor === 0 ? number * 1000 / gravity : number * factor) : raw;
+        }
+        const parts = input.dataset.path.split(".");
+        let node = body;
+        for (const part of parts.slice(0, -1)) node = node[part] = node[part] || {};
+        node[parts[parts.length - 1]] = value;
+      }
+      return JSON.stringify(body);
+    };
     form.addEventListener("submit", async (event) => {
       event.preventDefault();
-      const kind = form.elements.kind.value;
+      const byForm = form.elements.kind.value === "form";
+      const kind = byForm ? "cases" : form.elements.kind.value;
+      for (const marked of fields.querySelectorAll(".invalid")) marked.classList.remove("invalid");
       list.replaceChildren();
       errors.hidden = true;
       message.textContent = "submitting…";
       let response;
       try {
-        response = await TC.post("/" + kind, text.value);
+        response = await TC.post("/" + kind, byForm ? formCase() : text.value);
       } catch (err) {
         message.textContent = "the service did not answer: " + err;
         return;
@@ -193,6 +228,8 @@
         li.dataset.field = e.field;
         li.append(field, ": " + e.reason);
         list.append(li);
+        const input = fields.querySelector(`[data-path="${e.field}"]`);
+        if (byForm && input) input.classList.add("invalid");
       }
       errors.hidden = false;
     });

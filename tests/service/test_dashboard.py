@@ -120,6 +120,7 @@ def test_submit_a_sweep_watch_it_sort_it_open_a_case_download_the_csv(service, b
     browser.find_element(By.LINK_TEXT, "Submit").click()
     sweep = {"name": "browser", "base": SMALL, "mode": "grid",
              "vary": {"lining.thickness": [0.2, 0.3], "ground.young": [2e7, 5e7]}}
+    browser.find_element(By.CSS_SELECTOR, "input[name=kind][value=sweeps]").click()
     text = browser.find_element(By.ID, "body")
     text.clear()
     text.send_keys(json.dumps(sweep))
@@ -311,3 +312,44 @@ def test_cancel_keeps_queued_cases_from_running_and_they_can_be_submitted_again(
                what="the list to show the sweep finished")
     assert browser.execute_script("return window.__marker") == "same page"
     assert all(case_path(results, c).exists() for c in ids)
+
+
+def test_the_form_posts_a_case_typed_in_engineering_units(service, browser, tmp_path):
+    """MPa, kN/m³, mm, cm²/m typed in the labelled form arrive in the case as SI; a refused
+    value is marked on its own input."""
+    url, _ = service
+    browser.get(url + "/ui/submit")
+    assert browser.find_element(By.ID, "case-fields").is_displayed()  # the form is the default
+    assert not browser.find_element(By.ID, "body").is_displayed()
+
+    def field(path):
+        return browser.find_element(By.CSS_SELECTOR, f"[data-path='{path}']")
+
+    # the defaults shown in the form's units
+    assert field("ground.young").get_attribute("value") == "50"  # MPa
+    assert field("ground.density").get_attribute("value") == "19.62"  # kN/m³ = 2000 kg/m³ × 9.81
+    label = field("ground.young").find_element(By.XPATH, "..").text
+    assert "MPa" in label
+    for path, value in (("ground.young", "80"), ("ground.density", "20"), ("geometry.gap", "2"),
+                        ("design.reinforcement_area", "10"), ("loads.surface_load", "50"),
+                        ("mesh.interface_size", "0.25")):
+        field(path).clear()
+        field(path).send_keys(value)
+    browser.find_element(By.ID, "submit").click()
+    wait_until(lambda: "/ui/cases/" in browser.current_url, timeout=20, what="the case page")
+    case_id = browser.current_url.rsplit("/", 1)[1]
+    spec = httpx.get(f"{url}/cases/{case_id}").json()["spec"]
+    assert spec["ground"]["young"] == pytest.approx(8.0e7)
+    assert spec["ground"]["density"] == pytest.approx(20e3 / 9.81)
+    assert spec["geometry"]["gap"] == pytest.approx(0.002)
+    assert spec["design"]["reinforcement_area"] == pytest.approx(1.0e-3)
+    assert spec["loads"]["surface_load"] == pytest.approx(5.0e4)
+
+    browser.get(url + "/ui/submit")
+    field("geometry.thickness").clear()
+    field("geometry.thickness").send_keys("-0.3")
+    browser.find_element(By.ID, "submit").click()
+    wait_until(lambda: "invalid" in field("geometry.thickness").get_attribute("class"), timeout=20,
+               what="the refused field marked")
+    assert browser.current_url.endswith("/ui/submit")
+    screenshot(browser, tmp_path / "submit-form-error.png")
