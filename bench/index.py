@@ -50,7 +50,7 @@ def add_copies(store, bases, start: int, stop: int) -> float:
     import netCDF4
 
     from solver import CaseSpec
-    from workflows.store import file_key
+    from workflows.result_store import file_key
 
     sources = [store.case_path(ds.attrs["case_id"]) for ds in bases]
     entry_seconds = 0.0

@@ -26,7 +26,7 @@ def _warm_up() -> None:
     first netCDF write (xarray finds its backends and HDF5 starts up: about 0.4 s once
     per process) by storing one coarse case into a throw-away folder."""
     import solver
-    from workflows.store import ResultStore
+    from workflows.result_store import ResultStore
 
     with tempfile.TemporaryDirectory(prefix="bench-warm-up-") as root:
         ResultStore(root).solve_and_store(
@@ -89,7 +89,7 @@ def _store_cases(n: int) -> list[float]:
     """Seconds to solve and store each of ``n`` default cases (K0 varied) on one shared model,
     the first (which builds the model) excluded."""
     from solver import CaseSpec
-    from workflows.store import ResultStore
+    from workflows.result_store import ResultStore
 
     seconds = []
     with tempfile.TemporaryDirectory(prefix="bench-per-case-") as root:

@@ -21,7 +21,7 @@ from .errors import http_error_handler, overflow_handler, request_validation_han
 from .guards import BodyLimitMiddleware, openapi_auth_as_configured
 from .jobs import Dispatcher
 from .settings import Settings, get_settings
-from .store import JobStore
+from .job_records import JobStore
 
 logger = logging.getLogger(__name__)
 

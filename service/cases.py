@@ -11,7 +11,7 @@ from fastapi.responses import FileResponse
 
 from solver.spec import CaseSpec, content_id
 from workflows.plots import PLOTS
-from workflows.store import case_path
+from workflows.result_store import as_store
 
 from workflows.artifacts import render_plot, render_report
 from .errors import responses
@@ -96,7 +96,7 @@ async def _result_of_done_case(request: Request, case_id: str) -> Path:
         raise not_ready(f"case {case_id}", record.status)
     if await jobs.recompute_broken(case_id):
         raise not_ready(f"case {case_id}", "its stored result was missing or unreadable; it is being recomputed")
-    return case_path(jobs.root, case_id)
+    return as_store(jobs.root).case_path(case_id)
 
 
 @router.get("/{case_id}/result.nc", response_class=FileResponse, responses={

@@ -39,7 +39,7 @@ from workflows.parameters import flat_parameters, parameter_attrs, varying_param
 from workflows.units import display_unit
 
 from .results import non_finite_text
-from .store import JobStore, SweepRecord
+from .job_records import JobStore, SweepRecord
 
 #: Scalars of SPEC §3 in the contract's order; units and long names are the solver's
 #: (:data:`solver.dataset.SCALARS`).

@@ -32,6 +32,7 @@ handled by the scheduler (the task is rescheduled, the record stays ``running``)
 from __future__ import annotations
 
 import asyncio
+import json
 import logging
 import sqlite3
 from pathlib import Path
@@ -44,11 +45,12 @@ from pydantic import ValidationError
 
 from solver.errors import field_errors, format_errors
 from solver.spec import CaseSpec
-from workflows.store import remove_stale_temporaries, stored_case_ids
+from workflows.result_store import ResultStore
+from workflows.sweep import Sweep, expand_sweep
 from workflows.tasks import case_id_of_key, map_cases  # one task key per case, CLI too
 
 from .results import BrokenResult, public_error, result_state, stored_outcome, written
-from .store import UNREADABLE, CaseRecord, JobStore
+from .job_records import UNREADABLE, CaseRecord, JobStore, SweepRecord
 
 logger = logging.getLogger(__name__)
 
@@ -132,7 +134,7 @@ class Dispatcher:
         """Queue ``case_id`` for the next batch to the scheduler; False if already on its way.
 
         The task reads a stored result back and computes the case again when there is none
-        or it cannot be read (:meth:`workflows.store.ResultStore.solve_or_read`), so a
+        or it cannot be read (:meth:`workflows.result_store.ResultStore.solve_or_read`), so a
         broken file or a failed case needs nothing more than a submission.
 
         Batches go out ``batch_delay`` seconds after their first case, as one scheduler
@@ -282,6 +284,43 @@ class Dispatcher:
 
     # -- background loops ----------------------------------------------------------------
 
+    async def record_sweep_on_disk(self, record: SweepRecord) -> None:
+        """Write the sweep's record beside the results (what the job records can be rebuilt
+        from); a store that refuses the write is logged, the sweep stands."""
+        try:
+            await asyncio.to_thread(ResultStore(self.root).write_sweep_record, record.id, record.name,
+                                    json.dumps(record.spec), record.case_ids)
+        except OSError as exc:
+            logger.warning("could not write the record of sweep %s: %s", record.id, exc)
+
+    async def import_sweep_records(self) -> list[str]:
+        """Add the sweeps recorded in the result store that the job records lack (a sweep run
+        from the command line, or records lost): their cases done or failed as the store says,
+        the rest queued (then solved like any queued case). Returns the ids imported."""
+        records = await asyncio.to_thread(lambda: list(ResultStore(self.root).sweep_records()))
+        imported = []
+        for record in records:
+            if self.store.get_sweep(record["id"]) is not None:
+                continue
+            try:  # the cases from the sweep itself (the ids must be those recorded)
+                specs = {s.case_id: s.canonical_json()
+                         for s in await asyncio.to_thread(expand_sweep, Sweep.model_validate(record["spec"]))}
+            except (ValidationError, ValueError) as exc:
+                specs = {}
+                logger.warning("sweep record %s no longer expands (%s)", record["id"], exc)
+            cases = [(c, specs.get(c) or json.dumps({UNREADABLE: "the sweep record does not give this case"}))
+                     for c in record["case_ids"]]
+            _, new = self.store.add_sweep(record["id"], str(record.get("name", "")), json.dumps(record["spec"]), cases)
+            for case_id in new:
+                if await self._resolve_from_store(case_id) == "missing":
+                    error = await asyncio.to_thread(ResultStore(self.root).read_error, case_id)
+                    if error is not None:
+                        await self._persist(self.store.finish, case_id, status="failed", error=error.get("error"))
+            logger.info("sweep %s (%s) imported from the result store: %d cases, %d new",
+                        record["id"], record.get("name", ""), len(cases), len(new))
+            imported.append(record["id"])
+        return imported
+
     async def reconcile(self) -> None:
         """Settle every open record that no watcher owns: done from the store, else resubmit.
 
@@ -292,6 +331,8 @@ class Dispatcher:
         """
         if not self.connected:
             await self._reconnect()
+        if self._rounds % 5 == 0:  # sweeps run from the command line appear within a few rounds
+            await self.import_sweep_records()
         for case_id in self.store.open_case_ids():
             if case_id in self._tracked or case_id in self._pending:
                 continue
@@ -310,7 +351,7 @@ class Dispatcher:
                 logger.info("case %s resubmitted", case_id)
         await self._check_done_results()
         if self._rounds % 60 == 0:
-            removed = await asyncio.to_thread(remove_stale_temporaries, self.root)
+            removed = await asyncio.to_thread(ResultStore(self.root).remove_stale_temporaries)
             if removed:
                 logger.info("removed %d stale temporary files", removed)
         self._rounds += 1
@@ -334,7 +375,7 @@ class Dispatcher:
         done = self.store.case_ids_with_status("done")
         if not done:
             return
-        stored = set(await asyncio.to_thread(stored_case_ids, self.root))
+        stored = set(await asyncio.to_thread(ResultStore(self.root).case_ids))
         for case_id in (c for c in done if c not in stored):
             await self.recompute_broken(case_id)
         unchecked = [c for c in done if c in stored and c not in self._scrubbed]

@@ -8,7 +8,7 @@ from fastapi import HTTPException, Path, Query, Request
 from .jobs import Dispatcher
 from .schemas import CASE_ID_PATTERN
 from .settings import Settings
-from .store import SweepRecord
+from .job_records import SweepRecord
 
 CaseId = Annotated[str, Path(pattern=CASE_ID_PATTERN, description="case id, 16 lowercase hex digits")]
 SweepId = Annotated[str, Path(pattern=CASE_ID_PATTERN, description="sweep id, 16 lowercase hex digits")]

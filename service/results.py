@@ -15,7 +15,7 @@ import re
 from pathlib import Path
 from typing import Optional
 
-from workflows.store import FileKey, ResultStore, case_path, file_key
+from workflows.result_store import FileKey, ResultStore, as_store, file_key
 
 logger = logging.getLogger(__name__)
 
@@ -41,7 +41,7 @@ def stored_outcome(root: Path, case_id: str) -> Optional[tuple[dict[str, float],
     BrokenResult
         If the file is there but unreadable (truncated, corrupted, not netCDF).
     """
-    path = case_path(root, case_id)
+    path = as_store(root).case_path(case_id)
     if _version(path) is None:
         return None
     try:
@@ -59,14 +59,14 @@ def stored_outcome(root: Path, case_id: str) -> Optional[tuple[dict[str, float],
 def written(root: Path, case_id: str) -> None:
     """Record the file a worker has just written whole (atomically, its summary taken from the
     result in memory) as read: the first GET of a new result then does not open it."""
-    version = _version(case_path(root, case_id))
+    version = _version(as_store(root).case_path(case_id))
     if version is not None:
         _VERIFIED[case_id] = version
 
 
 def result_state(root: Path, case_id: str) -> str:
     """``"missing"``, ``"readable"`` or ``"broken"`` (reads the file unless this version was read)."""
-    version = _version(case_path(root, case_id))
+    version = _version(as_store(root).case_path(case_id))
     if version is None:
         return "missing"
     if _VERIFIED.get(case_id) == version:
@@ -76,7 +76,7 @@ def result_state(root: Path, case_id: str) -> str:
     except BrokenResult as exc:
         logger.warning("stored result of case %s is unreadable: %s", case_id, public_error(str(exc), root))
         return "broken"
-    return "readable" if _version(case_path(root, case_id)) is not None else "missing"
+    return "readable" if _version(as_store(root).case_path(case_id)) is not None else "missing"
 
 
 def non_finite_text(value):

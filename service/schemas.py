@@ -8,7 +8,7 @@ from fastapi import Response
 from pydantic import BaseModel, Field
 
 from .results import finite_summary, non_finite_entries
-from .store import CaseRecord, SweepRecord
+from .job_records import CaseRecord, SweepRecord
 
 Status = Literal["queued", "running", "done", "failed", "cancelled"]
 CASE_ID_PATTERN = r"^[0-9a-f]{16}$"

@@ -44,6 +44,7 @@ async def submit_sweep(sweep: Sweep, request: Request, response: Response,
         cases = [(s.case_id, s.canonical_json()) for s in specs]
         check_capacity(request, len(cases) - len(jobs.store.statuses([c for c, _ in cases])))
         record, new = jobs.store.add_sweep(sweep.sweep_id, sweep.name, sweep.canonical_json(), cases)
+        await jobs.record_sweep_on_disk(record)
         created = True
         specs_by_id = dict(cases)
         for case_id in new:

@@ -22,7 +22,6 @@ history, at the sub-triangle centroids.
 """
 from __future__ import annotations
 
-import time
 
 import numpy as np
 

@@ -13,8 +13,8 @@ Both are written atomically (temporary file, then rename), so a concurrent reque
 either finds the complete file or builds its own copy. netCDF/HDF5 and matplotlib are
 not safe to drive from several threads at once, so building is serialised by a lock.
 A case's cached plots are removed whenever its result is written again
-(:meth:`workflows.store.ResultStore.write_case`). Used by the CLI's ``show`` and by the
-service. The paths come from :class:`workflows.store.ResultStore`; ``root`` is a store or
+(:meth:`workflows.result_store.ResultStore.write_case`). Used by the CLI's ``show`` and by the
+service. The paths come from :class:`workflows.result_store.ResultStore`; ``root`` is a store or
 its folder.
 """
 from __future__ import annotations
@@ -29,7 +29,7 @@ import xarray as xr
 
 from .combine import for_netcdf
 from .plots import PLOTS, SWEEP_PLOT_NAMES, SWEEP_PLOTS, case_labels, plot_interaction
-from .store import ResultStore, StoreLike, as_store, netcdf_lock, write_atomically
+from .result_store import ResultStore, StoreLike, as_store, netcdf_lock, write_atomically
 
 logger = logging.getLogger(__name__)
 

@@ -19,7 +19,7 @@ import xarray as xr
 from solver.spec import is_number
 
 from .parameters import flat_parameters, parameter_attrs, varying_parameters
-from .store import ResultStore, StoreLike, as_store, check_case_id
+from .result_store import ResultStore, StoreLike, as_store, check_case_id
 
 logger = logging.getLogger(__name__)
 

@@ -25,7 +25,7 @@ from solver.errors import field_errors, format_errors
 from solver.spec import is_number
 
 from .parameters import flat_parameters, parameter_attrs, varying_parameters
-from .store import ResultStore, StoreLike, as_store, case_warnings, check_case_id
+from .result_store import ResultStore, StoreLike, as_store, case_warnings, check_case_id
 from .summary import summarize
 from .sweep import Sweep, SweepError, run_sweep
 from .units import DIAGNOSTICS, shown_value

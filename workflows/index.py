@@ -22,7 +22,7 @@ Files (under ``<root>/index/``)::
 How it stays true
 -----------------
 A row is used only while its recorded key (inode, size, mtime, ctime of the case file,
-:func:`workflows.store.file_key`) equals the key of the file in ``cases/`` now, so a
+:func:`workflows.result_store.file_key`) equals the key of the file in ``cases/`` now, so a
 case forced again (a new file) or removed is never answered from an old row. Writers
 never touch ``results.nc``: each stored case writes its own pending entry (atomically,
 carrying the key of the file it describes), so concurrent workers cannot lose each
@@ -58,10 +58,10 @@ import xarray as xr
 from xarray.backends.netCDF4_ import NETCDF4_PYTHON_LOCK
 
 from .combine import label_cases, read_reduced, reduce_case, stack_cases
-from .store import OPEN_OPTIONS, FileKey, check_case_id, file_key, netcdf_encoding, netcdf_lock, write_atomically
+from .result_store import OPEN_OPTIONS, FileKey, check_case_id, file_key, netcdf_encoding, netcdf_lock, write_atomically
 
 if TYPE_CHECKING:
-    from .store import ResultStore
+    from .result_store import ResultStore
 
 logger = logging.getLogger(__name__)
 
@@ -114,7 +114,7 @@ class _Table:
 
 
 class ResultIndex:
-    """The index of a :class:`~workflows.store.ResultStore` (see the module docstring)."""
+    """The index of a :class:`~workflows.result_store.ResultStore` (see the module docstring)."""
 
     def __init__(self, store: ResultStore):
         self.store = store

@@ -21,7 +21,7 @@ from matplotlib.patches import FancyBboxPatch
 from solver.dataset import SCALARS
 
 from .parameters import flat_parameters, parameter_attrs
-from .store import case_warnings
+from .result_store import case_warnings
 from .units import DIAGNOSTICS, input_unit, shown_value
 
 A4_PORTRAIT = (8.27, 11.69)

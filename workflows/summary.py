@@ -12,7 +12,7 @@ def summarize(ds: xr.Dataset) -> dict[str, float]:
 
 def read_summary(root, case_id: str) -> dict[str, float]:
     """Summary of a stored case, reading only its scalars (older spelling of
-    :meth:`workflows.store.ResultStore.read_summary`)."""
-    from .store import as_store
+    :meth:`workflows.result_store.ResultStore.read_summary`)."""
+    from .result_store import as_store
 
     return as_store(root).read_summary(case_id)

@@ -27,7 +27,7 @@ from solver.spec import CaseSpec, canonical_json, content_id
 
 from .sampling import SAMPLED_MODES, Distribution, sample_errors, sampled_values
 from .parameters import PATH_ALIASES, canonical_path, is_parameter, parameter_paths, set_parameter
-from .store import ResultStore, StoreLike, as_store
+from .result_store import ResultStore, StoreLike, as_store
 
 logger = logging.getLogger(__name__)
 
@@ -250,6 +250,7 @@ def run_sweep(sweep: Sweep | dict[str, Any], root: StoreLike, client=None, *, pr
     specs = expand_sweep(sweep)
     store.remove_stale_temporaries()
     ids = [s.case_id for s in specs]
+    store.write_sweep_record(sweep.sweep_id, sweep.name, sweep.canonical_json(), ids)  # the service lists it
     broken = set() if force else set(store.unreadable(ids))  # recomputed, never combined
     todo = [s for s in specs if force or not store.is_stored(s.case_id) or s.case_id in broken]
     if not retry_failed and not force:

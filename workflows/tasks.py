@@ -11,7 +11,7 @@ from collections.abc import Sequence
 
 from solver.spec import CaseSpec
 
-from .store import StoreLike, as_store
+from .result_store import StoreLike, as_store
 
 logger = logging.getLogger(__name__)
 

@@ -17,7 +17,7 @@ from service.app import create_app
 from service.settings import Settings
 from solver.spec import CaseSpec
 from workflows.plots import PLOTS
-from workflows.store import case_path
+from workflows.result_store import as_store
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 NETCDF_MAGIC = b"\x89HDF"
@@ -85,7 +85,7 @@ def test_post_case_answers_202_with_location_then_solves(client, done_case):
 
 
 def test_post_existing_case_returns_it_without_recomputing(client, app, done_case):
-    path = case_path(app.state.jobs.root, done_case["id"])
+    path = as_store(app.state.jobs.root).case_path(done_case["id"])
     stamp = path.stat().st_mtime_ns
     response = client.post("/cases", json=COARSE)
     assert response.status_code == 202
@@ -113,7 +113,7 @@ def test_a_new_case_answer_is_the_record_as_stored(tmp_path):
     """``POST /cases`` answers a new case from the values it inserted (no read-back): the
     same record the store then reads, and the same body ``GET /cases/{id}`` serves."""
     from service.schemas import Case
-    from service.store import JobStore
+    from service.job_records import JobStore
 
     store = JobStore(tmp_path / "jobs.sqlite")
     try:
@@ -419,3 +419,33 @@ def test_docs_and_redoc_load_nothing_from_outside(client):
         for url in flat:
             if url.startswith("/docs-assets/"):
                 assert client.get(url).status_code == 200, url
+
+
+def test_a_sweep_run_from_the_command_line_is_listed_by_the_service(client, app, tmp_path):
+    """One world: the CLI writes the sweep's record beside the results; the service (same
+    results folder) lists the sweep with its cases done or failed as the CLI left them,
+    without solving anything again."""
+    from service.cli import main
+
+    root = app.state.jobs.root
+    sweep = {"name": "from the command line", "base": COARSE, "mode": "zip",
+             "vary": {"lining.joints.count": [0, 6], "geometry.thickness": [0.25, 0.35]}}
+    (tmp_path / "sweep.json").write_text(json.dumps(sweep))
+    assert main(["sweep", str(tmp_path / "sweep.json"), "--results", str(root), "--no-progress"]) == 1  # one fails
+    records = list((root / "sweeps" / "records").glob("*.json"))
+    sweep_id = next(json.loads(p.read_text())["id"] for p in records
+                    if json.loads(p.read_text())["name"] == "from the command line")
+    assert client.get(f"/sweeps/{sweep_id}").status_code == 404  # not yet seen
+
+    imported = client.portal.call(app.state.jobs.import_sweep_records)
+    assert sweep_id in imported
+    listed = client.get("/sweeps", params={"limit": 100}).json()
+    assert sweep_id in [s["id"] for s in listed["items"]]
+    status = client.get(f"/sweeps/{sweep_id}").json()
+    assert status["total"] == 2 and status["counts"]["done"] == 1 and status["counts"]["failed"] == 1
+    table = client.get(f"/sweeps/{sweep_id}/table").json()
+    failed = next(r for r in table["rows"] if r["status"] == "failed")
+    assert "lining.joints" in failed["error"]
+    done = next(r for r in table["rows"] if r["status"] == "done")
+    assert app.state.jobs.store.get_case(done["case_id"]).submissions == 0  # read, not solved again
+    assert client.portal.call(app.state.jobs.import_sweep_records) == []  # once

@@ -8,7 +8,7 @@ import math
 import sqlite3
 
 from service.comparison import SCALAR_ORDER, comparison_table, table_csv
-from service.store import JobStore
+from service.job_records import JobStore
 from solver.spec import CaseSpec
 
 

@@ -19,7 +19,7 @@ from service.comparison import SCALAR_ORDER
 from service.process import running_cluster, running_service
 from service_helpers import wait_until
 from workflows.plots import PLOTS
-from workflows.store import case_path
+from workflows.result_store import as_store
 
 selenium = pytest.importorskip("selenium", reason="selenium is in the 'test' extra")
 from selenium import webdriver  # noqa: E402
@@ -287,7 +287,7 @@ def test_cancel_keeps_queued_cases_from_running_and_they_can_be_submitted_again(
                what="the long case to finish")
     time.sleep(2.0)  # several scheduler polls: a cancelled task that was still queued would have run
     assert httpx.get(f"{url}/sweeps/{sweep_id}").json()["counts"]["cancelled"] == 3
-    assert not any(case_path(results, c).exists() for c in ids)
+    assert not any(as_store(results).case_path(c).exists() for c in ids)
     assert httpx.get(f"{url}/health").json()["running"] == 0
 
     # a cancelled case can be submitted again, alone or with its sweep; its page follows
@@ -311,7 +311,7 @@ def test_cancel_keeps_queued_cases_from_running_and_they_can_be_submitted_again(
     wait_until(lambda: index_state_shown(browser, sweep_id) == "finished", timeout=20,
                what="the list to show the sweep finished")
     assert browser.execute_script("return window.__marker") == "same page"
-    assert all(case_path(results, c).exists() for c in ids)
+    assert all(as_store(results).case_path(c).exists() for c in ids)
 
 
 def test_the_form_posts_a_case_typed_in_engineering_units(service, browser, tmp_path):

@@ -17,10 +17,10 @@ import xarray as xr
 from service.app import create_app
 from service.jobs import Dispatcher
 from service.settings import Settings
-from service.store import JobStore
+from service.job_records import JobStore
 from service_helpers import COARSE, coarse_case, finished, wait_until
 from solver.spec import CaseSpec
-from workflows.store import case_path, cases_dir
+from workflows.result_store import as_store
 
 
 @pytest.fixture(scope="module")
@@ -139,7 +139,7 @@ def test_watchers_keep_an_outcome_until_the_database_takes_it(client, app, monke
 # -- broken result files are recomputed, never served ------------------------------------------
 
 def test_truncated_result_is_recomputed_not_served(client, app, done_case):
-    path = case_path(app.state.jobs.root, done_case["id"])
+    path = as_store(app.state.jobs.root).case_path(done_case["id"])
     good = path.read_bytes()
     path.write_bytes(good[: len(good) // 3])
     response = client.get(f"/cases/{done_case['id']}/result.nc")
@@ -155,17 +155,17 @@ def test_truncated_result_is_recomputed_not_served(client, app, done_case):
 
 
 def test_deleted_result_is_recomputed_at_reconciliation(client, app, done_case):
-    case_path(app.state.jobs.root, done_case["id"]).unlink()
+    as_store(app.state.jobs.root).case_path(done_case["id"]).unlink()
     client.portal.call(app.state.jobs.reconcile)
     # requeued by reconciliation (it cannot be done again yet: its file is gone)
     assert client.get(f"/cases/{done_case['id']}").json()["status"] in ("queued", "running")
     assert finished(client, done_case["id"])["status"] == "done"
-    assert case_path(app.state.jobs.root, done_case["id"]).is_file()
+    assert as_store(app.state.jobs.root).case_path(done_case["id"]).is_file()
 
 
 def test_stale_temporaries_are_removed_by_the_service(client, app):
     jobs = app.state.jobs
-    stale = cases_dir(jobs.root) / ".0123456789abcdef.nc.x.tmp"
+    stale = as_store(jobs.root).cases_dir / ".0123456789abcdef.nc.x.tmp"
     stale.parent.mkdir(parents=True, exist_ok=True)
     stale.write_bytes(b"half")
     os.utime(stale, (time.time() - 7200, time.time() - 7200))

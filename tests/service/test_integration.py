@@ -15,7 +15,7 @@ import xarray as xr
 
 from service.process import api_command, free_port, running_cluster, start, stop, wait_healthy
 from service_helpers import COARSE, coarse_case, wait_until
-from workflows.store import case_path
+from workflows.result_store import as_store
 
 SWEEP = {"name": "integration", "base": COARSE,
          "vary": {"lining.thickness": [0.2, 0.3], "ground.young": [2e7, 5e7]}, "mode": "grid"}
@@ -112,14 +112,14 @@ def test_cases_queued_when_the_api_is_killed_complete_after_restart(api):
         assert response.status_code == 202 and response.json()["created"] is True
         ids.append(response.json()["id"])
     api.kill()  # most are still queued on the scheduler, some maybe not even sent
-    assert not all(case_path(api.results, c).is_file() for c in ids[-2:]), "too late to test anything"
+    assert not all(as_store(api.results).case_path(c).is_file() for c in ids[-2:]), "too late to test anything"
 
     api.start()
     wait_until(lambda: all_done(api, ids), timeout=90, what="the cases queued before the kill")
     recovered = api.log.read_text()
     assert "resubmitted" in recovered or "found in the store" in recovered
     for case_id in ids:
-        assert case_path(api.results, case_id).is_file()
+        assert as_store(api.results).case_path(case_id).is_file()
         record = api.get(f"/cases/{case_id}").json()
         assert record["summary"]["converged"] == 1.0
         assert record["finished_at"] >= record["submitted_at"]

@@ -19,7 +19,7 @@ from service_helpers import COARSE, coarse_case, finished, wait_until
 from service.app import create_app
 from service.jobs import Dispatcher
 from service.settings import Settings
-from service.store import JobStore
+from service.job_records import JobStore
 from solver.spec import CaseSpec
 from workflows import Sweep, expand_sweep
 from workflows.plots import SWEEP_PLOT_NAMES

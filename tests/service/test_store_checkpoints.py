@@ -13,8 +13,8 @@ import time
 
 import pytest
 
-from service import store as store_module
-from service.store import JobStore
+from service import job_records as store_module
+from service.job_records import JobStore
 
 #: Pages SQLite's automatic checkpoint lets the WAL reach (its default ``wal_autocheckpoint``).
 AUTO_PAGES = 1000

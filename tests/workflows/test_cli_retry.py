@@ -8,7 +8,7 @@ import json
 from service.cli import main
 from solver import CaseSpec
 from workflows.commands import format_summary, run_command
-from workflows.store import ResultStore, case_path, error_path
+from workflows.result_store import ResultStore, as_store
 
 COARSE = {"mesh": {"interface_size": 0.25, "far_size": 8.0}}
 
@@ -19,7 +19,7 @@ def test_failed_case_is_recomputed_only_when_asked(tmp_path):
     results = str(tmp_path / "results")
     out = io.StringIO()
     assert run_command(str(tmp_path / "case.json"), results, out=out) == 1
-    record = error_path(results, CaseSpec.model_validate(case).case_id)
+    record = as_store(results).error_path(CaseSpec.model_validate(case).case_id)
     first = json.loads(record.read_text())["time"], record.stat().st_mtime_ns
 
     out = io.StringIO()
@@ -36,7 +36,7 @@ def test_truncated_result_is_recomputed(tmp_path):
     results = str(tmp_path / "results")
     assert run_command(str(tmp_path / "case.json"), results, out=io.StringIO()) == 0
     case_id = CaseSpec.model_validate(COARSE).case_id
-    path = case_path(results, case_id)
+    path = as_store(results).case_path(case_id)
     first = ResultStore(results).read_summary(case_id)
     path.write_bytes(path.read_bytes()[: path.stat().st_size // 4])
     out = io.StringIO()
@@ -54,7 +54,7 @@ def test_failed_sweep_cases_are_recomputed_only_when_asked(tmp_path):
     args = ["sweep", str(tmp_path / "sweep.json"), "--results", results, "--no-progress"]
     assert main(args) == 1  # the one-iteration case fails, the other is stored
     failing = CaseSpec.model_validate({**sweep["base"], "solver": {"inner": "uzawa", "max_iterations": 1}})
-    record = error_path(results, failing.case_id)
+    record = as_store(results).error_path(failing.case_id)
     first = record.stat().st_mtime_ns
     assert main(args) == 1
     assert record.stat().st_mtime_ns == first  # shown as failed, not solved again
@@ -74,8 +74,8 @@ def test_sweep_recomputes_a_truncated_result_and_show_says_it_is_unreadable(tmp_
     kept = CaseSpec.model_validate({**COARSE, "loads": {"lateral_ratio": 0.8}}).case_id
     store = ResultStore(results)
     first = store.read_summary(broken)
-    untouched = case_path(results, kept).stat().st_mtime_ns
-    path = case_path(results, broken)
+    untouched = as_store(results).case_path(kept).stat().st_mtime_ns
+    path = as_store(results).case_path(broken)
     path.write_bytes(path.read_bytes()[:1000])
     assert store.unreadable([broken, kept]) == [broken]
 
@@ -85,7 +85,7 @@ def test_sweep_recomputes_a_truncated_result_and_show_says_it_is_unreadable(tmp_
 
     assert main(args) == 0
     assert store.read_summary(broken)["max_abs_moment"] == first["max_abs_moment"]
-    assert case_path(results, kept).stat().st_mtime_ns == untouched  # a readable result is not recomputed
+    assert as_store(results).case_path(kept).stat().st_mtime_ns == untouched  # a readable result is not recomputed
     assert store.unreadable([broken, kept]) == []
 
 

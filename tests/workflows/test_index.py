@@ -15,7 +15,7 @@ import solver
 from solver import CaseSpec
 from workflows import ResultStore, open_case, open_results, run_and_store
 from workflows.combine import combine_files
-from workflows.store import as_store
+from workflows.result_store import as_store
 from workflows.tasks import case_id_of_key, task_key
 
 COARSE = {"mesh": {"interface_size": 0.2, "far_size": 8.0}}

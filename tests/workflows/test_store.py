@@ -14,8 +14,7 @@ import xarray as xr
 import solver
 from solver import CaseSpec, SolverError
 from workflows import open_case, run_and_store
-from workflows.store import (case_path, check_case_id, error_path, read_error, stored_case_ids,
-                             write_case)
+from workflows.result_store import as_store, check_case_id
 
 COARSE = {"mesh": {"interface_size": 0.25, "far_size": 8.0}}
 CHECKER = Path(sys.executable).with_name("ugrid-checker")
@@ -29,17 +28,17 @@ def solved() -> xr.Dataset:
 @pytest.fixture(scope="module")
 def stored(tmp_path_factory, solved) -> Path:
     root = tmp_path_factory.mktemp("store")
-    write_case(root, solved)
-    return case_path(root, solved.attrs["case_id"])
+    as_store(root).write_case(solved)
+    return as_store(root).case_path(solved.attrs["case_id"])
 
 
 def test_round_trip_is_identical(tmp_path, solved):
-    write_case(tmp_path, solved)
+    as_store(tmp_path).write_case(solved)
     back = open_case(tmp_path, solved.attrs["case_id"])
     xr.testing.assert_identical(back, solved)
     assert back["face_nodes"].dtype == solved["face_nodes"].dtype
     # fully in memory: the file can be removed while the data stays usable
-    case_path(tmp_path, solved.attrs["case_id"]).unlink()
+    as_store(tmp_path).case_path(solved.attrs["case_id"]).unlink()
     assert float(back["displacement_y"].sum()) == pytest.approx(float(solved["displacement_y"].sum()))
 
 
@@ -57,7 +56,7 @@ def test_stored_case_is_not_recomputed_unless_forced(tmp_path, monkeypatch, solv
     assert len(calls) == 1
     run_and_store(spec, tmp_path, force=True)
     assert len(calls) == 2
-    assert stored_case_ids(tmp_path) == [spec.case_id]
+    assert as_store(tmp_path).case_ids() == [spec.case_id]
 
 
 def test_crash_mid_write_leaves_no_file(tmp_path, monkeypatch, solved):
@@ -67,9 +66,9 @@ def test_crash_mid_write_leaves_no_file(tmp_path, monkeypatch, solved):
 
     monkeypatch.setattr(xr.Dataset, "to_netcdf", crash)
     with pytest.raises(OSError, match="disk full"):
-        write_case(tmp_path, solved)
+        as_store(tmp_path).write_case(solved)
     folder = tmp_path / "cases"
-    assert not case_path(tmp_path, solved.attrs["case_id"]).exists()
+    assert not as_store(tmp_path).case_path(solved.attrs["case_id"]).exists()
     assert list(folder.iterdir()) == []  # no stray temporary file either
 
 
@@ -82,16 +81,16 @@ def test_failure_is_recorded_and_cleared_by_a_later_success(tmp_path, monkeypatc
     monkeypatch.setattr(solver, "run_case", failing)
     with pytest.raises(SolverError):
         run_and_store(spec, tmp_path)
-    record = read_error(tmp_path, spec.case_id)
+    record = as_store(tmp_path).read_error(spec.case_id)
     assert record["case_id"] == spec.case_id
     assert record["error"] == "SolverError: no admissible bolt"
     assert CaseSpec.model_validate(record["spec"]) == spec
-    assert json.loads(error_path(tmp_path, spec.case_id).read_text()) == record
-    assert not case_path(tmp_path, spec.case_id).exists()
+    assert json.loads(as_store(tmp_path).error_path(spec.case_id).read_text()) == record
+    assert not as_store(tmp_path).case_path(spec.case_id).exists()
 
     monkeypatch.setattr(solver, "run_case", lambda spec, **options: solved)
     run_and_store(spec, tmp_path)
-    assert read_error(tmp_path, spec.case_id) is None
+    assert as_store(tmp_path).read_error(spec.case_id) is None
     assert sorted(p.name for p in (tmp_path / "cases").iterdir()) == [f"{spec.case_id}.nc"]
 
 
@@ -144,7 +143,7 @@ def test_standard_readers_open_the_file(stored, solved):
 
 
 def test_stale_temporaries_are_removed_only_when_old(tmp_path):
-    from workflows.store import remove_stale_temporaries
+    from workflows.result_store import as_store
 
     folder = tmp_path / "cases"
     folder.mkdir()
@@ -152,7 +151,7 @@ def test_stale_temporaries_are_removed_only_when_old(tmp_path):
     old.write_bytes(b"partial")
     fresh.write_bytes(b"partial")
     os.utime(old, (0, 0))
-    assert remove_stale_temporaries(tmp_path) == 1
+    assert as_store(tmp_path).remove_stale_temporaries() == 1
     assert not old.exists() and fresh.exists()
 
 
@@ -160,11 +159,11 @@ def test_rewriting_a_case_drops_its_cached_plots(tmp_path, solved):
     from workflows.artifacts import plot_path, render_plot
 
     case_id = solved.attrs["case_id"]
-    write_case(tmp_path, solved)
+    as_store(tmp_path).write_case(solved)
     png = render_plot(tmp_path, case_id, "contact_pressure")
     assert png == plot_path(tmp_path, case_id, "contact_pressure") and png.stat().st_size > 1000
     assert render_plot(tmp_path, case_id, "contact_pressure") == png  # cached, not redrawn
-    write_case(tmp_path, solved)  # a new result (e.g. forced recompute): old figures must go
+    as_store(tmp_path).write_case(solved)  # a new result (e.g. forced recompute): old figures must go
     assert not png.exists()
     assert render_plot(tmp_path, case_id, "contact_pressure").is_file()
 
@@ -177,7 +176,7 @@ def test_threads_reading_and_writing_netcdf_at_once_do_not_crash(tmp_path, solve
 
     from workflows.artifacts import render_plot
     from workflows.plots import PLOTS
-    from workflows.store import ResultStore
+    from workflows.result_store import ResultStore
 
     store = ResultStore(tmp_path)
     case_id = solved.attrs["case_id"]

@@ -9,7 +9,7 @@ from pydantic import ValidationError
 
 from solver import CaseSpec
 from workflows import MAX_SWEEP_CASES, Sweep, SweepError, expand_sweep, open_case, open_results, run_sweep
-from workflows.store import case_path, error_path, read_error, stored_case_ids
+from workflows.result_store import as_store
 from workflows.tasks import solve_and_store
 
 COARSE = {"mesh": {"interface_size": 0.25, "far_size": 8.0}}
@@ -119,7 +119,7 @@ def test_task_function(tmp_path):
     assert any("small-displacement" in w or "displacement" in w for w in computed["warnings"]), computed["warnings"]
 
     # a stored file that cannot be read is computed again, not reported as stored
-    path = case_path(tmp_path, spec.case_id)
+    path = as_store(tmp_path).case_path(spec.case_id)
     path.write_bytes(path.read_bytes()[:1000])
     healed = solve_and_store(spec.canonical_json(), str(tmp_path))
     assert healed["status"] == "done" and healed["computed"]
@@ -131,7 +131,7 @@ def test_task_function(tmp_path):
     result = solve_and_store(failing.canonical_json(), str(tmp_path))
     assert result["status"] == "failed" and result["summary"] == {}
     assert "NotConvergedError" in result["error"]
-    assert read_error(tmp_path, failing.case_id)["error"] == result["error"]
+    assert as_store(tmp_path).read_error(failing.case_id)["error"] == result["error"]
 
 
 @pytest.fixture(scope="module")
@@ -156,10 +156,10 @@ def test_run_sweep_on_two_worker_processes(tmp_path, client):
     assert sorted(by_id) == sorted(ids) and len(results) == 5  # one task per case
     failed = ids[-1]
     assert by_id[failed]["status"] == "failed" and "did not converge" in by_id[failed]["error"]
-    assert error_path(tmp_path, failed).exists() and not case_path(tmp_path, failed).exists()
+    assert as_store(tmp_path).error_path(failed).exists() and not as_store(tmp_path).case_path(failed).exists()
     done = ids[:-1]
     assert all(by_id[c]["status"] == "done" and by_id[c]["computed"] for c in done)
-    assert stored_case_ids(tmp_path) == sorted(done)
+    assert as_store(tmp_path).case_ids() == sorted(done)
     # both workers took part
     assert len(client.scheduler_info()["workers"]) == 2
 
@@ -172,11 +172,11 @@ def test_run_sweep_on_two_worker_processes(tmp_path, client):
                                    ds["thrust"].values[[0, -1]], rtol=1e-12)
 
     # the second run computes nothing that is stored; only the failed case is retried
-    mtimes = {c: os.stat(case_path(tmp_path, c)).st_mtime_ns for c in done}
+    mtimes = {c: os.stat(as_store(tmp_path).case_path(c)).st_mtime_ns for c in done}
     again = []
     assert run_sweep(study, tmp_path, client=client, on_result=again.append) == ids
     assert [r["case_id"] for r in again] == [failed]
-    assert {c: os.stat(case_path(tmp_path, c)).st_mtime_ns for c in done} == mtimes
+    assert {c: os.stat(as_store(tmp_path).case_path(c)).st_mtime_ns for c in done} == mtimes
 
 
 def test_run_sweep_skips_everything_stored(tmp_path, client):

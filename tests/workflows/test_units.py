@@ -115,7 +115,7 @@ def test_combined_parameter_coordinates_have_units_from_files_and_index(store):
 
 def test_service_table_gives_the_parameter_units(tmp_path):
     from service.comparison import comparison_table
-    from service.store import JobStore
+    from service.job_records import JobStore
 
     jobs = JobStore(tmp_path / "jobs.sqlite")
     cases = [CaseSpec.model_validate({"ground": {"young": e}, "geometry": {"gap": g}})

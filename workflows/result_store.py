@@ -15,9 +15,6 @@ Every file is written atomically (temporary file in the same folder, flush, fsyn
 ``os.replace``), so a reader never sees a half-written file under a final name and a
 crash leaves at most a ``.tmp`` file that :meth:`ResultStore.remove_stale_temporaries`
 cleans. This module is the only one that writes case files.
-
-The module-level functions taking ``root`` first (``case_path(root, case_id)``, ...)
-are the older spelling of the same methods, kept for callers not yet migrated.
 """
 from __future__ import annotations
 
@@ -71,6 +68,10 @@ def check_case_id(case_id: str) -> str:
     if not isinstance(case_id, str) or not _CASE_ID.fullmatch(case_id):
         raise ValueError(f"case id {case_id!r} is not 16 lowercase hex digits")
     return case_id
+
+
+def _is_case_id(value: Any) -> bool:
+    return isinstance(value, str) and bool(_CASE_ID.fullmatch(value))
 
 
 #: What identifies one version of a case file: (inode, size, mtime ns, ctime ns).
@@ -135,6 +136,38 @@ class ResultStore:
     def sweep_plot_path(self, sweep_id: str, case_ids: Sequence[str], name: str) -> Path:
         """Where the PNG ``name`` of ``sweep_id`` over exactly ``case_ids`` is cached."""
         return self.sweeps_dir / "plots" / f"{check_case_id(sweep_id)}-{_digest(case_ids)}-{name}.png"
+
+    @property
+    def records_dir(self) -> Path:
+        """Folder of the sweep records (one small JSON file per sweep, :meth:`write_sweep_record`)."""
+        return self.sweeps_dir / "records"
+
+    def write_sweep_record(self, sweep_id: str, name: str, spec_json: str, case_ids: Sequence[str]) -> Path:
+        """Record a sweep beside its results (atomically; an existing record is kept): its name,
+        canonical JSON and case ids in order. The command line writes it for every sweep it
+        runs, the service for every sweep it accepts: the service lists the sweeps of either
+        and can rebuild its job records from these files and the results."""
+        target = self.records_dir / f"{check_case_id(sweep_id)}.json"
+        if not target.is_file():
+            record = {"id": sweep_id, "name": name, "spec": json.loads(spec_json), "case_ids": list(case_ids),
+                      "submitted_at": time.time()}
+            write_atomically(target, lambda tmp: Path(tmp).write_text(json.dumps(record)))
+        return target
+
+    def sweep_records(self) -> Iterator[dict[str, Any]]:
+        """Every readable sweep record of the store (a damaged one is logged and skipped)."""
+        if not self.records_dir.is_dir():
+            return
+        for path in sorted(self.records_dir.glob("*.json")):
+            try:
+                record = json.loads(path.read_text())
+                check_case_id(record["id"])
+                if not isinstance(record["case_ids"], list) or not all(map(_is_case_id, record["case_ids"])):
+                    raise ValueError("case_ids is not a list of case ids")
+            except (OSError, ValueError, KeyError, TypeError) as exc:
+                logger.warning("sweep record %s is unreadable (%s): skipped", path.name, exc)
+                continue
+            yield record
 
     @property
     def index_dir(self) -> Path:
@@ -422,39 +455,7 @@ def _fsync_dir(folder: Path) -> None:
         os.close(fd)
 
 
-# -- the older spelling: a bare root first (kept for callers not yet migrated) -------------
-
-def cases_dir(root: StoreLike) -> Path:
-    return as_store(root).cases_dir
-
-
-def case_path(root: StoreLike, case_id: str) -> Path:
-    return as_store(root).case_path(case_id)
-
-
-def error_path(root: StoreLike, case_id: str) -> Path:
-    return as_store(root).error_path(case_id)
-
-
-def is_stored(root: StoreLike, case_id: str) -> bool:
-    return as_store(root).is_stored(case_id)
-
-
-def stored_case_ids(root: StoreLike) -> list[str]:
-    return as_store(root).case_ids()
-
-
-def write_case(root: StoreLike, ds: xr.Dataset) -> Path:
-    return as_store(root).write_case(ds)
-
-
-def read_error(root: StoreLike, case_id: str) -> dict[str, Any] | None:
-    return as_store(root).read_error(case_id)
-
-
-def remove_stale_temporaries(root: StoreLike, *, older_than: float = 3600.0) -> int:
-    return as_store(root).remove_stale_temporaries(older_than=older_than)
-
+# -- conveniences of the package (``workflows.run_and_store``, ``workflows.open_case``) -------
 
 def run_and_store(spec: CaseSpec | dict[str, Any], root: StoreLike, *, force: bool = False) -> str:
     """Solve ``spec`` and store its result in ``root`` (a path or a store); return the case id.
