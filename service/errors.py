@@ -34,8 +34,28 @@ def field_errors(errors: Iterable[dict]) -> list[FieldError]:
             for err, (field, reason) in zip(errors, _field_reasons(errors))]
 
 
+#: Bounds of an error answer: a 1 MB body of bad values must not draw a 12 MB answer.
+MAX_ERRORS = 50
+MAX_REASON_CHARS = 300
+
+
+def printable(text: str, limit: int = MAX_REASON_CHARS) -> str:
+    """``text`` safe to send and short: lone surrogates (``"\\ud800"``, which UTF-8 cannot
+    encode) escaped, cut at ``limit`` characters with how much was left out."""
+    text = str(text).encode("utf-8", "backslashreplace").decode("utf-8")
+    if len(text) > limit:
+        text = f"{text[:limit]}… ({len(text) - limit:,} more characters)"
+    return text
+
+
 def invalid(errors: list[FieldError], status_code: int = 422) -> JSONResponse:
-    """A 422 (or other) response listing ``errors``."""
+    """A 422 (or other) response listing ``errors`` (at most :data:`MAX_ERRORS`, each field
+    and reason bounded and encodable)."""
+    more = len(errors) - MAX_ERRORS
+    errors = [FieldError(field=printable(e.field, 200), reason=printable(e.reason), type=printable(e.type, 60))
+              for e in errors[:MAX_ERRORS]]
+    if more > 0:
+        errors.append(FieldError(field="body", reason=f"and {more:,} more errors not listed", type="too_many_errors"))
     summary = "; ".join(f"{e.field}: {e.reason}" for e in errors)
     return JSONResponse(status_code=status_code,
                         content=ErrorBody(detail=f"invalid input: {summary}", errors=errors).model_dump())

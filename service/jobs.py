@@ -60,6 +60,19 @@ MAX_BACKOFF = 30.0
 SCRUB_PER_ROUND = 20
 
 
+def task_error(exc: BaseException, root: Path) -> str:
+    """The case's error for a task that raised outside the solver, in words a user can act on
+    (dask's ``KilledWorker: Attempted to run task 'solve_and_store-…'`` says nothing to one)."""
+    from distributed.scheduler import KilledWorker
+
+    if isinstance(exc, KilledWorker):
+        return ("the worker process solving this case died each time it was tried (killed by the "
+                "operating system, most likely for memory: a very fine mesh, mesh.interface_size, or a "
+                "machine short of memory); coarsen the mesh or give the workers more memory, then submit "
+                "again with ?retry=failed")
+    return public_error(f"{type(exc).__name__}: {exc}", root)
+
+
 class Dispatcher:
     """Submits cases, watches their futures and keeps the job records in step.
 
@@ -234,7 +247,7 @@ class Dispatcher:
                 logger.warning("task of case %s raised %s: %s", case_id, type(exc).__name__, exc)
                 if await self._resolve_from_store(case_id) != "readable":
                     await self._persist(self.store.finish, case_id, status="failed",
-                                        error=public_error(f"{type(exc).__name__}: {exc}", self.root))
+                                        error=task_error(exc, self.root))
                 return
             await self._record(case_id, outcome)
         finally:

@@ -118,14 +118,16 @@ def surface_trough(ground_p: np.ndarray, u_ground: np.ndarray, *, scale: float) 
     return ground_p[0, order], -u_ground[1, order]
 
 
-def kkt_residual(*, K_u_minus_f: list[tuple[np.ndarray, np.ndarray]], balance: float, F2: float,
+def kkt_residual(*, K_u_minus_f: list[tuple[np.ndarray, np.ndarray]], balance: float, balance_scale: float,
                  lam: np.ndarray, normal_jump: np.ndarray, g0: float, p_ref: float, u_ref: float,
                  model: str = "frictionless", shear: np.ndarray | None = None,
                  tangential_jump: np.ndarray | None = None, mu: float = 0.0) -> float:
     """Largest relative violation of the discrete KKT conditions (dimensionless).
 
     ``K_u_minus_f`` holds per body the residual ``K u + Bᵀ W t - f`` and the size of the
-    forces it balances; ``balance`` is ``F2 + I(λ ν2 + s τ2)`` (N/m); the gap is
+    forces it balances; ``balance`` is ``F2 + I(λ ν2 + s τ2)`` (N/m), relative to
+    ``balance_scale`` = ``|F2| + I|λ ν2 + s τ2|`` (not ``|F2|`` alone: a lining as light as the
+    water it displaces has F2 ≈ 0 while the interface carries megapascals); the gap is
     ``g0 - normal_jump``. Pressures are scaled by ``p_ref`` (Pa), jumps and gaps by
     ``u_ref`` (m). By model:
 
@@ -138,7 +140,7 @@ def kkt_residual(*, K_u_minus_f: list[tuple[np.ndarray, np.ndarray]], balance: f
       g0, if any, is kept as it was when the lining was placed).
     """
     parts = [np.max(np.abs(r)) / max(np.max(np.abs(f)), 1e-300) for r, f in K_u_minus_f]
-    parts.append(abs(balance) / abs(F2))
+    parts.append(abs(balance) / max(balance_scale, 1e-300))
     if model == "bonded":
         parts.append(float(np.max(np.abs(normal_jump))) / u_ref)
         parts.append(float(np.max(np.abs(tangential_jump))) / u_ref)

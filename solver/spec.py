@@ -10,6 +10,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import sys
 from typing import Literal, Optional, Union
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
@@ -63,12 +64,30 @@ def _ignorable(value) -> bool:
     return is_number(value) and math.isfinite(value)
 
 
+def canonical_number(value):
+    """``value`` with one form per number: ``-0.0`` is ``0.0`` (one case, one id); a subnormal
+    float (below 2.2e-308 in magnitude, e.g. 5e-324) is refused: no physical input is that
+    small, and dividing by one overflows. Anything else is returned unchanged."""
+    if isinstance(value, float):
+        if value == 0.0:
+            return 0.0
+        if math.isfinite(value) and abs(value) < sys.float_info.min:
+            raise ValueError(f"{value!r} is a subnormal number (below {sys.float_info.min:.3g} in magnitude); "
+                             "give 0 or a physical value")
+    return value
+
+
 class _Frozen(BaseModel):
     # allow_inf_nan=False: NaN, Infinity and overflowing literals such as 1e400 are
     # refused with the field's name instead of failing later in the solver.
     # strict: a number is a number. Lax validation took JSON ``true`` as 1.0 (a 1 m
     # lining) and the string "0.5" as 0.5; an integer field takes integers only.
     model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False, strict=True)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _one_form_per_number(cls, value):
+        return canonical_number(value)
 
 
 class Geometry(_Frozen):
@@ -304,8 +323,8 @@ class Water(_Frozen):
 class Loads(_Frozen):
     surface_load: float = Field(1.0e5, ge=0, le=1.0e9, description="uniform downward pressure on y = 0 (Pa)")
     gravity: float = Field(
-        9.81, gt=0, le=100.0,
-        description="gravitational acceleration, downward (m/s^2); > 0 so the lining has weight")
+        9.81, ge=1.0, le=100.0,
+        description="gravitational acceleration, downward (m/s^2), 1 to 100 (the Moon's 1.6 to a centrifuge's)")
     lateral_ratio: float = Field(
         0.5, ge=0, le=10.0,
         description="K0: horizontal / vertical geostatic stress (the in-situ state, and a 'pressure' side)")
@@ -380,7 +399,8 @@ class MeshSettings(_Frozen):
 
 class SolverSettings(_Frozen):
     inner: Literal["active-set", "uzawa"] = "active-set"
-    tolerance: float = Field(1e-8, gt=0, le=1e-2, description="relative KKT tolerance")
+    tolerance: float = Field(1e-8, ge=1e-14, le=1e-2,
+                             description="relative KKT tolerance (no finer than double precision resolves, 1e-14)")
     max_iterations: int = Field(100_000, ge=1, le=10_000_000, description="inner iteration cap per bolt")
     load_steps: int = Field(
         10, ge=1, le=1000, description="increments per construction stage (Mohr-Coulomb ground)")

@@ -35,6 +35,15 @@ logger = logging.getLogger(__name__)
 MAX_SWEEP_CASES = 5000
 
 
+def _check_unicode(text: str, what: str) -> None:
+    """Refuse text that is not valid Unicode (a lone surrogate such as ``"\\ud800"``, which
+    JSON can carry but no file or database can store)."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        raise ValueError(f"{what} is not valid Unicode (a lone surrogate, e.g. \\ud800)") from None
+
+
 class Sweep(BaseModel):
     """A parametric study: ``base`` with the parameters in ``vary`` changed."""
 
@@ -52,6 +61,13 @@ class Sweep(BaseModel):
     samples: Optional[int] = Field(None, description="number of sampled cases (sobol: a power of 2)")
     seed: int = Field(0, ge=0, le=2**32 - 1, description="seed of the sample (same seed, same cases)")
 
+    @field_validator("name", mode="before")
+    @classmethod
+    def _valid_name(cls, name):
+        if isinstance(name, str):
+            _check_unicode(name, "name")
+        return name
+
     @field_validator("vary", mode="before")
     @classmethod
     def _entries(cls, vary):
@@ -59,6 +75,11 @@ class Sweep(BaseModel):
             return vary
         out = {}
         for path, entry in vary.items():
+            _check_unicode(path, "a parameter path")
+            if isinstance(entry, (list, tuple)):
+                for value in entry:
+                    if isinstance(value, str):
+                        _check_unicode(value, f"{path}: a value")
             if isinstance(entry, dict):
                 try:
                     entry = Distribution.model_validate(entry)
@@ -169,6 +190,9 @@ def _structure_errors(sweep: Sweep, base: dict[str, Any]) -> list[tuple[str, str
     sampled = sweep.mode in SAMPLED_MODES
     if sampled:
         errors.extend(sample_errors(sweep.mode, sweep.samples, sweep.vary))
+    elif sweep.mode == "zip" and not sweep.vary:
+        errors.append(("vary", "a zip sweep with nothing varied has no case; vary at least one parameter "
+                               "(or use mode 'grid', whose empty vary is the base case alone)"))
     elif any(isinstance(v, Distribution) for v in sweep.vary.values()):
         errors.extend((f"vary.{p}", f"a distribution needs mode 'sobol', 'lhs' or 'random' (mode is {sweep.mode!r})")
                       for p, v in sweep.vary.items() if isinstance(v, Distribution))
