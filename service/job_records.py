@@ -334,16 +334,18 @@ class JobStore:
                           (json.dumps(list(case_ids)),))
         return {r["id"]: _case(r) for r in rows}
 
-    def cancel_queued(self, case_ids: Sequence[str]) -> list[str]:
-        """Mark the ``queued`` cases among ``case_ids`` ``cancelled``; return their ids."""
+    def cancel_queued(self, case_ids: Sequence[str], *, statuses: Sequence[str] = ("queued",)) -> list[str]:
+        """Mark the cases among ``case_ids`` in ``statuses`` (default: queued) ``cancelled``;
+        return their ids."""
         now = time.time()
         with self._lock:
             self._db.execute("BEGIN IMMEDIATE")
             try:
                 cancelled = [r["id"] for r in self._db.execute(
-                    "UPDATE cases SET status = 'cancelled', finished_at = ? WHERE status = 'queued' "
+                    "UPDATE cases SET status = 'cancelled', finished_at = ? "
+                    "WHERE status IN (SELECT value FROM json_each(?)) "
                     "AND id IN (SELECT value FROM json_each(?)) RETURNING id",
-                    (now, json.dumps(list(case_ids)))).fetchall()]
+                    (now, json.dumps(list(statuses)), json.dumps(list(case_ids)))).fetchall()]
                 self._db.execute("COMMIT")
             except BaseException:
                 self._db.execute("ROLLBACK")

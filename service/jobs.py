@@ -257,6 +257,9 @@ class Dispatcher:
 
     async def _record(self, case_id: str, outcome: dict) -> None:
         seconds = outcome.get("seconds")
+        if outcome.get("status") == "cancelled":  # gave up on request: the record says cancelled already
+            logger.info("case %s gave up after %.1f s (cancelled while running)", case_id, seconds or 0.0)
+            return
         if outcome.get("status") == "done":
             if outcome.get("computed"):
                 written(self.root, case_id)
@@ -446,16 +449,22 @@ class Dispatcher:
     # -- cancellation --------------------------------------------------------------------
 
     async def cancel(self, case_ids: list[str]) -> list[str]:
-        """Cancel the cases among ``case_ids`` that no worker has started; return their ids.
+        """Cancel the cases among ``case_ids`` that are queued or running; return their ids.
 
-        Their records become ``cancelled`` and their tasks are taken off the scheduler
-        (``force``: the fire-and-forget hold goes too). Running cases finish: a worker
-        thread cannot be interrupted, and its result is worth keeping. Their watchers
-        see the cancellation and leave the ``cancelled`` record as it is.
+        Their records become ``cancelled``. Queued tasks are taken off the scheduler
+        (``force``: the fire-and-forget hold goes too). A running case is asked to give up
+        (a marker file in the result store that the solver's loops look at twice a second,
+        :mod:`solver.limits`): its worker stops within about a second and is free for the
+        next case; a case that finishes before it sees the marker is recorded done (its
+        result is valid). Their watchers leave the ``cancelled`` record as it is.
         """
         if self.connected:
             await self._mark_executing()  # a task started since the last poll is running
-        cancelled = self.store.cancel_queued(case_ids)
+        running = self.store.cancel_queued(case_ids, statuses=("running",))
+        results = ResultStore(self.root)
+        for case_id in running:
+            await asyncio.to_thread(results.request_cancel, case_id)
+        cancelled = self.store.cancel_queued(case_ids) + running
         futures = []
         for case_id in cancelled:
             self._pending.pop(case_id, None)

@@ -120,8 +120,8 @@ class SweepPage(BaseModel):
 class SweepCancelled(SweepStatus):
     """Answer to ``POST /sweeps/{id}/cancel``."""
 
-    cancelled_now: list[str] = Field(description="cases this request cancelled (they were queued); "
-                                                 "running cases finish")
+    cancelled_now: list[str] = Field(description="cases this request cancelled (queued ones, and running "
+                                                 "ones, whose workers give them up within a second)")
 
 
 class SweepAccepted(SweepStatus):

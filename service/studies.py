@@ -93,7 +93,8 @@ async def get_sweep_plot(sweep_id: SweepId, name: SweepPlotName, request: Reques
 @router.post("/{sweep_id}/cancel", response_model=SweepCancelled,
              dependencies=[Depends(require_token)], responses=responses(401, 404))
 async def cancel_sweep(sweep_id: SweepId, request: Request) -> SweepCancelled:
-    """Cancel the sweep's queued cases (they become ``cancelled``); running cases finish.
+    """Cancel the sweep's queued and running cases (they become ``cancelled``; a running one's
+    worker gives it up within about a second, no result and no error recorded).
 
     Posting the sweep (or one of its cases) again submits the cancelled cases again.
     """

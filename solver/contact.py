@@ -31,9 +31,8 @@ import scipy.linalg as la
 from scipy.optimize import nnls
 from scipy.sparse.linalg import eigsh
 
-
-class SolverError(RuntimeError):
-    """A case that cannot be solved; never a result that only looks valid."""
+from .errors import SolverError
+from .limits import check_time
 
 
 class NotConvergedError(SolverError):
@@ -203,6 +202,8 @@ def uzawa(dual: DualProblem, bolt: int, lam_init: np.ndarray, *, tol: float, max
     gap, _ = dual.gap(lam, bolt)
     contact_set, same_for = lam > 0, 0
     for k in range(1, max_iter + 1):
+        if k % 256 == 0:
+            check_time("Uzawa contact iteration", k)
         lam = np.where(not_bolt, np.maximum(lam - rho * gap, 0.0), 0.0)  # (3.11), u in V_A (step 1) gave gap
         lam[bolt] = dual.bolt_pressure(lam, bolt)                        # (3.12)
         gap, _ = dual.gap(lam, bolt)
@@ -240,6 +241,7 @@ def active_set(dual: DualProblem, bolt: int, lam_init: np.ndarray, *, tol: float
     WSW = (w[:, None] * S) * w[None, :]
     rhs_full = w * (dual.d - dual.g0)
     for k in range(1, max_iter + 1):
+        check_time("active-set contact iteration", k)
         key = np.packbits(active).tobytes()
         if key in seen:
             log.info("active set cycled after %d steps; finishing with NNLS", k)

@@ -52,6 +52,7 @@ import scipy.linalg as la
 from scipy.optimize import lsq_linear
 
 from .contact import BoltedSolution, NotConvergedError, pressure_scale, search_bolt
+from .limits import check_time
 
 log = logging.getLogger(__name__)
 
@@ -184,6 +185,7 @@ def _active_set(fp, SW, c, bolt, sets, *, tol, max_iter):
     seen: set[bytes] = set()
     t = np.zeros(fp.d.size)
     for k in range(1, max_iter + 1):
+        check_time("Coulomb active-set iteration", k)
         seen.add(sets.key())
         try:
             t = _solve_sets(fp, SW, sets, bolt)
@@ -274,6 +276,8 @@ def solve_bolted(fp: FrictionProblem, bolt: int, sets: _Sets, *, tol: float, max
              status, steps, bolt)
     WSW = fp.w[:, None] * SW
     while steps < max_iter:
+        if steps % 64 == 0:
+            check_time("Coulomb fixed-point iteration", steps)
         t = _tresca(fp, WSW, bolt, t)
         steps += 1
         J, _ = fp.jumps(t, bolt)

@@ -27,6 +27,7 @@ import numpy as np
 
 from .assembly import _stress_components, point_basis
 from .contact import NotConvergedError
+from .limits import check_time
 from .ground import in_situ_stress, moduli
 from .mohr_coulomb import equivalent, return_map
 from .strata import strata
@@ -153,6 +154,7 @@ def _fixed_point(G, x0: np.ndarray, K, atol: float, where: str):
     acc = _Anderson(DEPTH)
     x, force = x0, float("inf")
     for count in range(1, MAX_STEP_ITERATIONS + 1):
+        check_time("plastic iteration", count)
         gx, p = G(x)
         force = float(np.linalg.norm(K @ (gx - x)))
         if force <= atol:

@@ -2,11 +2,13 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from importlib.metadata import PackageNotFoundError, version
 
 import xarray as xr
 
 from .dataset import to_dataset
+from .limits import time_limit
 from .model import TunnelModel
 from .spec import CaseSpec
 
@@ -16,14 +18,18 @@ except PackageNotFoundError:  # pragma: no cover - source tree without install
     SOFTWARE_VERSION = "0+unknown"
 
 
-def run_case(spec: CaseSpec, *, model: TunnelModel | None = None) -> xr.Dataset:
+def run_case(spec: CaseSpec, *, model: TunnelModel | None = None,
+             time_limit_seconds: float | None = None, stop: Callable[[], bool] | None = None) -> xr.Dataset:
     """Solve one case (pure: no files, no network). Raises :class:`solver.SolverError`.
 
     ``model`` reuses a :class:`TunnelModel` built for a case with the same
     :func:`~solver.model.model_key` (mesh, stiffness and factorizations are then not rebuilt);
-    the result is the same as without it.
+    the result is the same as without it. The solve stops with a :class:`SolverError` past
+    ``time_limit_seconds`` (default :data:`solver.limits.CASE_TIME_LIMIT`), and with
+    :class:`solver.limits.CaseCancelled` once ``stop()`` (asked twice a second) is true.
     """
     t0 = time.perf_counter()
-    if model is None or not model.accepts(spec):
-        model = TunnelModel(spec)
-    return to_dataset(model, model.solve(spec), software_version=SOFTWARE_VERSION, started=t0)
+    with time_limit(time_limit_seconds, stop):
+        if model is None or not model.accepts(spec):
+            model = TunnelModel(spec)
+        return to_dataset(model, model.solve(spec), software_version=SOFTWARE_VERSION, started=t0)

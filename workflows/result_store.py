@@ -37,6 +37,7 @@ import dask
 import xarray as xr
 
 import solver
+from solver.limits import CaseCancelled
 from solver.model import shared_model
 from solver.spec import CaseSpec
 
@@ -136,6 +137,22 @@ class ResultStore:
     def sweep_plot_path(self, sweep_id: str, case_ids: Sequence[str], name: str) -> Path:
         """Where the PNG ``name`` of ``sweep_id`` over exactly ``case_ids`` is cached."""
         return self.sweeps_dir / "plots" / f"{check_case_id(sweep_id)}-{_digest(case_ids)}-{name}.png"
+
+    def cancel_marker(self, case_id: str) -> Path:
+        """The file that asks the process solving ``case_id`` to give it up."""
+        return self.root / "cancel" / check_case_id(case_id)
+
+    def request_cancel(self, case_id: str) -> None:
+        """Ask whoever solves ``case_id`` to give it up (seen within half a second)."""
+        marker = self.cancel_marker(case_id)
+        marker.parent.mkdir(parents=True, exist_ok=True)
+        marker.touch()
+
+    def cancel_requested(self, case_id: str) -> bool:
+        return self.cancel_marker(case_id).exists()
+
+    def clear_cancel(self, case_id: str) -> None:
+        self.cancel_marker(case_id).unlink(missing_ok=True)
 
     @property
     def records_dir(self) -> Path:
@@ -296,12 +313,17 @@ class ResultStore:
         """Solve and store ``spec``; its scalars and warnings, from memory. A solver failure
         is recorded (:meth:`write_error`) and re-raised."""
         logger.info("solving case %s", spec.case_id)
+        self.clear_cancel(spec.case_id)  # a request older than this solve (the case ended first) is void
         try:
             # cases sharing geometry, mesh and materials reuse one factorized model per process
-            ds = solver.run_case(spec, model=shared_model(spec))
+            ds = solver.run_case(spec, model=shared_model(spec), stop=lambda: self.cancel_requested(spec.case_id))
+        except CaseCancelled:
+            self.clear_cancel(spec.case_id)  # given up, not failed: no error record
+            raise
         except Exception as exc:
             self.write_error(spec, exc)
             raise
+        self.clear_cancel(spec.case_id)
         self.write_case(ds)
         return summarize(ds), case_warnings(ds)
 

@@ -9,6 +9,7 @@ import logging
 import time
 from collections.abc import Sequence
 
+from solver.limits import CaseCancelled
 from solver.spec import CaseSpec
 
 from .result_store import StoreLike, as_store
@@ -47,7 +48,7 @@ def solve_and_store(spec_json: str, root: StoreLike, force: bool = False) -> dic
     Returns
     -------
     dict
-        ``{"case_id", "status": "done" | "failed", "error": str | None,
+        ``{"case_id", "status": "done" | "failed" | "cancelled", "error": str | None,
         "summary": {scalar name: float}, "warnings": [str], "computed": bool, "seconds": float}``;
         ``summary`` and ``warnings`` are empty for a failed case; ``warnings`` are the
         solver's (e.g. displacements outside the small-displacement model). Solver
@@ -64,6 +65,9 @@ def solve_and_store(spec_json: str, root: StoreLike, force: bool = False) -> dic
     start = time.perf_counter()
     try:
         summary, warnings, computed = store.solve_or_read(spec, force=force)
+    except CaseCancelled as exc:  # given up on request: neither a result nor a failure
+        return {"case_id": case_id, "status": "cancelled", "error": str(exc), "summary": {}, "warnings": [],
+                "computed": False, "seconds": time.perf_counter() - start}
     except Exception as exc:  # recorded in the store by solve_or_read; the sweep goes on
         return {"case_id": case_id, "status": "failed", "error": f"{type(exc).__name__}: {exc}",
                 "summary": {}, "warnings": [], "computed": True, "seconds": time.perf_counter() - start}

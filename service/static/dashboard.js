@@ -115,7 +115,7 @@
       event.target.disabled = true;
       const response = await TC.post("/sweeps/" + sweepId + "/cancel", "");
       const body = await response.json();
-      const message = response.ok ? body.cancelled_now.length + " queued cases cancelled; running cases finish"
+      const message = response.ok ? body.cancelled_now.length + " cases cancelled (running ones stop within a second)"
                                   : "not cancelled: " + body.detail;
       await TC.swap(["#sweep-status", "#comparison", "#plots", "#downloads"]);
       TC.sortTable(document.getElementById("comparison-table"), sort);

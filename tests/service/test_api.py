@@ -449,3 +449,33 @@ def test_a_sweep_run_from_the_command_line_is_listed_by_the_service(client, app,
     done = next(r for r in table["rows"] if r["status"] == "done")
     assert app.state.jobs.store.get_case(done["case_id"]).submissions == 0  # read, not solved again
     assert client.portal.call(app.state.jobs.import_sweep_records) == []  # once
+
+
+def test_cancel_stops_a_running_case_and_frees_its_worker(client, app):
+    """A running case is given up on cancel (issue 24: cancel stopped only queued cases, and
+    two runaway posts stopped all work): cancelled within seconds, no result, no error
+    record, and the worker takes the next case."""
+    slow = {"name": "slow", "base": {"mesh": {"interface_size": 0.06, "far_size": 4.0}, "ground": {
+        "model": "mohr-coulomb", "cohesion": 2.0e4, "friction_angle": 25.0, "tensile_strength": 1.0e4}},
+        "vary": {"loads.surface_load": [1.234e5]}}
+    sweep = client.post("/sweeps", json=slow).json()
+    case_id = sweep["case_ids"][0]
+    wait_until(lambda: client.get(f"/cases/{case_id}").json()["status"] == "running", timeout=60,
+               what="the slow case to run")
+    import time
+
+    t0 = time.monotonic()
+    answer = client.post(f"/sweeps/{sweep['id']}/cancel").json()
+    assert answer["cancelled_now"] == [case_id]
+    assert client.get(f"/cases/{case_id}").json()["status"] == "cancelled"
+    root = app.state.jobs.root
+    marker = root / "cancel" / case_id
+    wait_until(lambda: not marker.exists(), timeout=30, what="the worker to give the case up")
+    given_up = time.monotonic() - t0
+    assert given_up < 10, given_up
+    record = client.get(f"/cases/{case_id}").json()
+    assert record["status"] == "cancelled" and record["summary"] is None
+    assert not as_store(root).is_stored(case_id) and as_store(root).read_error(case_id) is None
+    # the worker is free: a small case is solved
+    assert finished(client, client.post("/cases", json=coarse_case(loads={"surface_load": 4.321e4})).json()["id"])[
+        "status"] == "done"

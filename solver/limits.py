@@ -1,0 +1,63 @@
+"""A time limit for one case, checked by the solver's own loops (contact iterations, friction
+steps, plastic iterations), so no case ties up a process: a case over its limit fails with
+the reason, like any case that does not converge.
+
+``with time_limit(seconds): ...`` sets the limit for the code run inside (per thread and
+task: a :mod:`contextvars` variable); :func:`check_time` raises once it has passed. The
+default, :data:`CASE_TIME_LIMIT` seconds, is ``TUNNEL_CONTACT_CASE_TIME_LIMIT`` (600: the
+finest mesh the sizing cap allows solves in about a minute on one core).
+"""
+from __future__ import annotations
+
+import contextvars
+import os
+import time
+from collections.abc import Callable
+from contextlib import contextmanager
+
+from .errors import SolverError
+
+CASE_TIME_LIMIT = float(os.environ.get("TUNNEL_CONTACT_CASE_TIME_LIMIT", "600") or 600)
+#: Seconds between two calls of a block's ``stop`` callable (it may look at a file).
+STOP_POLL = 0.5
+_DEADLINE: contextvars.ContextVar[list | None] = contextvars.ContextVar("deadline", default=None)
+
+
+class TimeLimitExceeded(SolverError):
+    """A case that ran past its time limit."""
+
+
+class CaseCancelled(SolverError):
+    """A case whose ``stop`` callable asked it to give up (cancelled while running)."""
+
+
+@contextmanager
+def time_limit(seconds: float | None = None, stop: Callable[[], bool] | None = None):
+    """Run the block under a limit of ``seconds`` (default :data:`CASE_TIME_LIMIT`); ``stop``,
+    if given, is asked every :data:`STOP_POLL` seconds whether to give the case up (a
+    cancellation), which :func:`check_time` then raises as :class:`CaseCancelled`."""
+    seconds = CASE_TIME_LIMIT if seconds is None else float(seconds)
+    now = time.monotonic()
+    token = _DEADLINE.set([now + seconds, seconds, stop, now + STOP_POLL])
+    try:
+        yield
+    finally:
+        _DEADLINE.reset(token)
+
+
+def check_time(where: str, iteration: int | None = None) -> None:
+    """Raise :class:`TimeLimitExceeded` naming ``where`` if the current limit has passed."""
+    limit = _DEADLINE.get()
+    if limit is None:
+        return
+    now = time.monotonic()
+    if limit[2] is not None and now > limit[3]:
+        limit[3] = now + STOP_POLL
+        if limit[2]():
+            raise CaseCancelled(f"cancelled while running ({where}); submit the case again to compute it")
+    if now > limit[0]:
+        at = f" after {iteration:,} iterations" if iteration is not None else ""
+        raise TimeLimitExceeded(
+            f"time limit: the case ran past its limit of {limit[1]:g} s in the {where}{at} and was stopped "
+            "(a very fine tolerance, a huge solver.max_iterations or a very fine mesh; the service's limit is "
+            "TUNNEL_CONTACT_CASE_TIME_LIMIT)")
