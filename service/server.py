@@ -13,6 +13,28 @@ from .settings import Settings
 logger = logging.getLogger(__name__)
 
 
+#: Open files the API asks for at start: every idle client socket holds one, and the common
+#: default soft limit (1 024) let about 1 200 idle connections stop /health (issue 24).
+OPEN_FILES = 65536
+
+
+def raise_open_files_limit(wanted: int = OPEN_FILES) -> int:
+    """Raise this process's soft limit of open files towards ``wanted`` (at most the hard
+    limit, which needs no privilege); return the limit in force."""
+    import resource
+
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    target = wanted if hard == resource.RLIM_INFINITY else min(wanted, hard)
+    if soft != resource.RLIM_INFINITY and soft < target:
+        try:
+            resource.setrlimit(resource.RLIMIT_NOFILE, (target, hard))
+            soft = target
+        except (ValueError, OSError) as exc:
+            logger.warning("could not raise the open-files limit from %d to %d: %s", soft, target, exc)
+    logger.info("open-files limit %s", soft)
+    return soft
+
+
 def serve(*, host: Optional[str] = None, port: Optional[int] = None, scheduler: Optional[str] = None,
           results: str | Path | None = None, token: Optional[str] = None,
           access_log: Optional[bool] = None) -> None:
@@ -29,6 +51,7 @@ def serve(*, host: Optional[str] = None, port: Optional[int] = None, scheduler: 
     """
     settings = Settings.from_env(host=host, port=port, scheduler=scheduler, results=results, token=token,
                                  access_log=access_log)
+    raise_open_files_limit()
     logger.info("serving on http://%s:%d", settings.host, settings.port)
     uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_level="info",
                 access_log=settings.access_log)
