@@ -21,7 +21,7 @@ from .errors import http_error_handler, overflow_handler, request_validation_han
 from .guards import BodyLimitMiddleware, SameOriginMiddleware, openapi_auth_as_configured
 from .jobs import Dispatcher
 from .settings import Settings, get_settings
-from .job_records import JobStore
+from .job_records import open_job_records
 
 logger = logging.getLogger(__name__)
 
@@ -32,11 +32,13 @@ async def lifespan(app: FastAPI):
     settings: Settings = app.state.settings
     root = settings.results.resolve()
     root.mkdir(parents=True, exist_ok=True)
-    store = JobStore(settings.database, background_checkpoints=True)
+    store, damage = open_job_records(settings.database, background_checkpoints=True)
     try:
         async with cluster_connection(settings) as connect:
             jobs = Dispatcher(connect, store, root, poll_interval=settings.poll_interval,
                               reconcile_interval=settings.reconcile_interval)
+            if damage is not None:
+                await jobs.rebuild_records()
             await jobs.start()
             app.state.jobs = jobs
             # Everything imported and built so far lives as long as the process. Taking it

@@ -452,3 +452,39 @@ class JobStore:
             return True
         except sqlite3.Error:
             return False
+
+
+def integrity_problem(store: "JobStore") -> Optional[str]:
+    """SQLite's own quick check of the job records: None if sound, else what it found."""
+    try:
+        with store._lock:
+            rows = store._db.execute("PRAGMA quick_check").fetchall()
+    except sqlite3.DatabaseError as exc:
+        return str(exc)
+    found = [r[0] for r in rows]
+    return None if found == ["ok"] else "; ".join(found[:5])
+
+
+def open_job_records(path: Path | str, **options) -> tuple["JobStore", Optional[str]]:
+    """The job records at ``path``, checked (:func:`integrity_problem`); a damaged database
+    (a broken header: "file is not a database"; a broken page) is moved aside as
+    ``<name>.damaged-<unix time>`` with its log files, with the reason logged, and a new one
+    is opened. Returns the store and the problem found (None if none): the caller rebuilds
+    the records from the result store then (:meth:`service.jobs.Dispatcher.rebuild_records`)."""
+    path = Path(path)
+    try:
+        store = JobStore(path, **options)
+        problem = integrity_problem(store)
+        if problem is None:
+            return store, None
+        store.close()
+    except sqlite3.DatabaseError as exc:
+        problem = str(exc)
+    stamp = int(time.time())
+    for suffix in ("", "-wal", "-shm"):
+        part = path.with_name(path.name + suffix)
+        if part.exists():
+            part.replace(path.with_name(f"{path.name}{suffix}.damaged-{stamp}"))
+    logger.error("job records %s are damaged (%s): moved aside as %s.damaged-%d; rebuilding them from the "
+                 "results", path.name, problem, path.name, stamp)
+    return JobStore(path, **options), problem

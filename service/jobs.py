@@ -45,7 +45,8 @@ from pydantic import ValidationError
 
 from solver.errors import field_errors, format_errors
 from solver.spec import CaseSpec
-from workflows.result_store import ResultStore
+from workflows.result_store import ResultStore, case_warnings
+from workflows.summary import summarize
 from workflows.sweep import Sweep, expand_sweep
 from workflows.tasks import case_id_of_key, map_cases  # one task key per case, CLI too
 
@@ -308,6 +309,37 @@ class Dispatcher:
                                     json.dumps(record.spec), record.case_ids)
         except OSError as exc:
             logger.warning("could not write the record of sweep %s: %s", record.id, exc)
+
+    async def rebuild_records(self) -> int:
+        """Fill empty job records from the result store (after damaged ones were moved aside):
+        every stored case done with its scalars and warnings, every recorded failure failed
+        with its reason; the sweeps then come from their records on disk
+        (:meth:`import_sweep_records`). Returns the number of cases recorded."""
+        results = ResultStore(self.root)
+
+        def read_all() -> list[tuple[str, str, str, dict | None, list[str], str | None]]:
+            found = []
+            for case_id in results.case_ids():
+                try:
+                    with results.opened(case_id) as ds:
+                        found.append((case_id, "done", ds.attrs["case_spec"], summarize(ds), case_warnings(ds), None))
+                except Exception as exc:  # an unreadable file: left for the usual recompute
+                    logger.warning("case %s not rebuilt: %s", case_id, exc)
+            for path in results.cases_dir.glob("*.error.json") if results.cases_dir.is_dir() else ():
+                case_id = path.name[:-len(".error.json")]
+                error = results.read_error(case_id)
+                if error and "spec" in error and case_id not in {f[0] for f in found}:
+                    spec = error["spec"] if isinstance(error["spec"], str) else json.dumps(error["spec"])
+                    found.append((case_id, "failed", spec, None, [], error.get("error")))
+            return found
+
+        found = await asyncio.to_thread(read_all)
+        for case_id, status, spec, summary, warnings, error in found:
+            self.store.add_case(case_id, spec)
+            self.store.finish(case_id, status=status, summary=summary, warnings=warnings, error=error)
+        sweeps = await self.import_sweep_records()
+        logger.warning("job records rebuilt from the results: %d cases, %d sweeps", len(found), len(sweeps))
+        return len(found)
 
     async def import_sweep_records(self) -> list[str]:
         """Add the sweeps recorded in the result store that the job records lack (a sweep run

@@ -268,3 +268,48 @@ def test_serve_honours_host_and_port_from_the_environment(monkeypatch, tmp_path)
     assert seen == {"host": "127.0.0.2", "port": 8123, "access_log": False}
     assert main(["serve", "--results", str(tmp_path), "--port", "8124", "--access-log"]) == 0
     assert seen == {"host": "127.0.0.2", "port": 8124, "access_log": True}
+
+
+@pytest.mark.parametrize("damage", ["header", "page"])
+def test_damaged_job_records_are_moved_aside_and_rebuilt_from_the_results(tmp_path, damage):
+    """Issue 24: with the SQLite header damaged the API exited at start; with a page damaged
+    it answered 500 to everything while the results sat on disk. Now the database is checked
+    at start, moved aside with the reason, and the records rebuilt: the done case, the
+    failed case with its reason, the sweep (from its record beside the results)."""
+    from fastapi.testclient import TestClient
+
+    from service_helpers import COARSE, finished, wait_until
+
+    settings = Settings(results=tmp_path / "results", local_workers=1, poll_interval=0.1, reconcile_interval=3600)
+    sweep = {"name": "kept", "base": COARSE, "mode": "zip",
+             "vary": {"lining.joints.count": [0, 6], "geometry.thickness": [0.25, 0.35]}}
+    with TestClient(create_app(settings)) as client:
+        body = client.post("/sweeps", json=sweep).json()
+        wait_until(lambda: client.get(f"/sweeps/{body['id']}").json()["finished"], what="the sweep")
+        before = {c: client.get(f"/cases/{c}").json() for c in body["case_ids"]}
+    database = settings.database
+    raw = bytearray(database.read_bytes())
+    if damage == "header":
+        raw[:100] = b"\x00" * 100
+    else:  # a page in the middle (the cases table's)
+        page = 4096
+        raw[2 * page:3 * page] = bytes(range(256)) * (page // 256)
+    database.write_bytes(bytes(raw))
+    for suffix in ("-wal", "-shm"):
+        database.with_name(database.name + suffix).unlink(missing_ok=True)
+
+    with TestClient(create_app(settings)) as client:
+        assert client.get("/health").status_code in (200, 503)
+        status = client.get(f"/sweeps/{body['id']}").json()
+        assert status["counts"]["done"] == 1 and status["counts"]["failed"] == 1
+        for case_id, old in before.items():
+            now = client.get(f"/cases/{case_id}").json()
+            assert now["status"] == old["status"]
+            if old["status"] == "done":
+                assert now["summary"]["max_thrust"] == pytest.approx(old["summary"]["max_thrust"])
+            else:
+                assert "lining.joints" in now["error"]
+        # and it takes new work
+        assert finished(client, client.post("/cases", json={**COARSE, "loads": {"surface_load": 6.5e4}}).json()["id"])[
+            "status"] == "done"
+    assert list(database.parent.glob(database.name + ".damaged-*"))
