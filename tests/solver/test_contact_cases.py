@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from solver import CaseSpec, NotConvergedError, run_case
+from solver import CaseSpec, NotConvergedError, SolverError, run_case
 from solver.contact import solve_contact
 from solver.model import TunnelModel
 
@@ -104,7 +104,15 @@ def test_bolt_search_recovers_from_a_bad_first_guess(inner):
     np.testing.assert_allclose(bad.lam, good.lam, rtol=0, atol=1e-7 * good.lam.max())
 
 
-def test_fixed_bolt_with_negative_reaction_is_reported_not_hidden():
+def test_fixed_bolt_with_negative_reaction_is_reported_not_hidden(monkeypatch):
+    """A bolt forced where the lining pulls on the ground: the solution breaks λ ≥ 0 at the
+    bolt. It is never given as a result (a case fails with the KKT residual it reached); the
+    solve itself says so (converged 0, residual > 1e-3) when asked past that guard."""
+    with pytest.raises(SolverError, match="KKT residual"):
+        run_case(unloaded(bolt=0.0))
+    import solver.model as model_module
+
+    monkeypatch.setattr(model_module, "accepted_residual", lambda tolerance: float("inf"))
     ds = run_case(unloaded(bolt=0.0))
     assert float(ds.bolt_theta) == 0.0
     assert float(ds.contact_pressure[0]) < 0

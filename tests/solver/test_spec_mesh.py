@@ -42,7 +42,7 @@ def test_default_case_and_stable_id():
     ({"lining": {"poisson": -0.1}}, "lining.poisson", "greater than or equal to 0"),
     ({"ground": {"young": 0}}, "ground.young", "greater than or equal to 100000"),
     ({"lining": {"density": 0}}, "lining.density", "greater than 0"),
-    ({"loads": {"gravity": 0}}, "loads.gravity", "greater than 0"),
+    ({"loads": {"gravity": 0}}, "loads.gravity", "greater than or equal to 1"),
     ({"geometry": {"thickness": -0.1}}, "geometry.thickness", "greater than 0"),
     ({"geometry": {"depth": 3.0}}, "geometry", "depth: cover above"),
     ({"geometry": {"height": 17.0}}, "geometry", "height: room below"),
