@@ -307,8 +307,11 @@ def local_client(n_workers: int = 2) -> Iterator:
 
     from .workers import worker_config
 
+    # silence_logs=ERROR: the embedded cluster's teardown warnings (a worker's heartbeat meeting
+    # the closed scheduler, with a traceback) are not the user's business; errors still show
     with worker_config(), LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                                       dashboard_address=None) as cluster, Client(cluster) as client:
+                                       dashboard_address=None, silence_logs=logging.ERROR) as cluster, \
+            Client(cluster) as client:
         yield client
 
 
