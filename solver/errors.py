@@ -14,11 +14,12 @@ from __future__ import annotations
 import re
 from typing import Any, Iterable, Sequence
 
+__all__ = ["SolverError", "field_errors", "field_path", "format_errors"]
+
 
 class SolverError(RuntimeError):
     """A case that cannot be solved; never a result that only looks valid."""
 
-__all__ = ["field_errors", "field_path", "format_errors"]
 
 _NAMED = re.compile(r"^([A-Za-z_]\w*(?:\.(?:[A-Za-z_]\w*|\d+))*): (.*)$", re.DOTALL)
 #: Location prefixes FastAPI adds to pydantic's (where in the request the value was).

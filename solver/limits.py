@@ -14,13 +14,24 @@ import os
 import time
 from collections.abc import Callable
 from contextlib import contextmanager
+from dataclasses import dataclass
 
 from .errors import SolverError
 
 CASE_TIME_LIMIT = float(os.environ.get("TUNNEL_CONTACT_CASE_TIME_LIMIT", "600") or 600)
 #: Seconds between two calls of a block's ``stop`` callable (it may look at a file).
 STOP_POLL = 0.5
-_DEADLINE: contextvars.ContextVar[list | None] = contextvars.ContextVar("deadline", default=None)
+
+
+@dataclass
+class _Limit:
+    deadline: float  # time.monotonic() past which the case stops
+    seconds: float
+    stop: Callable[[], bool] | None
+    next_poll: float  # when ``stop`` is asked next
+
+
+_LIMIT: contextvars.ContextVar[_Limit | None] = contextvars.ContextVar("limit", default=None)
 
 
 class TimeLimitExceeded(SolverError):
@@ -38,26 +49,27 @@ def time_limit(seconds: float | None = None, stop: Callable[[], bool] | None = N
     cancellation), which :func:`check_time` then raises as :class:`CaseCancelled`."""
     seconds = CASE_TIME_LIMIT if seconds is None else float(seconds)
     now = time.monotonic()
-    token = _DEADLINE.set([now + seconds, seconds, stop, now + STOP_POLL])
+    token = _LIMIT.set(_Limit(now + seconds, seconds, stop, now + STOP_POLL))
     try:
         yield
     finally:
-        _DEADLINE.reset(token)
+        _LIMIT.reset(token)
 
 
 def check_time(where: str, iteration: int | None = None) -> None:
-    """Raise :class:`TimeLimitExceeded` naming ``where`` if the current limit has passed."""
-    limit = _DEADLINE.get()
+    """Raise :class:`TimeLimitExceeded` naming ``where`` if the current limit has passed, or
+    :class:`CaseCancelled` if the block's ``stop`` says so."""
+    limit = _LIMIT.get()
     if limit is None:
         return
     now = time.monotonic()
-    if limit[2] is not None and now > limit[3]:
-        limit[3] = now + STOP_POLL
-        if limit[2]():
+    if limit.stop is not None and now > limit.next_poll:
+        limit.next_poll = now + STOP_POLL
+        if limit.stop():
             raise CaseCancelled(f"cancelled while running ({where}); submit the case again to compute it")
-    if now > limit[0]:
+    if now > limit.deadline:
         at = f" after {iteration:,} iterations" if iteration is not None else ""
         raise TimeLimitExceeded(
-            f"time limit: the case ran past its limit of {limit[1]:g} s in the {where}{at} and was stopped "
+            f"time limit: the case ran past its limit of {limit.seconds:g} s in the {where}{at} and was stopped "
             "(a very fine tolerance, a huge solver.max_iterations or a very fine mesh; the service's limit is "
             "TUNNEL_CONTACT_CASE_TIME_LIMIT)")

@@ -35,8 +35,9 @@ import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
 from cvxopt import cholmod as _cvxopt_cholmod
+from threadpoolctl import ThreadpoolController
 
-from .contact import SolverError
+from .errors import SolverError
 
 
 #: BLAS threads the solver allows itself (``TUNNEL_CONTACT_BLAS_THREADS``, default 1). Its
@@ -44,16 +45,14 @@ from .contact import SolverError
 #: threads spinning against the supernodal factorization and each other made a plain
 #: process's case take 2.6-6.2 s instead of 0.45 s now and then (issue 24).
 BLAS_THREADS = max(1, int(os.environ.get("TUNNEL_CONTACT_BLAS_THREADS", "1") or 1))
-_CONTROLLER = None
+_CONTROLLER: ThreadpoolController | None = None
 
 
 def blas_threads():
     """Context limiting every loaded BLAS (numpy's, scipy's, CHOLMOD's OpenBLAS) to
     :data:`BLAS_THREADS` threads, whatever process the solver runs in (CLI, notebook,
-    worker); about 40 µs to enter."""
+    worker); about 40 µs to enter (the libraries are looked up once, on first use)."""
     global _CONTROLLER
-    from threadpoolctl import ThreadpoolController
-
     if _CONTROLLER is None:
         _CONTROLLER = ThreadpoolController()
     return _CONTROLLER.limit(limits=BLAS_THREADS, user_api="blas")

@@ -22,7 +22,6 @@ history, at the sub-triangle centroids.
 """
 from __future__ import annotations
 
-
 import numpy as np
 
 from .assembly import _stress_components, point_basis

@@ -300,7 +300,7 @@ def plot_surface_settlement(ds: xr.Dataset) -> Figure:
     return fig
 
 
-def _ground_lines(ax, ds: xr.Dataset, xlim: tuple[float, float]) -> None:
+def _ground_lines(ax, ds: xr.Dataset) -> None:
     """The lines between layers (brown, dash-dotted) and the water table (blue, dashed) on
     undeformed axes, where the case has them."""
     spec = case_spec(ds)

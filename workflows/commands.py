@@ -10,6 +10,7 @@ import json
 import logging
 import math
 import os
+import shutil
 import sys
 from collections.abc import Iterable
 from pathlib import Path
@@ -28,22 +29,30 @@ from .parameters import flat_parameters, parameter_attrs, varying_parameters
 from .result_store import ResultStore, StoreLike, as_store, case_warnings, check_case_id
 from .summary import summarize
 from .sweep import Sweep, SweepError, run_sweep
-from .units import DIAGNOSTICS, shown_value
+from .units import DIAGNOSTICS, display_unit, shown_number, shown_value
 
 
-#: Columns of the comparison table: (summary scalar, header, unit, divisor to the shown unit).
-TABLE_COLUMNS: tuple[tuple[str, str, str, float], ...] = (
-    ("max_contact_pressure", "max λ", "kPa", 1e3),
-    ("contact_extent", "contact", "deg", 1.0),
-    ("max_thrust", "max N", "kN/m", 1e3),
-    ("max_abs_moment", "max |M|", "kN·m/m", 1e3),
-    ("max_utilization", "max η", "≤ 1", 1.0),
-    ("crown_settlement", "lining crown", "mm", 1e-3),
-    ("ground_crown_settlement", "ground crown", "mm", 1e-3),
-    ("ground_loss", "ground loss", "%", 1e-2),
-    ("gaussian_max_settlement", "trough max", "mm", 1e-3),
-    ("axis_settlement", "FE surface", "mm", 1e-3),
+#: Columns of the comparison table: (summary scalar, header); values and units as every table
+#: shows them (:mod:`workflows.units`).
+TABLE_COLUMNS: tuple[tuple[str, str], ...] = (
+    ("max_contact_pressure", "max λ"),
+    ("contact_extent", "contact"),
+    ("max_thrust", "max N"),
+    ("max_abs_moment", "max |M|"),
+    ("max_utilization", "max η"),
+    ("crown_settlement", "lining crown"),
+    ("ground_crown_settlement", "ground crown"),
+    ("ground_loss", "ground loss"),
+    ("gaussian_max_settlement", "trough max"),
+    ("axis_settlement", "FE surface"),
 )
+
+
+def column_unit(name: str) -> str:
+    """The unit row's label of result column ``name`` (the utilization: its limit, ``≤ 1``)."""
+    if name == "max_utilization":
+        return "≤ 1"
+    return display_unit(SCALARS[name][0], name)[0]
 
 
 def configure_logging(verbose: int = 0) -> None:
@@ -241,8 +250,6 @@ def report_command(case_id: str, results: str, *, output: str | None = None, out
     target = Path(output or f"{case_id}.pdf")
     if target.is_dir():
         target = target / f"{case_id}.pdf"
-    import shutil
-
     shutil.copyfile(render_report(store, case_id, ds), target)
     print(f"wrote {target} (report of case {case_id})", file=out)
     return 0
@@ -251,14 +258,15 @@ def report_command(case_id: str, results: str, *, output: str | None = None, out
 def format_summary(summary: dict[str, float]) -> str:
     """The scalars of one case, one ``name = value unit`` per line, in the engineering units
     of every table and page (:mod:`workflows.units`: kPa, kN/m, kN·m/m, mm, %), the
-    solver's diagnostics after a blank line; non-finite values as ``inf``/``nan``.
+    solver's diagnostics after a ``solver:`` line; non-finite values as ``inf``/``-``.
     """
     width = max((len(k) for k in summary), default=0)
-    results = [k for k in summary if k not in DIAGNOSTICS]
-    lines = [f"  {k:<{width}} = {shown_value(summary[k], SCALARS.get(k, (None,))[0], k, 6)}" for k in results]
-    lines += ["  solver:"] + [f"  {k:<{width}} = {shown_value(summary[k], SCALARS.get(k, (None,))[0], k, 6)}"
-                              for k in summary if k in DIAGNOSTICS]
-    return "\n".join(lines)
+
+    def line(k: str) -> str:
+        return f"  {k:<{width}} = {shown_value(summary[k], SCALARS.get(k, (None,))[0], k, 6)}"
+
+    return "\n".join([line(k) for k in summary if k not in DIAGNOSTICS] + ["  solver:"]
+                     + [line(k) for k in summary if k in DIAGNOSTICS])
 
 
 def _unit_label(units: str | None) -> str:
@@ -333,14 +341,14 @@ def comparison_table(rows: Iterable[dict[str, Any]]) -> str:
     """
     rows = list(rows)
     varied = varying_parameters([r["params"] for r in rows if r["params"]])
-    header = ["case_id", *varied, *(h for _, h, _, _ in TABLE_COLUMNS)]
+    header = ["case_id", *varied, *(h for _, h in TABLE_COLUMNS)]
     units = ["", *(_unit_label(parameter_attrs(n).get("units")) for n in varied),
-             *(u for _, _, u, _ in TABLE_COLUMNS)]
+             *(column_unit(k) for k, _ in TABLE_COLUMNS)]
     lines = []
     for r in rows:
         cells = [r["case_id"], *(_fmt(r["params"].get(n, "")) for n in varied)]
         if r["status"] == "done":
-            cells += [_scaled(r["summary"].get(k), scale) for k, _, _, scale in TABLE_COLUMNS]
+            cells += [shown_number(r["summary"].get(k), SCALARS[k][0], k) for k, _ in TABLE_COLUMNS]
         else:
             cells += [r["status"]] + [""] * (len(TABLE_COLUMNS) - 1)
         lines.append(cells)
@@ -350,20 +358,6 @@ def comparison_table(rows: Iterable[dict[str, Any]]) -> str:
     text += [fmt.format(*cells) for cells in lines]
     errors = [f"  {r['case_id']}: {r['error']}" for r in rows if r["error"]]
     return "\n".join(text + (["failures:"] + errors if errors else []))
-
-
-def _scaled(value: Any, scale: float) -> str:
-    """``value / scale`` for the table: ``-`` if missing or NaN, ``inf`` if infinite.
-
-    Values from the REST service arrive as None (JSON has no inf) or as text (``'inf'``).
-    """
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        return "-"
-    if math.isnan(number):
-        return "-"
-    return _fmt(number / scale) if math.isfinite(number) else ("inf" if number > 0 else "-inf")
 
 
 def _fmt(value: Any) -> str:

@@ -49,11 +49,10 @@ def _yielded_outline(ax, ds: xr.Dataset, tri: np.ndarray, x: np.ndarray, y: np.n
     plastic = ds["plastic"].values > 0
     edges = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
     owner = np.tile(np.arange(tri.shape[0]), 3)
-    keys, inverse, counts = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
+    keys, inverse = np.unique(edges, axis=0, return_inverse=True)
     state = np.zeros(keys.shape[0], dtype=int)
     np.add.at(state, inverse.ravel(), plastic[owner].astype(int))
-    # an edge on the boundary of the zone: one plastic face beside it (of two, or of one at a boundary)
-    border = ((counts == 2) & (state == 1)) | ((counts == 1) & (state == 1))
+    border = state == 1  # on the zone's boundary: exactly one plastic face beside the edge
     segs = np.stack([np.column_stack([x[keys[border, 0]], y[keys[border, 0]]]),
                      np.column_stack([x[keys[border, 1]], y[keys[border, 1]]])], axis=1)
     ax.add_collection(LineCollection(segs, colors="magenta", linewidths=1.2, label="yielded zone"))
@@ -66,10 +65,11 @@ def _lining(ax, ds: xr.Dataset, tri: np.ndarray, x: np.ndarray, y: np.ndarray) -
                                      edgecolors="none", label="lining"))
 
 
-def _panel(fig, ax, ds, tri, values, *, label: str, cmap: str, faces: bool, symmetric: bool = False) -> None:
+def _panel(fig, ax, ds, tri, near, values, *, label: str, cmap: str, faces: bool, symmetric: bool = False) -> None:
+    """One field on the ground near the tunnel (``near``: the ground faces in view, which set
+    the colour range)."""
     x, y = ds["node_x"].values, ds["node_y"].values
     ground = ds["body"].values == 0
-    near = _near(ds) & ground
     shown = values[near] if faces else values[np.unique(tri[near])]
     lo, hi = (float(np.min(shown)), float(np.max(shown))) if shown.size else (0.0, 1.0)
     if symmetric:
@@ -85,7 +85,7 @@ def _panel(fig, ax, ds, tri, values, *, label: str, cmap: str, faces: bool, symm
         art = ax.tricontourf(Triangulation(x, y, tri[ground]), values, levels=levels, cmap=cmap, extend="both")
     _lining(ax, ds, tri, x, y)
     _yielded_outline(ax, ds, tri, x, y)
-    _ground_lines(ax, ds, (0.0, 1.0))
+    _ground_lines(ax, ds)
     _window(ax, ds)
     bar = fig.colorbar(art, ax=ax, shrink=0.85)
     bar.ax.tick_params(labelsize="x-small")
@@ -98,18 +98,18 @@ def plot_contours(ds: xr.Dataset) -> Figure:
     equivalent plastic strain, the yielded zone outlined in magenta on every panel."""
     tri = ds["face_nodes"].values.astype(np.int64)[:, :3]
     stress = "effective_stress" if "effective_stress_xx" in ds else "stress"
-    panels = [("displacement", "|u| displacement magnitude (mm)", "viridis", False, False,
+    panels = [("|u| displacement magnitude (mm)", "viridis", False, False,
                1e3 * np.hypot(ds["displacement_x"].values, ds["displacement_y"].values)),
-              (f"{stress}_xx", "σ'xx horizontal effective stress (kPa)", "plasma", True, False,
+              ("σ'xx horizontal effective stress (kPa)", "plasma", True, False,
                ds[f"{stress}_xx"].values / 1e3),
-              (f"{stress}_yy", "σ'yy vertical effective stress (kPa)", "plasma", True, False,
+              ("σ'yy vertical effective stress (kPa)", "plasma", True, False,
                ds[f"{stress}_yy"].values / 1e3),
-              (f"{stress}_xy", "τxy shear stress (kPa)", "PuOr", True, True, ds[f"{stress}_xy"].values / 1e3)]
+              ("τxy shear stress (kPa)", "PuOr", True, True, ds[f"{stress}_xy"].values / 1e3)]
     if "pore_pressure" in ds and np.any(ds["pore_pressure"].values != 0):
-        panels.append(("pore_pressure", "p pore pressure (kPa)", "Blues", True, False,
+        panels.append(("p pore pressure (kPa)", "Blues", True, False,
                        ds["pore_pressure"].values / 1e3))
     if "equivalent_plastic_strain" in ds and np.any(ds["plastic"].values > 0):
-        panels.append(("equivalent_plastic_strain", "ε̄p equivalent plastic strain (%)", "magma_r", True, False,
+        panels.append(("ε̄p equivalent plastic strain (%)", "magma_r", True, False,
                        100 * ds["equivalent_plastic_strain"].values))
     ncols = 3 if len(panels) > 4 else 2
     nrows = -(-len(panels) // ncols)
@@ -117,8 +117,9 @@ def plot_contours(ds: xr.Dataset) -> Figure:
     axes = fig.subplots(nrows, ncols, squeeze=False).ravel()
     for ax in axes[len(panels):]:
         ax.set_visible(False)
-    for ax, (_, label, cmap, faces, symmetric, values) in zip(axes, panels):
-        _panel(fig, ax, ds, tri, values, label=label, cmap=cmap, faces=faces, symmetric=symmetric)
+    near = _near(ds) & (ds["body"].values == 0)
+    for ax, (label, cmap, faces, symmetric, values) in zip(axes, panels):
+        _panel(fig, ax, ds, tri, near, values, label=label, cmap=cmap, faces=faces, symmetric=symmetric)
     for ax in axes[len(panels) - ncols:len(panels)]:
         ax.set_xlabel("x (m)", fontsize="x-small")
     yielded = "plastic" in ds and bool(np.any(ds["plastic"].values > 0))
@@ -170,7 +171,7 @@ def plot_deformed_mesh(ds: xr.Dataset, *, scale: float | None = None) -> Figure:
     segs = [pts[i:i + 2] for i in range(len(pts) - 1) if on[i] and on[i + 1]]
     ax.add_collection(LineCollection(segs, colors=_CONTACT_COLOR, linewidths=2.5, label="in contact"))
     _yielded_outline(ax, ds, tri, xd, yd)
-    _ground_lines(ax, ds, (0.0, view))
+    _ground_lines(ax, ds)
     ax.set_xlim(0.0, view)
     ax.set_ylim(cy - view, cy + view)
     ax.set_aspect("equal")

@@ -31,18 +31,25 @@ def display_unit(units: str, name: str | None = None) -> tuple[str, float]:
     return DISPLAY_UNITS.get(units, (units, 1.0))
 
 
-def shown_value(value, units: str | None, name: str | None = None, digits: int = 4) -> str:
-    """``value`` in its display unit with ``digits`` significant digits and the unit
-    (``"624.3 kN/m"``); ``-`` when missing or NaN, ``inf`` when infinite."""
+def shown_number(value, units: str | None, name: str | None = None, digits: int = 4) -> str:
+    """``value`` in its display unit with ``digits`` significant digits, without the unit;
+    ``-`` when missing or NaN, ``inf`` when infinite (the service sends inf as text or None)."""
     try:
         number = float(value)
     except (TypeError, ValueError):
         return "-"
-    unit, factor = display_unit(units or "", name)
     if math.isnan(number):
         return "-"
-    text = f"{number * factor:.{digits}g}" if math.isfinite(number) else ("inf" if number > 0 else "-inf")
-    return f"{text} {unit}" if unit else text
+    if not math.isfinite(number):
+        return "inf" if number > 0 else "-inf"
+    return f"{number * display_unit(units or '', name)[1]:.{digits}g}"
+
+
+def shown_value(value, units: str | None, name: str | None = None, digits: int = 4) -> str:
+    """:func:`shown_number` followed by its unit (``"624.3 kN/m"``)."""
+    text = shown_number(value, units, name, digits)
+    unit = display_unit(units or "", name)[0]
+    return f"{text} {unit}" if unit and text != "-" else text
 
 
 def input_unit(name: str, units: str | None) -> tuple[str, float]:

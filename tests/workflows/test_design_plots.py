@@ -21,7 +21,7 @@ from workflows.case_plots import (
     plot_interaction,
     plot_lining_forces,
 )
-from workflows.commands import TABLE_COLUMNS, case_row, comparison_table, show_command
+from workflows.commands import TABLE_COLUMNS, case_row, column_unit, comparison_table, show_command
 from workflows.plots import PLOTS, SWEEP_PLOTS, plot_scalars
 
 COARSE = {"mesh": {"interface_size": 0.2, "far_size": 8.0}}
@@ -155,8 +155,10 @@ def test_table_has_the_design_and_settlement_columns(store):
     rows = [case_row(root, c) for c in (*grid, plain)]
     table = comparison_table(rows).splitlines()
     header, units = table[0], table[1]
-    for _, name, unit, _ in TABLE_COLUMNS:
-        assert name in header and unit in units
+    for key, name in TABLE_COLUMNS:
+        assert name in header and column_unit(key) in units
+    assert [column_unit(k) for k, _ in TABLE_COLUMNS] == [
+        "kPa", "°", "kN/m", "kN·m/m", "≤ 1", "mm", "mm", "%", "mm", "mm"]
     # settlements lead with the ground loss and the Gaussian trough, the FE surface last
     assert [c[0] for c in TABLE_COLUMNS][-6:] == ["max_utilization", "crown_settlement", "ground_crown_settlement",
                                                   "ground_loss", "gaussian_max_settlement", "axis_settlement"]
