@@ -75,7 +75,7 @@ def create_app(settings: Optional[Settings] = None) -> FastAPI:
     app.add_middleware(BodyLimitMiddleware, max_bytes=app.state.settings.max_body_bytes)
     app.add_middleware(SameOriginMiddleware)  # outermost: a cross-site POST is refused before its body is read
     app.add_exception_handler(RequestValidationError, request_validation_handler)
-    for error in (sqlite3.OperationalError, OSError):  # full, read-only, locked: 503
+    for error in (sqlite3.DatabaseError, OSError):  # full, read-only, locked, damaged: 503
         app.add_exception_handler(error, store_error_handler)
     app.add_exception_handler(OverflowError, overflow_handler)
     app.add_exception_handler(StarletteHTTPException, http_error_handler)

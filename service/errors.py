@@ -76,7 +76,17 @@ async def request_validation_handler(request: Request, exc: RequestValidationErr
 
 async def store_error_handler(request: Request, exc: Exception) -> JSONResponse:
     """503 with the reason when the job records or the results directory refuse a write
-    (full or read-only disk, I/O error); the reason names no server path."""
+    (full or read-only disk, I/O error), or when the job records are found damaged (their
+    recovery is started: moved aside, rebuilt from the results); the reason names no server path."""
+    from .job_records import is_damage
+
+    if is_damage(exc):
+        request.app.state.jobs.recover_soon(str(exc))
+        reason = (f"job records are damaged ({exc}): they are being moved aside and rebuilt from the "
+                  "stored results; retry in a few seconds")
+        logger.error("%s (%s %s)", reason, request.method, request.url.path)
+        return JSONResponse(status_code=503, content=ErrorBody(detail=reason).model_dump(),
+                            headers={"Retry-After": "5"})
     if isinstance(exc, OSError):
         if exc.errno not in _WRITE_ERRNOS:
             raise exc  # not the store refusing writes: a server error

@@ -29,6 +29,8 @@ logger = logging.getLogger(__name__)
 
 #: Seconds between the checkpoints of a store with ``background_checkpoints``.
 CHECKPOINT_INTERVAL = 1.0
+#: Bytes the write-ahead log is truncated to after a checkpoint (SQLite's journal_size_limit).
+WAL_SIZE_LIMIT = 4 << 20
 
 #: Case states. ``queued`` and ``running`` are open; ``done`` and ``failed`` are final;
 #: ``cancelled`` (a queued case whose sweep was cancelled) is final until submitted again.
@@ -147,7 +149,9 @@ class _Checkpointer(threading.Thread):
     @staticmethod
     def checkpoint(db: sqlite3.Connection) -> None:
         try:
-            # PASSIVE: copy what no reader still needs, never wait for a lock
+            # PASSIVE: copy what no reader still needs, never wait for a lock; then the log is
+            # cut back to WAL_SIZE_LIMIT if it was fully copied (journal_size_limit)
+            db.execute(f"PRAGMA journal_size_limit={WAL_SIZE_LIMIT}")
             db.execute("PRAGMA wal_checkpoint(PASSIVE)").fetchall()
         except sqlite3.Error as exc:  # a full disk, say: the WAL keeps the data; try again later
             logger.warning("job store checkpoint failed (%s); retrying in the next round", exc)
@@ -169,12 +173,22 @@ class JobStore:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._lock = threading.Lock()
+        self._background_checkpoints = background_checkpoints
+        self._checkpointer: Optional[_Checkpointer] = None
+        with self._lock:
+            self._open()
+
+    def _open(self) -> None:
+        """Connect (the lock held), create or migrate the schema, start the checkpoints."""
         self._db = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None, timeout=30)
         self._db.row_factory = sqlite3.Row
-        with self._lock:
+        try:
             self._db.execute("PRAGMA journal_mode=WAL")
             # NORMAL in WAL mode: a commit survives the process being killed (not power loss).
             self._db.execute("PRAGMA synchronous=NORMAL")
+            # the log file is cut back to this size after each checkpoint (a burst of 10^4
+            # cases left a 166 MB log beside an 8.8 MB database when it was not)
+            self._db.execute(f"PRAGMA journal_size_limit={WAL_SIZE_LIMIT}")
             self._migrate_status_check()
             self._migrate_warnings_column()
             self._db.execute("PRAGMA foreign_keys=ON")
@@ -183,11 +197,28 @@ class JobStore:
             columns = self._db.execute("PRAGMA table_info(cases)").fetchall()
             defaults = self._db.execute("SELECT " + ", ".join(c["dflt_value"] or "NULL" for c in columns)).fetchone()
             self._new_case = dict(zip((c["name"] for c in columns), defaults))
-            if background_checkpoints:
+            if self._background_checkpoints:
                 self._db.execute("PRAGMA wal_autocheckpoint=0")
-        self._checkpointer = _Checkpointer(self.path, CHECKPOINT_INTERVAL) if background_checkpoints else None
-        if self._checkpointer is not None:
+        except BaseException:
+            self._db.close()
+            raise
+        if self._background_checkpoints:
+            self._checkpointer = _Checkpointer(self.path, CHECKPOINT_INTERVAL)
             self._checkpointer.start()
+
+    def replace_damaged(self, problem: str) -> None:
+        """Move the damaged database aside (:func:`move_aside`) and start an empty one in its
+        place; the same object goes on serving (the caller rebuilds the records)."""
+        if self._checkpointer is not None:
+            self._checkpointer.stop()
+            self._checkpointer = None
+        with self._lock:
+            try:
+                self._db.close()
+            except sqlite3.Error:
+                pass
+            move_aside(self.path, problem)
+            self._open()
 
     def _migrate_status_check(self) -> None:
         """Let a database written before ``cancelled`` existed take that status.
@@ -224,6 +255,7 @@ class JobStore:
     def close(self) -> None:
         if self._checkpointer is not None:
             self._checkpointer.stop()
+            self._checkpointer = None
         with self._lock:
             self._db.close()
 
@@ -465,12 +497,29 @@ def integrity_problem(store: "JobStore") -> Optional[str]:
     return None if found == ["ok"] else "; ".join(found[:5])
 
 
+def is_damage(exc: BaseException) -> bool:
+    """Whether ``exc`` says the database file itself is damaged ("database disk image is
+    malformed", "file is not a database"), not merely busy, full or read-only."""
+    return isinstance(exc, sqlite3.DatabaseError) and not isinstance(exc, sqlite3.OperationalError)
+
+
+def move_aside(path: Path, problem: str) -> None:
+    """Rename a damaged database and its log files to ``<name>.damaged-<unix time>``, logged."""
+    stamp = int(time.time())
+    for suffix in ("", "-wal", "-shm"):
+        part = path.with_name(path.name + suffix)
+        if part.exists():
+            part.replace(path.with_name(f"{path.name}{suffix}.damaged-{stamp}"))
+    logger.error("job records %s are damaged (%s): moved aside as %s.damaged-%d; rebuilding them from the "
+                 "results", path.name, problem, path.name, stamp)
+
+
 def open_job_records(path: Path | str, **options) -> tuple["JobStore", Optional[str]]:
     """The job records at ``path``, checked (:func:`integrity_problem`); a damaged database
-    (a broken header: "file is not a database"; a broken page) is moved aside as
-    ``<name>.damaged-<unix time>`` with its log files, with the reason logged, and a new one
-    is opened. Returns the store and the problem found (None if none): the caller rebuilds
-    the records from the result store then (:meth:`service.jobs.Dispatcher.rebuild_records`)."""
+    (a broken header: "file is not a database"; a broken page) is moved aside
+    (:func:`move_aside`) and a new one is opened. Returns the store and the problem found
+    (None if none): the caller rebuilds the records from the result store then
+    (:meth:`service.jobs.Dispatcher.rebuild_records`)."""
     path = Path(path)
     try:
         store = JobStore(path, **options)
@@ -480,11 +529,5 @@ def open_job_records(path: Path | str, **options) -> tuple["JobStore", Optional[
         store.close()
     except sqlite3.DatabaseError as exc:
         problem = str(exc)
-    stamp = int(time.time())
-    for suffix in ("", "-wal", "-shm"):
-        part = path.with_name(path.name + suffix)
-        if part.exists():
-            part.replace(path.with_name(f"{path.name}{suffix}.damaged-{stamp}"))
-    logger.error("job records %s are damaged (%s): moved aside as %s.damaged-%d; rebuilding them from the "
-                 "results", path.name, problem, path.name, stamp)
+    move_aside(path, problem)
     return JobStore(path, **options), problem

@@ -51,7 +51,7 @@ from workflows.sweep import Sweep, expand_sweep
 from workflows.tasks import case_id_of_key, map_cases  # one task key per case, CLI too
 
 from .results import BrokenResult, public_error, result_state, stored_outcome, written
-from .job_records import UNREADABLE, CaseRecord, JobStore, SweepRecord
+from .job_records import UNREADABLE, CaseRecord, JobStore, SweepRecord, integrity_problem, is_damage
 
 logger = logging.getLogger(__name__)
 
@@ -103,6 +103,7 @@ class Dispatcher:
         self._rounds = 0
         self._flush_timer: Optional[asyncio.TimerHandle] = None
         self._tasks: set[asyncio.Task] = set()
+        self._recovering: Optional[asyncio.Task] = None
 
     # -- life cycle ----------------------------------------------------------------------
 
@@ -282,6 +283,8 @@ class Dispatcher:
                 return write(*args, **kwargs)
             except sqlite3.Error as exc:
                 logger.warning("job records refuse a write (%s); retrying in %.1f s", exc, pause)
+                if is_damage(exc):
+                    await self.recover_records(str(exc))
                 await asyncio.sleep(pause)
                 pause = min(2 * pause, MAX_BACKOFF)
 
@@ -310,6 +313,25 @@ class Dispatcher:
         except OSError as exc:
             logger.warning("could not write the record of sweep %s: %s", record.id, exc)
 
+    def recover_soon(self, problem: str) -> None:
+        """Start :meth:`recover_records` in the background (once at a time)."""
+        if self._recovering is None or self._recovering.done():
+            self._recovering = self._spawn(self.recover_records(problem))
+
+    async def recover_records(self, problem: str) -> bool:
+        """Damaged job records met while running (``database disk image is malformed``):
+        confirm with SQLite's check, move the database aside, start an empty one and rebuild
+        it from the results (:meth:`rebuild_records`), as at start-up. Returns whether it did.
+        A case submitted alone and still running when the damage struck is known again once
+        its result lands (the next import or rebuild) or when it is submitted again."""
+        confirmed = await asyncio.to_thread(integrity_problem, self.store)
+        if confirmed is None:
+            logger.warning("job records raised %r but pass SQLite's check; not rebuilt", problem)
+            return False
+        await asyncio.to_thread(self.store.replace_damaged, confirmed)
+        await self.rebuild_records()
+        return True
+
     async def rebuild_records(self) -> int:
         """Fill empty job records from the result store (after damaged ones were moved aside):
         every stored case done with its scalars and warnings, every recorded failure failed
@@ -319,7 +341,8 @@ class Dispatcher:
 
         def read_all() -> list[tuple[str, str, str, dict | None, list[str], str | None]]:
             found = []
-            for case_id in results.case_ids():
+            stored = set(results.case_ids())
+            for case_id in sorted(stored):
                 try:
                     with results.opened(case_id) as ds:
                         found.append((case_id, "done", ds.attrs["case_spec"], summarize(ds), case_warnings(ds), None))
@@ -328,7 +351,7 @@ class Dispatcher:
             for path in results.cases_dir.glob("*.error.json") if results.cases_dir.is_dir() else ():
                 case_id = path.name[:-len(".error.json")]
                 error = results.read_error(case_id)
-                if error and "spec" in error and case_id not in {f[0] for f in found}:
+                if error and "spec" in error and case_id not in stored:
                     spec = error["spec"] if isinstance(error["spec"], str) else json.dumps(error["spec"])
                     found.append((case_id, "failed", spec, None, [], error.get("error")))
             return found
@@ -454,6 +477,8 @@ class Dispatcher:
                 await self.reconcile()
                 pause = self.reconcile_interval
             except Exception as exc:  # a database or scheduler error: log, back off, go on
+                if is_damage(exc):
+                    await self.recover_records(str(exc))
                 pause = min(2 * pause, max(MAX_BACKOFF, self.reconcile_interval))
                 logger.warning("reconciliation failed (%s: %s); retrying in %.1f s",
                                type(exc).__name__, exc, pause)

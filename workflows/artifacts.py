@@ -28,8 +28,9 @@ from typing import Sequence
 import xarray as xr
 
 from .combine import for_netcdf
+from .files import DamagedFile, verify, write_atomically
 from .plots import PLOTS, SWEEP_PLOT_NAMES, SWEEP_PLOTS, case_labels, plot_interaction
-from .result_store import ResultStore, StoreLike, as_store, netcdf_lock, write_atomically
+from .result_store import ResultStore, StoreLike, as_store, netcdf_lock
 
 logger = logging.getLogger(__name__)
 
@@ -98,18 +99,31 @@ def write_combined(root: StoreLike, sweep_id: str, case_ids: Sequence[str]) -> P
     """
     store = as_store(root)
     target = store.combined_path(sweep_id, case_ids)
-    if target.is_file():
+    if _intact(target):
         return target
     with _BUILD_LOCK:
-        if not target.is_file():
+        if not _intact(target):
             combined = store.open_results(list(case_ids))
             with netcdf_lock:
-                write_atomically(target, lambda tmp: for_netcdf(combined).to_netcdf(tmp, engine="netcdf4"))
+                write_atomically(target, lambda tmp: for_netcdf(combined).to_netcdf(tmp, engine="netcdf4"),
+                                 checksum=True)
             logger.info("combined %d cases of sweep %s into %s", len(case_ids), sweep_id, target.name)
             for old in target.parent.glob(f"{sweep_id}-*.nc"):
                 if old != target and time.time() - old.stat().st_mtime > _STALE_AFTER:
                     old.unlink(missing_ok=True)
     return target
+
+
+def _intact(path: Path) -> bool:
+    """True when ``path`` is there and matches its checksum (a damaged copy is built again)."""
+    try:
+        verify(path)
+    except FileNotFoundError:
+        return False
+    except DamagedFile as exc:
+        logger.warning("%s; building it again", exc)
+        return False
+    return True
 
 
 def render_sweep_plot(root: StoreLike, sweep_id: str, case_ids: Sequence[str], name: str) -> Path:

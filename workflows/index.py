@@ -58,7 +58,8 @@ import xarray as xr
 from xarray.backends.netCDF4_ import NETCDF4_PYTHON_LOCK
 
 from .combine import label_cases, read_reduced, reduce_case, stack_cases
-from .result_store import OPEN_OPTIONS, FileKey, check_case_id, file_key, netcdf_encoding, netcdf_lock, write_atomically
+from .files import verify, write_atomically
+from .result_store import OPEN_OPTIONS, FileKey, check_case_id, file_key, netcdf_encoding, netcdf_lock
 
 if TYPE_CHECKING:
     from .result_store import ResultStore
@@ -266,6 +267,7 @@ class ResultIndex:
             yield _Table()
             return
         try:
+            verify(self.path)  # a damaged index is rebuilt from the case files, never read
             with NETCDF4_PYTHON_LOCK:  # HDF5 is not thread-safe; xarray's reads take this lock too
                 nc = netCDF4.Dataset(self.path, "r")
         except Exception as exc:
@@ -304,7 +306,7 @@ class ResultIndex:
                 block.attrs = {}
                 new.add(block, [c for ids, _ in group for c in ids], meta)
             try:
-                write_atomically(self.path, lambda tmp: _write_table(tmp, new))
+                write_atomically(self.path, lambda tmp: _write_table(tmp, new), checksum=True)
             except OSError as exc:  # e.g. a read-only results folder: answer anyway
                 logger.warning("could not write the index %s: %s", self.path, exc)
                 return new

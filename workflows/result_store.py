@@ -3,18 +3,23 @@
 Layout under the results directory ``root``::
 
     cases/<case_id>.nc                 the result Dataset of a case (SPEC §3): the truth
+    cases/<case_id>.nc.b2              its checksum (workflows.files)
     cases/<case_id>.error.json         why the case could not be solved
     plots/<case_id>/<name>.png         cached figures of a case (workflows.artifacts)
     sweeps/<sweep_id>-<digest>.nc      combined result of a sweep's finished cases
     sweeps/plots/<sweep_id>-<digest>-<name>.png   cached figures of those cases
+    sweeps/records/<sweep_id>.json     what a sweep was (the job records are rebuilt from it)
     index/results.nc                   index of every case's scalars and θ-grid
                                        interface quantities (workflows.index)
-    index/pending/<case_id>.nc         a case's index entry, written as the case lands
+    index/pending/<case_id>.entry      a case's index entry, written as the case lands
+    cancel/<case_id>                   a request to give up the running case
 
-Every file is written atomically (temporary file in the same folder, flush, fsync,
-``os.replace``), so a reader never sees a half-written file under a final name and a
-crash leaves at most a ``.tmp`` file that :meth:`ResultStore.remove_stale_temporaries`
-cleans. This module is the only one that writes case files.
+Every file is written atomically by :func:`workflows.files.write_atomically` (a held
+lock, a temporary in the same folder, flush, fsync, ``os.replace``): a reader never sees
+a half-written file under a final name, and a crash leaves at most a temporary that
+:meth:`ResultStore.remove_stale_temporaries` removes once its writer has gone. Case files
+carry a checksum, verified before they are read: a damaged file is treated as missing.
+This module is the only one that writes case files.
 """
 from __future__ import annotations
 
@@ -24,11 +29,10 @@ import logging
 import os
 import re
 import shutil
-import tempfile
 import threading
 import time
 from contextlib import contextmanager
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Union
@@ -41,6 +45,7 @@ from solver.limits import CaseCancelled
 from solver.model import shared_model
 from solver.spec import CaseSpec
 
+from .files import remove_checksum, remove_stale_temporaries, verify, write_atomically
 from .summary import summarize
 
 if TYPE_CHECKING:
@@ -54,7 +59,6 @@ logger = logging.getLogger(__name__)
 netcdf_lock = threading.RLock()
 
 _CASE_ID = re.compile(r"[0-9a-f]{16}")
-_TMP_SUFFIX = ".tmp"
 #: Options every stored netCDF file is opened with: values come back exactly as written
 #: (integer ``face_nodes`` keep their dtype and ``_FillValue`` attribute).
 OPEN_OPTIONS: dict[str, Any] = dict(
@@ -221,8 +225,18 @@ class ResultStore:
     @contextmanager
     def opened(self, case_id: str) -> Iterator[xr.Dataset]:
         """The stored file of ``case_id``, lazily opened under :data:`netcdf_lock` (every
-        netCDF access of this process goes through it), closed on exit."""
-        with netcdf_lock, xr.open_dataset(self.case_path(case_id), **OPEN_OPTIONS) as ds:
+        netCDF access of this process goes through it), closed on exit.
+
+        Raises
+        ------
+        FileNotFoundError
+            If the case is not stored.
+        DamagedFile
+            If the file no longer matches its checksum (to be recomputed, never served).
+        """
+        path = self.case_path(case_id)
+        verify(path)
+        with netcdf_lock, xr.open_dataset(path, **OPEN_OPTIONS) as ds:
             yield ds
 
     def open_case(self, case_id: str) -> xr.Dataset:
@@ -343,7 +357,7 @@ class ResultStore:
                 with netcdf_lock:
                     ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=netcdf_encoding(ds))
 
-        write_atomically(target, write)
+        write_atomically(target, write, checksum=True)
         key = file_key(target.stat())
         self.error_path(case_id).unlink(missing_ok=True)
         shutil.rmtree(self.plot_dir(case_id), ignore_errors=True)  # figures of an older result
@@ -368,26 +382,16 @@ class ResultStore:
     def remove_case(self, case_id: str) -> None:
         """Delete a case's result, error record, figures and index entry (nothing if absent)."""
         self.case_path(case_id).unlink(missing_ok=True)
+        remove_checksum(self.case_path(case_id))
         self.error_path(case_id).unlink(missing_ok=True)
         shutil.rmtree(self.plot_dir(case_id), ignore_errors=True)
         self.index.discard(case_id)
 
-    def remove_stale_temporaries(self, *, older_than: float = 3600.0) -> int:
-        """Delete temporary files left by killed writers (older than ``older_than`` s); return how many.
-
-        Writers that fail normally remove their own temporary file; this is for
-        processes that died mid-write (e.g. a killed worker).
-        """
-        removed = 0
-        for folder in (self.cases_dir, self.index_dir, self.index.pending_dir, self.index.schemas_dir):
-            for tmp in folder.glob(f"*{_TMP_SUFFIX}") if folder.is_dir() else ():
-                try:
-                    if time.time() - tmp.stat().st_mtime > older_than:
-                        tmp.unlink()
-                        removed += 1
-                except FileNotFoundError:
-                    pass
-        return removed
+    def remove_stale_temporaries(self) -> int:
+        """Delete the temporary files of writers that died mid-write, in every folder of the
+        store; return how many. A temporary whose writer still holds its lock stays, however
+        old it looks (:func:`workflows.files.remove_stale_temporaries`)."""
+        return remove_stale_temporaries(self.root)
 
 
 StoreLike = Union[ResultStore, str, os.PathLike]
@@ -435,46 +439,6 @@ def netcdf_encoding(ds: xr.Dataset, *, compress: bool = True) -> dict[str, dict[
             e.update(zlib=True, complevel=4, shuffle=True)
         enc[str(name)] = e
     return enc
-
-
-def write_atomically(target: Path, write: Callable[[Path], object], *, durable: bool = True) -> None:
-    """Call ``write(tmp)`` on a temporary file next to ``target``, then rename it into place.
-
-    The temporary file is flushed and fsynced before ``os.replace`` (unless not
-    ``durable``: for caches that detect their own damage); if ``write`` raises, it is
-    removed and nothing appears under ``target``.
-    """
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=_TMP_SUFFIX, dir=target.parent)
-    os.close(fd)
-    tmp = Path(name)
-    try:
-        write(tmp)
-        if durable:
-            with open(tmp, "rb+") as fh:  # the writer closed it; make its bytes durable
-                fh.flush()
-                os.fsync(fh.fileno())
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, target)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    if durable:
-        _fsync_dir(target.parent)
-
-
-def _fsync_dir(folder: Path) -> None:
-    """Make the rename durable (best effort: not every file system allows it)."""
-    try:
-        fd = os.open(folder, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
 
 
 # -- conveniences of the package (``workflows.run_and_store``, ``workflows.open_case``) -------

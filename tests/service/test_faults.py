@@ -154,6 +154,33 @@ def test_truncated_result_is_recomputed_not_served(client, app, done_case):
     recomputed.unlink()
 
 
+def test_result_overwritten_in_place_is_recomputed_never_served(client, app, done_case):
+    """Issue 24: bytes overwritten inside stored files (same size) were served with 200 and
+    opened with hundreds of wrong values; a plot answered 500. The checksum written with the
+    file finds it: the plot and the file answer 409 while the case is computed again."""
+    from workflows.files import digest, checksum_path
+
+    path = as_store(app.state.jobs.root).case_path(done_case["id"])
+    size = path.stat().st_size
+    with open(path, "r+b") as fh:
+        fh.seek(size // 2)
+        fh.write(bytes(range(256)) * 2)
+    assert path.stat().st_size == size
+    plot = client.get(f"/cases/{done_case['id']}/plots/contact_pressure.png")
+    assert plot.status_code == 409 and "recomputed" in plot.json()["detail"]
+    assert client.get(f"/cases/{done_case['id']}/result.nc").status_code == 409
+    assert finished(client, done_case["id"])["status"] == "done"
+    again = client.get(f"/cases/{done_case['id']}/result.nc")
+    assert again.status_code == 200
+    assert digest(path) == checksum_path(path).read_text().strip()
+    served = path.with_name("served.nc")
+    served.write_bytes(again.content)
+    with xr.open_dataset(served) as ds:
+        assert float(ds.max_contact_pressure) == done_case["summary"]["max_contact_pressure"]
+    served.unlink()
+    assert client.get(f"/cases/{done_case['id']}/plots/contact_pressure.png").status_code == 200
+
+
 def test_deleted_result_is_recomputed_at_reconciliation(client, app, done_case):
     as_store(app.state.jobs.root).case_path(done_case["id"]).unlink()
     client.portal.call(app.state.jobs.reconcile)
@@ -312,4 +339,38 @@ def test_damaged_job_records_are_moved_aside_and_rebuilt_from_the_results(tmp_pa
         # and it takes new work
         assert finished(client, client.post("/cases", json={**COARSE, "loads": {"surface_load": 6.5e4}}).json()["id"])[
             "status"] == "done"
+    assert list(database.parent.glob(database.name + ".damaged-*"))
+
+
+def test_a_page_damaged_while_running_answers_503_and_the_records_are_rebuilt(tmp_path):
+    """Issue 24: a page of the job records damaged under a running service answered 500 to
+    every request. Now the request meeting it answers 503 with the reason, the database is
+    moved aside and rebuilt from the results, and the service goes on: the done case listed
+    as done, new cases taken."""
+    from fastapi.testclient import TestClient
+
+    settings = Settings(results=tmp_path / "results", local_workers=1, poll_interval=0.1, reconcile_interval=3600)
+    with TestClient(create_app(settings)) as client:
+        done = finished(client, client.post("/cases", json=COARSE).json()["id"])
+        assert done["status"] == "done"
+        database = settings.database
+        other = sqlite3.connect(database, isolation_level=None)
+        other.execute("PRAGMA wal_checkpoint(TRUNCATE)").fetchall()
+        page = 4096
+        with open(database, "r+b") as fh:  # every page but the header's, in place
+            for k in range(1, database.stat().st_size // page):
+                fh.seek(k * page)
+                fh.write(bytes(range(256)) * (page // 256))
+        other.execute("CREATE TABLE poke (x)")  # another writer: the service's page cache is stale
+        other.close()
+        answer = client.get("/cases")
+        assert answer.status_code == 503, answer.text
+        assert "damaged" in answer.json()["detail"] and "rebuilt" in answer.json()["detail"]
+        wait_until(lambda: client.get(f"/cases/{done['id']}").status_code == 200, what="the rebuilt records")
+        again = client.get(f"/cases/{done['id']}").json()
+        assert again["status"] == "done"
+        assert again["summary"]["max_thrust"] == pytest.approx(done["summary"]["max_thrust"])
+        new = client.post("/cases", json={**COARSE, "loads": {"surface_load": 7.5e4}})
+        assert new.status_code == 202 and finished(client, new.json()["id"])["status"] == "done"
+        assert client.get("/health").json()["status"] != "error"
     assert list(database.parent.glob(database.name + ".damaged-*"))

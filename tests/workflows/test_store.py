@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -140,19 +139,6 @@ def test_standard_readers_open_the_file(stored, solved):
     g = CaseSpec.model_validate(COARSE).geometry
     expected = g.width * g.height - 0.5 * np.pi * g.hole_radius**2 + 0.5 * np.pi * (g.outer_radius**2 - g.inner_radius**2)
     assert area.sum() == pytest.approx(expected, rel=2e-3)
-
-
-def test_stale_temporaries_are_removed_only_when_old(tmp_path):
-    from workflows.result_store import as_store
-
-    folder = tmp_path / "cases"
-    folder.mkdir()
-    old, fresh = folder / ".0123456789abcdef.nc.x1.tmp", folder / ".0123456789abcdef.nc.x2.tmp"
-    old.write_bytes(b"partial")
-    fresh.write_bytes(b"partial")
-    os.utime(old, (0, 0))
-    assert as_store(tmp_path).remove_stale_temporaries() == 1
-    assert not old.exists() and fresh.exists()
 
 
 def test_rewriting_a_case_drops_its_cached_plots(tmp_path, solved):
