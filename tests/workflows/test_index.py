@@ -15,6 +15,7 @@ import solver
 from solver import CaseSpec
 from workflows import ResultStore, open_case, open_results, run_and_store
 from workflows.combine import combine_files
+from workflows.files import checksum_path
 from workflows.result_store import as_store
 from workflows.tasks import case_id_of_key, task_key
 
@@ -133,6 +134,7 @@ def test_case_rewritten_without_an_index_entry_is_read_from_its_file(store, solv
     changed = solved[0].copy(deep=True)
     changed["max_thrust"] = changed["max_thrust"] + 1.0
     changed.to_netcdf(store.case_path(case_id), engine="netcdf4")  # no index entry written
+    checksum_path(store.case_path(case_id)).unlink()  # nor a checksum: a writer of older versions
     with caplog.at_level(logging.WARNING):
         got = assert_same_as_files(store)
     assert value_of(got, "max_thrust", case_id) == float(changed["max_thrust"])

@@ -90,7 +90,7 @@ def test_failure_is_recorded_and_cleared_by_a_later_success(tmp_path, monkeypatc
     monkeypatch.setattr(solver, "run_case", lambda spec, **options: solved)
     run_and_store(spec, tmp_path)
     assert as_store(tmp_path).read_error(spec.case_id) is None
-    assert sorted(p.name for p in (tmp_path / "cases").iterdir()) == [f"{spec.case_id}.nc"]
+    assert sorted(p.name for p in (tmp_path / "cases").iterdir()) == [f"{spec.case_id}.nc", f"{spec.case_id}.nc.b2"]
 
 
 @pytest.mark.parametrize("bad", ["../../etc/passwd", "0123456789ABCDEF", "0123456789abcde",
