@@ -146,13 +146,17 @@ class _Checkpointer(threading.Thread):
         finally:
             db.close()
 
-    @staticmethod
-    def checkpoint(db: sqlite3.Connection) -> None:
+    def checkpoint(self, db: sqlite3.Connection) -> None:
+        wal = self.path.with_name(self.path.name + "-wal")
         try:
-            # PASSIVE: copy what no reader still needs, never wait for a lock; then the log is
-            # cut back to WAL_SIZE_LIMIT if it was fully copied (journal_size_limit)
-            db.execute(f"PRAGMA journal_size_limit={WAL_SIZE_LIMIT}")
+            # PASSIVE: copy what no reader still needs, never wait for a lock. Under steady
+            # writes the log never restarts that way; past WAL_SIZE_LIMIT a TRUNCATE checkpoint
+            # (a short wait for the writer) empties it.
             db.execute("PRAGMA wal_checkpoint(PASSIVE)").fetchall()
+            if wal.stat().st_size > WAL_SIZE_LIMIT:
+                db.execute("PRAGMA wal_checkpoint(TRUNCATE)").fetchall()
+        except FileNotFoundError:
+            pass
         except sqlite3.Error as exc:  # a full disk, say: the WAL keeps the data; try again later
             logger.warning("job store checkpoint failed (%s); retrying in the next round", exc)
 
