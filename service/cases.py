@@ -11,7 +11,7 @@ from fastapi.responses import FileResponse
 
 from solver.spec import CaseSpec, content_id
 from workflows.plots import PLOTS
-from workflows.result_store import as_store
+from workflows.result_store import as_store, estimated_result_bytes
 
 from workflows.artifacts import render_plot, render_report
 from .errors import responses
@@ -41,7 +41,7 @@ async def submit_case(spec: CaseSpec, request: Request, retry: Optional[Retry] =
     case_id = content_id(spec_json)  # = spec.case_id, without building the JSON again
     known = jobs.store.get_case(case_id)
     if known is None or known.status == "cancelled" or (retry and known.status == "failed"):
-        check_capacity(request)
+        check_capacity(request, need_bytes=estimated_result_bytes(spec))
     if known is None:
         record, created = jobs.store.add_case(case_id, spec_json)
     elif known.status == "cancelled" and jobs.store.requeue([case_id]):  # submitted again

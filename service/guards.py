@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import copy
 import json
+import os
 import secrets
-import shutil
+import tempfile
 import time
 from typing import Optional
 
 from fastapi import Depends, HTTPException, Request, status
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+
+from workflows.result_store import free_bytes
 
 _bearer = HTTPBearer(auto_error=False, description="required on POST when TUNNEL_CONTACT_TOKEN is set")
 
@@ -28,27 +31,62 @@ async def require_token(request: Request,
                             headers={"WWW-Authenticate": "Bearer"})
 
 
-def check_capacity(request: Request, new_cases: int = 1) -> None:
+def check_capacity(request: Request, new_cases: int = 1, need_bytes: int = 0) -> None:
     """Refuse work the service cannot take now.
 
-    503 when the results directory has less free space than
-    ``settings.min_free_bytes``; 429 with ``Retry-After`` when ``new_cases`` more would
-    put the queued and running cases over ``settings.max_open_cases``.
+    503 when the results store refuses writes (read-only, job records read-only) or has less
+    free space than the new cases' results need (``need_bytes``, from their mesh estimates;
+    at least ``settings.min_free_bytes``); 429 with ``Retry-After`` when ``new_cases`` more
+    would put the queued and running cases over ``settings.max_open_cases``.
     """
     if new_cases <= 0:
         return
     settings = request.app.state.settings
-    free = free_bytes(request.app.state.jobs.root)
-    if free < settings.min_free_bytes:
+    jobs = request.app.state.jobs
+    if not writable(request.app.state):
         raise HTTPException(status_code=status.HTTP_503_SERVICE_UNAVAILABLE,
-                            detail=f"results store cannot take writes: {free / 2**20:.1f} MiB free, "
-                                   f"a case needs up to {settings.min_free_bytes / 2**20:.0f} MiB")
+                            detail="results store cannot take writes: the results directory or the job records "
+                                   "are read-only; stored results are still served",
+                            headers={"Retry-After": str(settings.retry_after)})
+    need = max(settings.min_free_bytes, need_bytes)
+    free = free_bytes(jobs.root)
+    if free < need:
+        raise HTTPException(status_code=status.HTTP_503_SERVICE_UNAVAILABLE,
+                            detail=f"results store is full: {free / 2**20:.1f} MiB free, "
+                                   f"{'this case needs' if new_cases == 1 else f'these {new_cases:,} cases need'} "
+                                   f"about {need / 2**20:.0f} MiB",
+                            headers={"Retry-After": str(settings.retry_after)})
     open_cases = _open_cases(request.app.state, new_cases)
     if open_cases + new_cases > settings.max_open_cases:
         raise HTTPException(status_code=status.HTTP_429_TOO_MANY_REQUESTS,
                             detail=f"{open_cases:,} cases are queued or running, the limit is "
                                    f"{settings.max_open_cases:,}; retry later",
                             headers={"Retry-After": str(settings.retry_after)})
+
+
+#: Seconds a writability check of the store is reused.
+WRITABLE_TTL = 1.0
+
+
+def results_writable(root) -> bool:
+    """Whether a file can be created in the results directory (a read-only mount cannot)."""
+    try:
+        with tempfile.NamedTemporaryFile(dir=root, prefix=".health-", delete=True) as fh:
+            fh.write(b"ok")
+            fh.flush()
+        return os.access(root, os.W_OK)
+    except OSError:
+        return False
+
+
+def writable(state) -> bool:
+    """Results directory and job records take writes (checked at most every :data:`WRITABLE_TTL` s)."""
+    now = time.monotonic()
+    cached = getattr(state, "writable", None)
+    if cached is None or now - cached[0] > WRITABLE_TTL:
+        cached = (now, results_writable(state.jobs.root) and state.jobs.store.writable())
+        state.writable = cached
+    return cached[1]
 
 
 #: Seconds a count of open cases is reused (counting 10^4 queued records takes ~1 ms).
@@ -64,14 +102,6 @@ def _open_cases(state, new_cases: int) -> int:
         cached = (now, state.jobs.store.count_open())
     state.open_count = (cached[0], cached[1] + new_cases)  # this request's cases, until the next count
     return cached[1]
-
-
-def free_bytes(root) -> int:
-    """Bytes available to this process in the file system of ``root`` (0 if it is unreachable)."""
-    try:
-        return shutil.disk_usage(root).free
-    except OSError:
-        return 0
 
 
 def openapi_auth_as_configured(app) -> None:

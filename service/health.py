@@ -2,28 +2,22 @@
 from __future__ import annotations
 
 import asyncio
-import os
 import sqlite3
-import tempfile
 
 from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
 
-from .guards import free_bytes
+from solver.spec import CaseSpec
+from workflows.result_store import estimated_result_bytes, free_bytes
+
+from .guards import results_writable
 from .params import jobs_of, settings_of
 from .schemas import Health
 
 router = APIRouter(tags=["health"])
 
-
-def _results_writable(root) -> bool:
-    try:
-        with tempfile.NamedTemporaryFile(dir=root, prefix=".health-", delete=True) as fh:
-            fh.write(b"ok")
-            fh.flush()
-        return os.access(root, os.W_OK)
-    except OSError:
-        return False
+#: Room the result of a case at the default mesh needs: less free space is a full store.
+DEFAULT_CASE_BYTES = estimated_result_bytes(CaseSpec())
 
 
 @router.get("/health", response_model=Health, responses={503: {"model": Health, "description": "degraded"}})
@@ -34,18 +28,19 @@ async def health(request: Request) -> Health | JSONResponse:
     reachable, workers = await jobs.cluster_state()
     settings = settings_of(request)
     free = await asyncio.to_thread(free_bytes, jobs.root)
-    writable = (free >= settings.min_free_bytes and await asyncio.to_thread(_results_writable, jobs.root)
-                and jobs.store.writable())
+    room = max(settings.min_free_bytes, DEFAULT_CASE_BYTES)
+    writable = await asyncio.to_thread(results_writable, jobs.root) and jobs.store.writable()
     try:
         counts = jobs.store.status_counts()
     except sqlite3.Error:
         counts, writable = {"queued": 0, "running": 0}, False
     reasons = [text for ok, text in (
         (reachable, "scheduler unreachable"), (not reachable or workers > 0, "no workers"),
-        (free >= settings.min_free_bytes,
-         f"{free / 2**20:.1f} MiB free in the results directory, a case needs up to "
-         f"{settings.min_free_bytes / 2**20:.0f} MiB"),
-        (writable or free < settings.min_free_bytes, "results directory or job records refuse writes"))
+        (free >= room or not writable,
+         f"results store is full: {free / 2**20:.1f} MiB free, a case at the default mesh needs about "
+         f"{room / 2**20:.0f} MiB"),
+        (writable, "results store is read-only: the results directory or the job records refuse writes "
+                   "(stored results are still served)"))
         if not ok]
     address = settings.scheduler or (jobs.client.scheduler.address if jobs.client else None)
     body = Health(status="ok" if not reasons else "degraded", reasons=reasons,

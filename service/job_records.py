@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import sqlite3
 import threading
 import time
@@ -173,14 +174,22 @@ class JobStore:
     notes). :meth:`close` stops it.
     """
 
-    def __init__(self, path: Path | str, *, background_checkpoints: bool = False):
+    def __init__(self, path: Path | str, *, background_checkpoints: bool = False, read_only: bool = False):
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
         self._lock = threading.Lock()
-        self._background_checkpoints = background_checkpoints
+        self._background_checkpoints = background_checkpoints and not read_only
         self._checkpointer: Optional[_Checkpointer] = None
+        self.read_only = read_only
         with self._lock:
-            self._open()
+            if read_only:
+                # immutable: no -shm or -wal file is made (a read-only mount allows none)
+                self._db = sqlite3.connect(f"{self.path.resolve().as_uri()}?mode=ro&immutable=1", uri=True,
+                                           check_same_thread=False, isolation_level=None)
+                self._db.row_factory = sqlite3.Row
+                self._db.execute("SELECT count(*) FROM cases").fetchone()
+            else:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+                self._open()
 
     def _open(self) -> None:
         """Connect (the lock held), create or migrate the schema, start the checkpoints."""
@@ -307,6 +316,12 @@ class JobStore:
         """Ids of the cases in ``status``, oldest first."""
         return [r["id"] for r in self._read("SELECT id FROM cases WHERE status = ? ORDER BY submitted_at, id",
                                             (status,))]
+
+    def failed_with(self, error_prefix: str) -> list[str]:
+        """Ids of the failed cases whose error starts with ``error_prefix``, oldest first."""
+        return [r["id"] for r in self._read(
+            "SELECT id FROM cases WHERE status = 'failed' AND substr(error, 1, ?) = ? ORDER BY submitted_at, id",
+            (len(error_prefix), error_prefix))]
 
     def count_open(self) -> int:
         """How many cases are ``queued`` or ``running`` (the queue the 429 limit bounds)."""
@@ -481,6 +496,8 @@ class JobStore:
 
     def writable(self) -> bool:
         """Whether the database accepts a write (checked inside a rolled-back transaction)."""
+        if self.read_only:
+            return False
         try:
             with self._lock:
                 self._db.execute("BEGIN IMMEDIATE")
@@ -518,6 +535,18 @@ def move_aside(path: Path, problem: str) -> None:
                  "results", path.name, problem, path.name, stamp)
 
 
+def _writable_folder(folder: Path) -> bool:
+    """Whether files can be made in ``folder`` (made if missing); False on a read-only mount."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        probe = folder / f".probe-{os.getpid()}"
+        probe.write_bytes(b"")
+        probe.unlink()
+        return True
+    except OSError:
+        return False
+
+
 def open_job_records(path: Path | str, **options) -> tuple["JobStore", Optional[str]]:
     """The job records at ``path``, checked (:func:`integrity_problem`); a damaged database
     (a broken header: "file is not a database"; a broken page) is moved aside
@@ -525,6 +554,10 @@ def open_job_records(path: Path | str, **options) -> tuple["JobStore", Optional[
     (None if none): the caller rebuilds the records from the result store then
     (:meth:`service.jobs.Dispatcher.rebuild_records`)."""
     path = Path(path)
+    if not _writable_folder(path.parent):
+        logger.error("job records %s are on a read-only store: serving what is recorded, taking no work",
+                     path.name)
+        return JobStore(path, read_only=True), None
     try:
         store = JobStore(path, **options)
         problem = integrity_problem(store)

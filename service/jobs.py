@@ -45,7 +45,7 @@ from pydantic import ValidationError
 
 from solver.errors import field_errors, format_errors
 from solver.spec import CaseSpec
-from workflows.result_store import ResultStore, case_warnings
+from workflows.result_store import STORE_FULL, ResultStore, case_warnings, estimated_result_bytes, free_bytes
 from workflows.summary import summarize
 from workflows.sweep import Sweep, expand_sweep
 from workflows.tasks import case_id_of_key, map_cases  # one task key per case, CLI too
@@ -421,11 +421,31 @@ class Dispatcher:
             if self.submit(case_id, spec.canonical_json()):
                 logger.info("case %s resubmitted", case_id)
         await self._check_done_results()
+        await self._retry_when_room()
         if self._rounds % 60 == 0:
             removed = await asyncio.to_thread(ResultStore(self.root).remove_stale_temporaries)
             if removed:
                 logger.info("removed %d stale temporary files", removed)
         self._rounds += 1
+
+    async def _retry_when_room(self) -> None:
+        """Compute again the cases that failed on a full store, as many as there is room for now."""
+        waiting = self.store.failed_with(f"{STORE_FULL}:")
+        if not waiting:
+            return
+        room = await asyncio.to_thread(free_bytes, self.root)
+        records, fits = self.store.get_cases(waiting), []
+        for case_id, record in records.items():
+            spec = self._valid_spec(case_id, record.spec)
+            need = estimated_result_bytes(spec) if spec is not None else room + 1
+            if need > room:
+                break
+            room -= need
+            fits.append(case_id)
+        again = self._requeue({c: records[c] for c in fits}, statuses=("failed",))
+        if again:
+            logger.info("room in the results store again: recomputing %d cases that failed on a full store",
+                        len(again))
 
     def _valid_spec(self, case_id: str, spec: dict) -> Optional[CaseSpec]:
         """The case of a record, or None after marking the record failed (quarantine)."""

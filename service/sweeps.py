@@ -9,6 +9,7 @@ from fastapi.responses import FileResponse, JSONResponse
 
 from solver.spec import CaseSpec
 from workflows import Sweep, SweepError, expand_sweep
+from workflows.result_store import estimated_result_bytes
 from workflows.sweep import sweep_size
 
 from workflows.artifacts import write_combined
@@ -42,7 +43,9 @@ async def submit_sweep(sweep: Sweep, request: Request, response: Response,
             return invalid([FieldError(field=path, reason=message, type="value_error")
                             for path, message in exc.errors])
         cases = [(s.case_id, s.canonical_json()) for s in specs]
-        check_capacity(request, len(cases) - len(jobs.store.statuses([c for c, _ in cases])))
+        known = jobs.store.statuses([c for c, _ in cases])
+        check_capacity(request, len(cases) - len(known),
+                       sum(estimated_result_bytes(s) for s in specs if s.case_id not in known))
         record, new = jobs.store.add_sweep(sweep.sweep_id, sweep.name, sweep.canonical_json(), cases)
         await jobs.record_sweep_on_disk(record)
         created = True
@@ -55,7 +58,10 @@ async def submit_sweep(sweep: Sweep, request: Request, response: Response,
         jobs.submit(case_id, CaseSpec.model_validate(jobs.store.get_case(case_id).spec).canonical_json())
     retried = []
     if retry:
-        check_capacity(request, jobs.store.status_counts(record.case_ids)["failed"])
+        failed = jobs.store.status_counts(record.case_ids)["failed"]
+        if failed:  # the room of that many cases like the sweep's first
+            first = CaseSpec.model_validate(jobs.store.get_case(record.case_ids[0]).spec)
+            check_capacity(request, failed, failed * estimated_result_bytes(first))
         retried = await jobs.retry(list(record.case_ids))
     response.headers["Location"] = f"/sweeps/{record.id}"
     counts = jobs.store.status_counts(record.case_ids)

@@ -178,9 +178,8 @@ def remove_stale_temporaries(root: Path | str) -> int:
         for name in sorted(n for n in names if n.endswith(TMP_SUFFIX) and n.startswith(".")):
             lock = folder_path / (name[:-len(TMP_SUFFIX)] + LOCK_SUFFIX)
             with _lock_if_free(lock) as free:
-                if free:
-                    (folder_path / name).unlink(missing_ok=True)
-                    lock.unlink(missing_ok=True)
+                if free and _unlink(folder_path / name):
+                    _unlink(lock)
                     removed += 1
         for name in (n for n in names if n.endswith(LOCK_SUFFIX) and n.startswith(".")):
             if name[:-len(LOCK_SUFFIX)] + TMP_SUFFIX in names:
@@ -188,8 +187,18 @@ def remove_stale_temporaries(root: Path | str) -> int:
             lock = folder_path / name
             with _lock_if_free(lock) as free:  # a writer that died before or after its temporary
                 if free and lock.exists():
-                    lock.unlink(missing_ok=True)
+                    _unlink(lock)
     return removed
+
+
+def _unlink(path: Path) -> bool:
+    """Remove ``path`` if there; False when the store refuses (read-only), which is logged."""
+    try:
+        path.unlink(missing_ok=True)
+        return True
+    except OSError as exc:
+        logger.warning("could not remove %s: %s", path.name, exc)
+        return False
 
 
 class _lock_if_free:

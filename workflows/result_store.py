@@ -23,6 +23,7 @@ This module is the only one that writes case files.
 """
 from __future__ import annotations
 
+import errno
 import hashlib
 import json
 import logging
@@ -43,6 +44,7 @@ import xarray as xr
 import solver
 from solver.limits import CaseCancelled
 from solver.model import shared_model
+from solver.sizing import estimated_elements
 from solver.spec import CaseSpec
 
 from .files import remove_checksum, remove_stale_temporaries, verify, write_atomically
@@ -59,10 +61,40 @@ logger = logging.getLogger(__name__)
 netcdf_lock = threading.RLock()
 
 _CASE_ID = re.compile(r"[0-9a-f]{16}")
+#: Bytes a stored result takes per element of the mesh estimate (measured 380-400 for an
+#: elastic case; plasticity and water add fields) and what its figures, report and index
+#: entry add: the room a case needs before it is solved.
+RESULT_BYTES_PER_ELEMENT = 600
+RESULT_MARGIN = 4 << 20
+#: How a full store's failure starts (the service retries such cases once there is room).
+STORE_FULL = "StoreFull"
 #: Options every stored netCDF file is opened with: values come back exactly as written
 #: (integer ``face_nodes`` keep their dtype and ``_FillValue`` attribute).
 OPEN_OPTIONS: dict[str, Any] = dict(
     engine="netcdf4", mask_and_scale=False, decode_times=False, decode_timedelta=False)
+
+
+class StoreFull(OSError):
+    """The results store has no room for a case's result (a full disk or quota)."""
+
+    def __init__(self, message: str):
+        super().__init__(errno.ENOSPC, message)
+
+    def __str__(self) -> str:
+        return self.strerror
+
+
+def estimated_result_bytes(spec: CaseSpec) -> int:
+    """Room (bytes) the result of ``spec`` needs in the store, from its mesh estimate."""
+    return RESULT_BYTES_PER_ELEMENT * estimated_elements(spec) + RESULT_MARGIN
+
+
+def free_bytes(root: Path | str) -> int:
+    """Bytes available to this process in the file system of ``root`` (0 if unreachable)."""
+    try:
+        return shutil.disk_usage(root).free
+    except OSError:
+        return 0
 
 
 def check_case_id(case_id: str) -> str:
@@ -329,17 +361,45 @@ class ResultStore:
         logger.info("solving case %s", spec.case_id)
         self.clear_cancel(spec.case_id)  # a request older than this solve (the case ended first) is void
         try:
+            self.check_room(spec)  # before the work, not after it
             # cases sharing geometry, mesh and materials reuse one factorized model per process
             ds = solver.run_case(spec, model=shared_model(spec), stop=lambda: self.cancel_requested(spec.case_id))
+            try:
+                self.write_case(ds)
+            except Exception as exc:
+                full = self._full_or(exc, spec)
+                if full is exc:
+                    raise
+                raise full from exc
         except CaseCancelled:
-            self.clear_cancel(spec.case_id)  # given up, not failed: no error record
-            raise
+            raise  # given up, not failed: no error record
         except Exception as exc:
-            self.write_error(spec, exc)
+            try:
+                self.write_error(spec, exc)
+            except OSError:  # a store too full for the record too: the caller still has the error
+                logger.warning("could not record the failure of case %s", spec.case_id)
             raise
-        self.clear_cancel(spec.case_id)
-        self.write_case(ds)
+        finally:
+            self.clear_cancel(spec.case_id)
         return summarize(ds), case_warnings(ds)
+
+    def check_room(self, spec: CaseSpec) -> None:
+        """Raise :class:`StoreFull` when the store lacks the room the result of ``spec`` needs."""
+        need, free = estimated_result_bytes(spec), free_bytes(self.root)
+        if free < need:
+            raise self._full(free, need)
+
+    def _full(self, free: int, need: int) -> StoreFull:
+        return StoreFull(f"the results store is full: {free / 2**20:.1f} MiB free where this case needs "
+                         f"about {need / 2**20:.0f} MiB; free some space (or enlarge the store) and the "
+                         "service computes it again by itself, or submit it again with ?retry=failed")
+
+    def _full_or(self, exc: Exception, spec: CaseSpec) -> Exception:
+        """``exc`` of a failed write as :class:`StoreFull` when the store ran out of room
+        (netCDF reports a full disk as "NetCDF: HDF error"), else ``exc`` itself."""
+        need, free = estimated_result_bytes(spec), free_bytes(self.root)
+        full = isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT)
+        return self._full(free, need) if full or free < need else exc
 
     def write_case(self, ds: xr.Dataset) -> Path:
         """Write a result Dataset atomically under its ``case_id`` attribute; return the path.

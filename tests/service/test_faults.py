@@ -100,7 +100,7 @@ def test_plot_write_on_a_full_disk_is_503_without_server_paths(client, app, done
 def test_too_little_free_space_is_503_on_post_and_degraded_health(client, monkeypatch):
     import shutil as real_shutil
 
-    import service.guards
+    import workflows.result_store
 
     usage = real_shutil.disk_usage("/")
 
@@ -109,12 +109,12 @@ def test_too_little_free_space_is_503_on_post_and_degraded_health(client, monkey
         def disk_usage(path):
             return usage._replace(free=344 * 1024)
 
-    monkeypatch.setattr(service.guards, "shutil", Almost)
+    monkeypatch.setattr(workflows.result_store, "shutil", Almost)
     health = client.get("/health")
-    assert health.status_code == 503 and health.json()["results_writable"] is False
-    assert any("MiB free" in r for r in health.json()["reasons"])
+    assert health.status_code == 503 and health.json()["results_free_bytes"] == 344 * 1024
+    assert any("results store is full: 0.3 MiB free" in r for r in health.json()["reasons"])
     response = client.post("/cases", json=coarse_case(loads={"surface_load": 4.322e4}))
-    assert response.status_code == 503 and "MiB free" in response.json()["detail"]
+    assert response.status_code == 503 and "results store is full: 0.3 MiB free" in response.json()["detail"]
 
 
 def test_watchers_keep_an_outcome_until_the_database_takes_it(client, app, monkeypatch):
