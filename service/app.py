@@ -18,7 +18,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from . import cases, health, pages, studies, sweeps
 from .cluster import cluster_connection
 from .errors import http_error_handler, overflow_handler, request_validation_handler, store_error_handler
-from .guards import BodyLimitMiddleware, SameOriginMiddleware, openapi_auth_as_configured
+from .guards import BodyLimitMiddleware, SameOriginMiddleware, TokenReadsMiddleware, openapi_auth_as_configured
 from .jobs import Dispatcher
 from .settings import Settings, get_settings
 from .job_records import open_job_records
@@ -73,6 +73,7 @@ def create_app(settings: Optional[Settings] = None) -> FastAPI:
                               "fetch results (netCDF) and plots. Work runs on a dask cluster.")
     app.state.settings = settings or get_settings()
     app.add_middleware(BodyLimitMiddleware, max_bytes=app.state.settings.max_body_bytes)
+    app.add_middleware(TokenReadsMiddleware, settings=app.state.settings)
     app.add_middleware(SameOriginMiddleware)  # outermost: a cross-site POST is refused before its body is read
     app.add_exception_handler(RequestValidationError, request_validation_handler)
     for error in (sqlite3.DatabaseError, OSError):  # full, read-only, locked, damaged: 503

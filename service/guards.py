@@ -2,6 +2,7 @@
 the capacity checks (free space, bounded queue) before work is accepted."""
 from __future__ import annotations
 
+import base64
 import copy
 import json
 import os
@@ -16,19 +17,67 @@ from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from workflows.result_store import free_bytes
 
 _bearer = HTTPBearer(auto_error=False, description="required on POST when TUNNEL_CONTACT_TOKEN is set")
+#: How a client may prove it holds the token: as a bearer token, or as the password of HTTP
+#: basic authentication (what a browser asks its user for; the user name is not checked).
+CHALLENGE = 'Bearer, Basic realm="tunnel-contact", charset="UTF-8"'
+
+
+def token_given(authorization: str, expected: str) -> bool:
+    """Whether the ``Authorization`` header value carries ``expected`` (bearer or basic)."""
+    scheme, _, value = authorization.partition(" ")
+    scheme, value = scheme.lower(), value.strip()
+    if scheme == "basic":
+        try:
+            value = base64.b64decode(value, validate=True).decode("utf-8").partition(":")[2]
+        except (ValueError, UnicodeDecodeError):
+            return False
+    elif scheme != "bearer":
+        return False
+    return secrets.compare_digest(value.encode(), expected.encode())
 
 
 async def require_token(request: Request,
                         credentials: Optional[HTTPAuthorizationCredentials] = Depends(_bearer)) -> None:
-    """Refuse (401) a request without the configured bearer token; no-op when none is configured."""
+    """Refuse (401) a request without the configured token; no-op when none is configured."""
     expected = request.app.state.settings.token
     if not expected:
         return
-    given = credentials.credentials if credentials is not None else ""
-    if not secrets.compare_digest(given.encode(), expected.encode()):
+    if not token_given(request.headers.get("authorization", ""), expected):
         raise HTTPException(status_code=status.HTTP_401_UNAUTHORIZED,
                             detail="missing or wrong bearer token",
-                            headers={"WWW-Authenticate": "Bearer"})
+                            headers={"WWW-Authenticate": CHALLENGE})
+
+
+class TokenReadsMiddleware:
+    """With ``settings.token_reads``, refuse (401) every request without the token but
+    ``/health`` (an orchestrator's probe; it shows counts, no results). A page request gets
+    the basic-authentication challenge, so a browser asks its user once and then sends the
+    token with every request of the dashboard, its own ``fetch`` calls included."""
+
+    OPEN_PATHS = ("/health",)
+
+    def __init__(self, app, settings):
+        self.app = app
+        self.expected = settings.token if settings.token_reads else None
+
+    async def __call__(self, scope, receive, send):
+        if scope["type"] != "http" or self.expected is None or scope["path"] in self.OPEN_PATHS:
+            await self.app(scope, receive, send)
+            return
+        headers = dict(scope["headers"])
+        if token_given(headers.get(b"authorization", b"").decode("latin-1"), self.expected):
+            await self.app(scope, receive, send)
+            return
+        payload = json.dumps({"detail": "this service needs its token to be read: send "
+                                        "Authorization: Bearer <token> (or basic authentication with the "
+                                        "token as the password)", "errors": []}).encode()
+        await send({"type": "http.response.start", "status": 401,
+                    "headers": [(b"content-type", b"application/json"),
+                                (b"content-length", str(len(payload)).encode()),
+                                # one challenge a line: browsers read the first scheme of a line
+                                (b"www-authenticate", b'Basic realm="tunnel-contact", charset="UTF-8"'),
+                                (b"www-authenticate", b"Bearer")]})
+        await send({"type": "http.response.body", "body": payload})
 
 
 def check_capacity(request: Request, new_cases: int = 1, need_bytes: int = 0) -> None:

@@ -12,7 +12,12 @@ Environment variables
 ``TUNNEL_CONTACT_HOST`` / ``TUNNEL_CONTACT_PORT``
     Bind address (default ``127.0.0.1:8000``; loopback unless asked otherwise).
 ``TUNNEL_CONTACT_TOKEN``
-    When set, every ``POST`` needs ``Authorization: Bearer <token>``.
+    When set, every ``POST`` needs ``Authorization: Bearer <token>`` (or HTTP basic
+    authentication with the token as the password, any user name).
+``TUNNEL_CONTACT_TOKEN_READS``
+    ``1`` (with a token): every request but ``/health`` needs the token too, results and
+    pages included. A browser asks for it (HTTP basic authentication: any user name,
+    the token as the password) and sends it with every later request of the dashboard.
 ``TUNNEL_CONTACT_MAX_BODY_BYTES`` / ``TUNNEL_CONTACT_MAX_SWEEP_CASES``
     Request body cap (default 1 MiB) and sweep size cap (default 1000 cases).
 ``TUNNEL_CONTACT_LOCAL_WORKERS``
@@ -45,6 +50,7 @@ ENVIRONMENT = {
     "host": "TUNNEL_CONTACT_HOST",
     "port": "TUNNEL_CONTACT_PORT",
     "token": "TUNNEL_CONTACT_TOKEN",
+    "token_reads": "TUNNEL_CONTACT_TOKEN_READS",
     "max_body_bytes": "TUNNEL_CONTACT_MAX_BODY_BYTES",
     "max_sweep_cases": "TUNNEL_CONTACT_MAX_SWEEP_CASES",
     "local_workers": "TUNNEL_CONTACT_LOCAL_WORKERS",
@@ -64,6 +70,8 @@ class Settings(BaseModel):
     host: str = Field("127.0.0.1", description="bind address")
     port: int = Field(8000, ge=0, le=65535, description="bind port")
     token: Optional[str] = Field(None, description="bearer token required on POST; None: no authentication")
+    token_reads: bool = Field(False, description="the token protects every request but /health (results, "
+                                                 "pages), not only POSTs")
     max_body_bytes: int = Field(1 << 20, gt=0, description="largest accepted request body (bytes)")
     max_sweep_cases: int = Field(1000, gt=0, description="largest sweep (cases) accepted")
     local_workers: Optional[int] = Field(None, gt=0, description="embedded cluster worker processes")

@@ -355,13 +355,44 @@ def test_token_guards_every_post_but_not_gets(client, app):
         for url, body in (("/cases", COARSE), ("/sweeps", SWEEP)):
             assert client.post(url, json=body).status_code == 401
             wrong = client.post(url, json=body, headers={"Authorization": "Bearer nope"})
-            assert wrong.status_code == 401 and wrong.headers["www-authenticate"] == "Bearer"
+            assert wrong.status_code == 401 and wrong.headers["www-authenticate"].startswith("Bearer")
             right = client.post(url, json=body, headers={"Authorization": "Bearer s3cret"})
             assert right.status_code == 202
         assert client.get("/cases").status_code == 200
         assert client.get("/health").status_code == 200
     finally:
         app.state.settings = original
+
+
+def test_token_reads_protects_every_read_and_page_but_health(tmp_path):
+    """Issue 24: with a token set every GET (results, CSV, pages) needed nothing. With
+    TUNNEL_CONTACT_TOKEN_READS the token guards them too, as a bearer token or as the
+    password of basic authentication (what a browser asks for); /health stays open."""
+    import base64
+
+    from fastapi.testclient import TestClient
+
+    from service.app import create_app
+    from service.settings import Settings
+
+    settings = Settings(results=tmp_path, local_workers=1, token="s3cret", token_reads=True)
+    basic = "Basic " + base64.b64encode(b"anyone:s3cret").decode()
+    wrong_basic = "Basic " + base64.b64encode(b"anyone:nope").decode()
+    with TestClient(create_app(settings)) as client:
+        case = client.post("/cases", json=COARSE, headers={"Authorization": "Bearer s3cret"})
+        assert case.status_code == 202
+        paths = ["/cases", f"/cases/{case.json()['id']}", "/sweeps", "/", "/ui/submit", "/openapi.json", "/docs"]
+        for path in paths:
+            refused = client.get(path)
+            assert refused.status_code == 401, path
+            assert 'Basic realm="tunnel-contact"' in refused.headers["www-authenticate"]
+            assert client.get(path, headers={"Authorization": wrong_basic}).status_code == 401
+            for authorization in ("Bearer s3cret", basic):
+                assert client.get(path, headers={"Authorization": authorization}).status_code == 200, path
+        assert client.get("/health").status_code in (200, 503)
+        # the dashboard's form posts with the browser's basic credentials too
+        assert client.post("/cases", json={**COARSE, "loads": {"surface_load": 3.3e4}},
+                           headers={"Authorization": basic}).status_code == 202
 
 
 # -- recovery -------------------------------------------------------------------------------

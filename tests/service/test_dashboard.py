@@ -353,3 +353,27 @@ def test_the_form_posts_a_case_typed_in_engineering_units(service, browser, tmp_
                what="the refused field marked")
     assert browser.current_url.endswith("/ui/submit")
     screenshot(browser, tmp_path / "submit-form-error.png")
+
+
+def test_a_token_protected_service_works_from_the_browser(browser, tmp_path):
+    """TUNNEL_CONTACT_TOKEN_READS: the browser asks once (HTTP basic authentication, the token
+    as the password; given here in the address) and then every page, figure and the
+    dashboard's own fetch calls carry it; without it the page is refused."""
+    token = "tok-" + "x" * 12
+    env = {"TUNNEL_CONTACT_TOKEN": token, "TUNNEL_CONTACT_TOKEN_READS": "1"}
+    with running_service(tmp_path / "results", log=tmp_path / "api.log", env=env) as url:
+        auth = {"Authorization": f"Bearer {token}"}
+        case_id = httpx.post(url + "/cases", json=SMALL, headers=auth, timeout=30).json()["id"]
+        wait_until(lambda: httpx.get(f"{url}/cases/{case_id}", headers=auth, timeout=30).json()["status"] == "done",
+                   timeout=120, what="the case")
+        assert httpx.get(f"{url}/ui/cases/{case_id}", timeout=30).status_code == 401
+        with_credentials = url.replace("http://", f"http://engineer:{token}@")
+        browser.get(f"{with_credentials}/")  # what the user types at the browser's prompt, once
+        browser.get(f"{url}/ui/cases/{case_id}")  # from then on the browser sends it by itself
+        assert case_status_shown(browser) == "done"
+        wait_until(lambda: images_loaded(browser, "img") and all(images_loaded(browser, "img")),
+                   timeout=60, what="the figures")
+        fetched = browser.execute_async_script(
+            "const done = arguments[arguments.length - 1];"
+            "fetch('/cases', {cache: 'no-store'}).then(r => done(r.status), e => done(String(e)));")
+        assert fetched == 200
