@@ -13,6 +13,7 @@ from solver.limits import CaseCancelled
 from solver.spec import CaseSpec
 
 from .result_store import StoreLike, as_store
+from .workers import release_memory
 
 logger = logging.getLogger(__name__)
 
@@ -64,7 +65,10 @@ def solve_and_store(spec_json: str, root: StoreLike, force: bool = False) -> dic
     case_id = spec.case_id
     start = time.perf_counter()
     try:
-        summary, warnings, computed = store.solve_or_read(spec, force=force)
+        try:
+            summary, warnings, computed = store.solve_or_read(spec, force=force)
+        finally:
+            release_memory()  # what the case freed goes back to the system, not kept for ever
     except CaseCancelled as exc:  # given up on request: neither a result nor a failure
         return {"case_id": case_id, "status": "cancelled", "error": str(exc), "summary": {}, "warnings": [],
                 "computed": False, "seconds": time.perf_counter() - start}
