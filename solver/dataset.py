@@ -23,7 +23,7 @@ from .water import hydrostatic
 from .settlement import TROUGH_WIDTH_FACTOR, gaussian_trough, ground_loss, surface_warnings
 from .design import design_utilization
 from .model import Solution, TunnelModel
-from .post import contact_extent, lining_forces, surface_trough
+from .post import contact_extent, lining_forces, mean_convergence, surface_trough
 
 log = logging.getLogger(__name__)
 
@@ -212,15 +212,19 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
         "lining_translation_m": float(sol.a),
         "interface_model": spec.interface.model,
         "excavation_method": spec.excavation.method,
-        **({"plastic_iterations": int(sol.plastic["iterations"]),
-            "ground_reaction_curve": [{"released": f, "wall_convergence_m": c} for f, c in sol.plastic["ground_reaction"]]}
-           if sol.plastic is not None else {}),
+        **({"plastic_iterations": int(sol.plastic["iterations"])} if sol.plastic is not None else {}),
         "water_uplift_N_per_m": float(sol.water_uplift),
         "warnings": warnings,
     }
     if spec.excavation.method == "deconfinement":
         gn = iface.ground_node
         attrs["deconfinement"] = spec.excavation.deconfinement
+        # the wall's mean convergence against the share of the excavation load released, over
+        # stage 1 (the unsupported ground): each increment of a yielding ground, else the one
+        # straight segment an elastic ground follows
+        curve = (sol.plastic["ground_reaction"] if sol.plastic is not None
+                 else [(spec.excavation.deconfinement, mean_convergence(sol.u_stage1, iface))])
+        attrs["ground_reaction_curve"] = [{"released": f, "wall_convergence_m": c} for f, c in curve]
         attrs["stage1_convergence_m"] = {
             "crown": _convergence(sol.u_stage1, iface, gn, 0.0),
             "springline": _convergence(sol.u_stage1, iface, gn, 90.0),

@@ -29,6 +29,7 @@ from .contact import NotConvergedError
 from .limits import check_time
 from .ground import in_situ_stress, moduli
 from .mohr_coulomb import equivalent, return_map
+from .post import mean_convergence
 from .strata import strata
 
 #: The plastic equilibrium tolerance: the out-of-balance force relative to the increment's
@@ -214,9 +215,7 @@ def solve_staged(model, spec, rows, t0: float):
             nodes, grad, stress, dep, flags = stress_of(u1)
             p1 = p
             commit(nodes, grad, stress, dep, flags)
-            conv = float(np.sum(iface.weight * np.sum(body.expand(u1)[:, iface.ground_node] * iface.normal, axis=0))
-                         / np.sum(iface.weight))
-            curve.append((frac, conv))
+            curve.append((frac, mean_convergence(body.expand(u1), iface)))
     # stage 2: the rest, with the lining and contact
     full = StageLoads(loads.ground, loads.lining, None, loads.seepage)
     y_g = ground.forward(full.ground, rows)

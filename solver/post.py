@@ -155,3 +155,9 @@ def kkt_residual(*, K_u_minus_f: list[tuple[np.ndarray, np.ndarray]], balance: f
         nat = shear - np.clip(shear + c * tangential_jump, -bound, bound)
         parts.append(float(np.max(np.abs(nat))) / p_ref)
     return float(max(parts))
+
+
+def mean_convergence(u: np.ndarray, iface) -> float:
+    """Inward radial displacement (m) of the ground wall, averaged over the interface."""
+    inward = np.sum(u[:, iface.ground_node] * iface.normal, axis=0)
+    return float(np.sum(iface.weight * inward) / np.sum(iface.weight))

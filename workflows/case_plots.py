@@ -311,3 +311,90 @@ def _ground_lines(ax, ds: xr.Dataset) -> None:
     table = (spec.get("water") or {}).get("table")
     if table is not None:
         ax.axhline(-float(table), color=_WATER_COLOR, lw=1.2, ls="--", label=f"water table ({table:g} m)")
+
+
+def ground_reaction(ds: xr.Dataset) -> dict:
+    """The convergence–confinement reading of a case (SI units): ``p0`` the mean in-situ total
+    stress at the axis; the FE ground reaction curve over stage 1 (``convergence``, ``pressure``:
+    (1 − released)·p0, from (0, p0)); the lining's characteristic line (``k_s`` of the thick
+    ring, from ``u_in``, the convergence when it is placed, plus the gap); the FE end state
+    (``u_end``: mean wall convergence, ``p_end``: mean pressure on the extrados, water
+    included); and Salençon's closed-form curve under isotropic p0 (``closed_u``, ``closed_p``)
+    for one homogeneous layer, None otherwise."""
+    from solver.analytic import salencon
+    from solver.spec import CaseSpec
+    from solver.strata import geostatic_state, strata
+
+    spec = CaseSpec.model_validate(case_spec(ds))
+    layers = strata(spec)
+    state = geostatic_state(spec, layers, np.array([spec.geometry.depth]))
+    p0 = float(0.5 * (state["sigma_v"][0] + state["sigma_h"][0]))
+    curve = json.loads(ds.attrs.get("ground_reaction_curve", "[]"))
+    convergence = np.array([0.0] + [c["wall_convergence_m"] for c in curve])
+    pressure = p0 * np.array([1.0] + [1.0 - c["released"] for c in curve])
+    w = ds["weight"].values
+    gn = ds["ground_node"].values
+    inward = ds["displacement_x"].values[gn] * ds["normal_x"].values + ds["displacement_y"].values[gn] * ds["normal_y"].values
+    support = ds["contact_pressure"].values + (ds["water_pressure"].values if "water_pressure" in ds else 0.0)
+    g, lining = spec.geometry, spec.lining
+    b, a = g.outer_radius, g.inner_radius
+    k_s = lining.young * (b**2 - a**2) / ((1 + lining.poisson) * b * ((1 - 2 * lining.poisson) * b**2 + a**2))
+    out = {"p0": p0, "convergence": convergence, "pressure": pressure, "k_s": k_s,
+           "u_in": float(convergence[-1]) + g.gap, "u_end": float(np.sum(w * inward) / np.sum(w)),
+           "p_end": float(np.sum(w * support) / np.sum(w)), "closed_u": None, "closed_p": None}
+    ground = spec.ground.layers[0] if spec.ground.layers and len(spec.ground.layers) == 1 else spec.ground
+    if not spec.ground.layers or len(spec.ground.layers) == 1:
+        plastic = ground.model == "mohr-coulomb"
+        closed_p = np.linspace(p0, 0.0, 60)
+        out["closed_u"] = np.array([salencon(p0, ground.cohesion if plastic else 1e30,
+                                             ground.friction_angle if plastic else 0.0,
+                                             ground.dilatancy if plastic else 0.0, ground.young, ground.poisson,
+                                             g.hole_radius, p, n=801)["u_wall"] for p in closed_p])
+        out["closed_p"] = closed_p
+    return out
+
+
+def case_hole_radius(ds: xr.Dataset) -> float:
+    """The excavation radius of a case (m): lining outer radius plus the gap."""
+    from solver.spec import CaseSpec
+
+    return CaseSpec.model_validate(case_spec(ds)).geometry.hole_radius
+
+
+def plot_ground_reaction(ds: xr.Dataset) -> Figure:
+    """The convergence–confinement diagram of a case: the ground reaction curve (wall
+    convergence against fictitious support pressure) the FE followed over stage 1, Salençon's
+    closed-form curve for reference (isotropic p0, one homogeneous layer), the lining's
+    characteristic line from the convergence at which it is placed, and the FE end state."""
+    grc = ground_reaction(ds)
+    fig = Figure(figsize=(8.0, 5.0), layout="constrained")
+    ax = fig.add_subplot()
+    mm, kpa = 1e3, 1e-3
+    if grc["closed_u"] is not None:
+        ax.plot(grc["closed_u"] * mm, grc["closed_p"] * kpa, color="0.45", ls="--", lw=1.2,
+                label="ground reaction, closed form (Salençon, isotropic p0)")
+    ax.plot(grc["convergence"] * mm, grc["pressure"] * kpa, color="tab:blue", lw=2.0, marker="o", ms=3,
+            label="ground reaction, FE stage 1 (unsupported ground)")
+    u_end = max(grc["u_end"], grc["u_in"])
+    reach = max(u_end, grc["u_in"]) + 1.3 * (u_end - grc["u_in"]) + 1e-9
+    line_u = np.array([grc["u_in"], reach])
+    ax.plot(line_u * mm, grc["k_s"] * (line_u - grc["u_in"]) * kpa, color="tab:green", lw=1.8,
+            label=f"lining characteristic line (k_s = {grc['k_s'] * 1e-6:.3g} MPa/m)")
+    ax.plot([grc["u_end"] * mm], [grc["p_end"] * kpa], marker="*", ms=14, color="tab:red", ls="none",
+            label=f"FE end state: {grc['p_end'] * kpa:.3g} kPa at {grc['u_end'] * mm:.3g} mm")
+    ax.axhline(0.0, color="0.5", lw=0.8)
+    ax.set_xlim(left=0.0)
+    ax.set_ylim(bottom=min(0.0, grc["p_end"] * kpa) - 0.02 * grc["p0"] * kpa, top=1.05 * grc["p0"] * kpa)
+    ax.set_xlabel("wall convergence, mean over the ring (mm, inward)")
+    ax.set_ylabel("support pressure on the wall (kPa)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="upper right", fontsize="small")
+    released = 1.0 - grc["pressure"][-1] / grc["p0"] if grc["p0"] else 0.0
+    extent = ""
+    if "max_plastic_extent" in ds:
+        reach = float(ds["max_plastic_extent"])
+        extent = (f"\nyielded ground to {reach:.3g} m from the axis (wall at {case_hole_radius(ds):.3g} m)"
+                  if reach > 0 else "\nno ground yielded")
+    ax.set_title(f"Ground reaction and lining, {_title(ds)}\np0 = {grc['p0'] * kpa:.4g} kPa (mean in-situ stress at "
+                 f"the axis), lining placed at {100 * released:.3g} % released{extent}", fontsize="medium")
+    return fig

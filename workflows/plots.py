@@ -18,6 +18,7 @@ from .case_plots import (
     draw_envelope,
     load_factor,
     plot_contact_pressure,
+    plot_ground_reaction,
     plot_lining_forces,
     plot_surface_settlement,
     theta_axis,
@@ -55,6 +56,7 @@ PLOTS: dict[str, Callable[[xr.Dataset], Figure]] = {
     "surface_settlement": plot_surface_settlement,
     "deformed_mesh": plot_deformed_mesh,
     "contours": plot_contours,
+    "ground_reaction": plot_ground_reaction,
 }
 
 

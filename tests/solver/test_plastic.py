@@ -140,3 +140,31 @@ def test_convergence_confinement_equilibrium_on_yielding_ground():
     mean_thrust = float(np.sum(w * ds["thrust"].values) / np.sum(w))
     assert mean_pressure == pytest.approx(p_s, rel=0.02)  # -0.24 % measured
     assert mean_thrust == pytest.approx(p_s * b, rel=0.02)
+
+    # the convergence-confinement figure of the case reads the same: its FE ground reaction
+    # curve follows Salençon's, its lining line starts where the lining went in, and its end
+    # state is where the two meet
+    from workflows.case_plots import ground_reaction, plot_ground_reaction
+
+    grc = ground_reaction(ds)
+    assert grc["p0"] == pytest.approx(P0, rel=1e-12) and grc["k_s"] == pytest.approx(k_s, rel=1e-12)
+    closed = np.array([u_grc(p) for p in grc["pressure"]])
+    np.testing.assert_allclose(grc["convergence"][1:], closed[1:], rtol=0.03)
+    assert grc["pressure"][-1] == pytest.approx((1 - ld) * P0)
+    assert grc["u_in"] == pytest.approx(u_in, rel=0.03)
+    assert grc["p_end"] == pytest.approx(p_s, rel=0.02)
+    assert grc["p_end"] == pytest.approx(k_s * (grc["u_end"] - grc["u_in"]), rel=0.05)
+    np.testing.assert_allclose(np.interp(grc["p_end"], grc["closed_p"][::-1], grc["closed_u"][::-1]),
+                               grc["u_end"], rtol=0.03)
+    ax = plot_ground_reaction(ds).axes[0]
+
+    def line(label: str):
+        return next(ln for ln in ax.get_lines() if ln.get_label().startswith(label))
+
+    np.testing.assert_allclose(line("ground reaction, closed form").get_xdata(), grc["closed_u"] * 1e3)
+    np.testing.assert_allclose(line("ground reaction, FE").get_ydata(), grc["pressure"] * 1e-3)
+    star = line("FE end state")
+    assert star.get_xdata()[0] == pytest.approx(grc["u_end"] * 1e3)
+    assert star.get_ydata()[0] == pytest.approx(grc["p_end"] * 1e-3)
+    line = line("lining characteristic line")
+    assert line.get_xdata()[0] == pytest.approx(grc["u_in"] * 1e3) and line.get_ydata()[0] == 0.0
