@@ -90,9 +90,13 @@ def estimated_result_bytes(spec: CaseSpec) -> int:
 
 
 def free_bytes(root: Path | str) -> int:
-    """Bytes available to this process in the file system of ``root`` (0 if unreachable)."""
+    """Bytes available to this process in the file system of ``root`` (of its nearest existing
+    parent while it is not made yet; 0 if unreachable)."""
+    path = Path(root).absolute()
+    while not path.exists() and path != path.parent:
+        path = path.parent
     try:
-        return shutil.disk_usage(root).free
+        return shutil.disk_usage(path).free
     except OSError:
         return 0
 

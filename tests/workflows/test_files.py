@@ -148,3 +148,14 @@ def test_a_damaged_case_file_is_unreadable_and_recomputed(tmp_path, solved):
         xr.testing.assert_equal(back[name], solved[name])
     store.remove_case(case_id)
     assert not checksum_path(path).exists()
+
+
+def test_free_space_of_a_store_not_made_yet_is_its_parents(tmp_path):
+    """A first run into a new results folder has the room of the disk it will be made on (0
+    here failed every first CLI run as a full store)."""
+    import shutil
+
+    from workflows.result_store import free_bytes
+
+    assert free_bytes(tmp_path / "not" / "made") == pytest.approx(shutil.disk_usage(tmp_path).free, rel=0.01)
+    assert free_bytes(tmp_path / "not" / "made") > 0
