@@ -22,9 +22,10 @@ import os
 import sqlite3
 import threading
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Mapping, Optional, Sequence
+from typing import Iterable, Iterator, Mapping, Optional, Sequence
 
 logger = logging.getLogger(__name__)
 
@@ -243,18 +244,13 @@ class JobStore:
         if row is None or "'cancelled'" in row[0]:
             return
         self._db.execute("PRAGMA foreign_keys=OFF")
-        self._db.execute("BEGIN IMMEDIATE")
-        try:
-            self._db.execute(_CASES_TABLE.format(name="cases_new"))
+        with self._transaction() as db:
+            db.execute(_CASES_TABLE.format(name="cases_new"))
             columns = ("id, spec, status, summary, error, submitted_at, started_at, finished_at, submissions"
                        + (", warnings" if "warnings" in self._case_columns() else ""))
-            self._db.execute(f"INSERT INTO cases_new ({columns}) SELECT {columns} FROM cases")
-            self._db.execute("DROP TABLE cases")
-            self._db.execute("ALTER TABLE cases_new RENAME TO cases")
-            self._db.execute("COMMIT")
-        except BaseException:
-            self._db.execute("ROLLBACK")
-            raise
+            db.execute(f"INSERT INTO cases_new ({columns}) SELECT {columns} FROM cases")
+            db.execute("DROP TABLE cases")
+            db.execute("ALTER TABLE cases_new RENAME TO cases")
 
     def _case_columns(self) -> set[str]:
         return {r[1] for r in self._db.execute("PRAGMA table_info(cases)").fetchall()}
@@ -271,6 +267,18 @@ class JobStore:
             self._checkpointer = None
         with self._lock:
             self._db.close()
+
+    @contextmanager
+    def _transaction(self) -> Iterator[sqlite3.Connection]:
+        """One write transaction: ``BEGIN IMMEDIATE`` ... ``COMMIT``, rolled back on any error
+        (a failed commit too). The caller holds the lock."""
+        self._db.execute("BEGIN IMMEDIATE")
+        try:
+            yield self._db
+            self._db.execute("COMMIT")
+        except BaseException:
+            self._db.execute("ROLLBACK")
+            raise
 
     def _write(self, sql: str, params: Sequence = ()) -> int:
         with self._lock:
@@ -385,40 +393,25 @@ class JobStore:
                           (json.dumps(list(case_ids)),))
         return {r["id"]: _case(r) for r in rows}
 
-    def cancel_queued(self, case_ids: Sequence[str], *, statuses: Sequence[str] = ("queued",)) -> list[str]:
+    def mark_cancelled(self, case_ids: Sequence[str], *, statuses: Sequence[str] = ("queued",)) -> list[str]:
         """Mark the cases among ``case_ids`` in ``statuses`` (default: queued) ``cancelled``;
         return their ids."""
         now = time.time()
-        with self._lock:
-            self._db.execute("BEGIN IMMEDIATE")
-            try:
-                cancelled = [r["id"] for r in self._db.execute(
-                    "UPDATE cases SET status = 'cancelled', finished_at = ? "
-                    "WHERE status IN (SELECT value FROM json_each(?)) "
-                    "AND id IN (SELECT value FROM json_each(?)) RETURNING id",
-                    (now, json.dumps(list(statuses)), json.dumps(list(case_ids)))).fetchall()]
-                self._db.execute("COMMIT")
-            except BaseException:
-                self._db.execute("ROLLBACK")
-                raise
-        return cancelled
+        with self._lock, self._transaction() as db:
+            return [r["id"] for r in db.execute(
+                "UPDATE cases SET status = 'cancelled', finished_at = ? "
+                "WHERE status IN (SELECT value FROM json_each(?)) "
+                "AND id IN (SELECT value FROM json_each(?)) RETURNING id",
+                (now, json.dumps(list(statuses)), json.dumps(list(case_ids)))).fetchall()]
 
     def requeue(self, case_ids: Sequence[str], *, statuses: Sequence[str] = ("cancelled",)) -> list[str]:
         """Put the cases among ``case_ids`` that are in ``statuses`` back to ``queued``; return their ids."""
-        with self._lock:
-            self._db.execute("BEGIN IMMEDIATE")
-            try:
-                requeued = [r["id"] for r in self._db.execute(
-                    "UPDATE cases SET status = 'queued', summary = NULL, error = NULL, warnings = NULL, "
-                    "started_at = NULL, "
-                    "finished_at = NULL WHERE status IN (SELECT value FROM json_each(?)) "
-                    "AND id IN (SELECT value FROM json_each(?)) RETURNING id",
-                    (json.dumps(list(statuses)), json.dumps(list(case_ids)))).fetchall()]
-                self._db.execute("COMMIT")
-            except BaseException:
-                self._db.execute("ROLLBACK")
-                raise
-        return requeued
+        with self._lock, self._transaction() as db:
+            return [r["id"] for r in db.execute(
+                "UPDATE cases SET status = 'queued', summary = NULL, error = NULL, warnings = NULL, "
+                "started_at = NULL, finished_at = NULL WHERE status IN (SELECT value FROM json_each(?)) "
+                "AND id IN (SELECT value FROM json_each(?)) RETURNING id",
+                (json.dumps(list(statuses)), json.dumps(list(case_ids)))).fetchall()]
 
     def statuses(self, case_ids: Sequence[str]) -> dict[str, str]:
         """Status of each of ``case_ids`` that has a record."""
@@ -437,26 +430,17 @@ class JobStore:
         """
         now = time.time()
         new: list[str] = []
-        with self._lock:
-            self._db.execute("BEGIN IMMEDIATE")
-            try:
-                cursor = self._db.execute(
-                    "INSERT OR IGNORE INTO sweeps (id, name, spec, submitted_at) VALUES (?, ?, ?, ?)",
-                    (sweep_id, name, spec_json, now))
-                if cursor.rowcount == 1:
-                    for position, (case_id, case_json) in enumerate(cases):
-                        inserted = self._db.execute(
-                            "INSERT OR IGNORE INTO cases (id, spec, status, submitted_at) "
-                            "VALUES (?, ?, 'queued', ?)", (case_id, case_json, now)).rowcount
-                        if inserted == 1:
-                            new.append(case_id)
-                        self._db.execute(
-                            "INSERT INTO sweep_cases (sweep_id, position, case_id) VALUES (?, ?, ?)",
-                            (sweep_id, position, case_id))
-                self._db.execute("COMMIT")
-            except BaseException:
-                self._db.execute("ROLLBACK")
-                raise
+        with self._lock, self._transaction() as db:
+            cursor = db.execute("INSERT OR IGNORE INTO sweeps (id, name, spec, submitted_at) VALUES (?, ?, ?, ?)",
+                                (sweep_id, name, spec_json, now))
+            if cursor.rowcount == 1:
+                for position, (case_id, case_json) in enumerate(cases):
+                    inserted = db.execute("INSERT OR IGNORE INTO cases (id, spec, status, submitted_at) "
+                                          "VALUES (?, ?, 'queued', ?)", (case_id, case_json, now)).rowcount
+                    if inserted == 1:
+                        new.append(case_id)
+                    db.execute("INSERT INTO sweep_cases (sweep_id, position, case_id) VALUES (?, ?, ?)",
+                               (sweep_id, position, case_id))
         return self.get_sweep(sweep_id), new
 
     def get_sweep(self, sweep_id: str) -> Optional[SweepRecord]:

@@ -537,11 +537,11 @@ class Dispatcher:
         """
         if self.connected:
             await self._mark_executing()  # a task started since the last poll is running
-        running = self.store.cancel_queued(case_ids, statuses=("running",))
+        running = self.store.mark_cancelled(case_ids, statuses=("running",))
         results = ResultStore(self.root)
         for case_id in running:
             await asyncio.to_thread(results.request_cancel, case_id)
-        cancelled = self.store.cancel_queued(case_ids) + running
+        cancelled = self.store.mark_cancelled(case_ids) + running
         futures = []
         for case_id in cancelled:
             self._pending.pop(case_id, None)

@@ -52,7 +52,7 @@ def test_cancel_takes_only_queued_cases_and_requeue_brings_them_back(tmp_path):
     ids = [c for c, _ in cases]
     store.mark_running([ids[0]])
     store.finish(ids[1], status="done", summary={})
-    assert store.cancel_queued(ids) == [ids[2]]
+    assert store.mark_cancelled(ids) == [ids[2]]
     assert store.status_counts(ids) == {"queued": 0, "running": 1, "done": 1, "failed": 0, "cancelled": 1}
     assert store.open_case_ids() == [ids[0]]  # reconciliation leaves a cancelled case alone
     assert store.requeue(ids) == [ids[2]]
@@ -77,7 +77,7 @@ def test_a_database_from_before_cancel_is_migrated(tmp_path):
     db.close()
     store = JobStore(path)
     assert store.get_sweep("bbbbbbbbbbbbbbbb").case_ids == ("aaaaaaaaaaaaaaaa",)
-    assert store.cancel_queued(["aaaaaaaaaaaaaaaa"]) == ["aaaaaaaaaaaaaaaa"]
+    assert store.mark_cancelled(["aaaaaaaaaaaaaaaa"]) == ["aaaaaaaaaaaaaaaa"]
     assert store._db.execute("PRAGMA foreign_key_check").fetchall() == []
     store.close()
     assert JobStore(path).get_case("aaaaaaaaaaaaaaaa").status == "cancelled"

@@ -90,11 +90,11 @@ def test_no_result_is_409_while_a_case_is_open_and_404_once_failed_or_cancelled(
     ids = [c.case_id for c in cases]
     record, _ = store.add_sweep("00000000000000fe", "planted", "{}", [(c.case_id, c.canonical_json()) for c in cases])
     store.finish(ids[0], status="failed", error="boom")
-    store.cancel_queued([ids[1]])
+    store.mark_cancelled([ids[1]])
     response = client.get(f"/sweeps/{record.id}/result.nc")  # ids[2] is still queued
     assert response.status_code == 409 and "no case is done yet" in response.json()["detail"]
     assert client.get(f"/sweeps/{record.id}/plots/scalars.png").status_code == 409
-    store.cancel_queued([ids[2]])
+    store.mark_cancelled([ids[2]])
     for path in (f"/sweeps/{record.id}/result.nc", f"/sweeps/{record.id}/plots/scalars.png"):
         response = client.get(path)
         assert response.status_code == 404
