@@ -19,6 +19,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from solver.errors import field_errors as _field_reasons
 
+from .job_records import is_damage
 from .schemas import ErrorBody, FieldError
 
 logger = logging.getLogger(__name__)
@@ -78,8 +79,6 @@ async def store_error_handler(request: Request, exc: Exception) -> JSONResponse:
     """503 with the reason when the job records or the results directory refuse a write
     (full or read-only disk, I/O error), or when the job records are found damaged (their
     recovery is started: moved aside, rebuilt from the results); the reason names no server path."""
-    from .job_records import is_damage
-
     if is_damage(exc):
         request.app.state.jobs.recover_soon(str(exc))
         reason = (f"job records are damaged ({exc}): they are being moved aside and rebuilt from the "

@@ -9,34 +9,39 @@ from dataclasses import dataclass
 from typing import Any, Optional
 
 from solver.spec import CaseSpec
+from workflows.parameters import flat_name, flat_parameters, parameter_attrs
+from workflows.units import input_unit
 
-#: ``path``: the case JSON field; ``weight``: typed as a unit weight (kN/m³), stored as a density.
-_FIELDS: tuple[tuple[str, str, str, str, float], ...] = (
-    # (group, path, label, unit, factor: SI value = typed value x factor)
-    ("Geometry", "geometry.depth", "depth of the tunnel axis", "m", 1.0),
-    ("Geometry", "geometry.inner_radius", "lining inner radius", "m", 1.0),
-    ("Geometry", "geometry.thickness", "lining thickness", "m", 1.0),
-    ("Geometry", "geometry.gap", "initial clearance lining–ground", "mm", 1e-3),
-    ("Ground", "ground.model", "ground model", "", 1.0),
-    ("Ground", "ground.young", "Young's modulus E", "MPa", 1e6),
-    ("Ground", "ground.poisson", "Poisson's ratio ν", "", 1.0),
-    ("Ground", "ground.density", "unit weight γ", "kN/m³", 0.0),
-    ("Ground", "loads.lateral_ratio", "lateral earth pressure ratio K0", "", 1.0),
-    ("Ground", "ground.cohesion", "cohesion c (Mohr–Coulomb)", "kPa", 1e3),
-    ("Ground", "ground.friction_angle", "friction angle φ (Mohr–Coulomb)", "°", 1.0),
-    ("Ground", "ground.dilatancy", "dilatancy angle ψ (Mohr–Coulomb)", "°", 1.0),
-    ("Ground", "loads.surface_load", "surface load", "kPa", 1e3),
-    ("Ground", "water.table", "water table depth (empty: dry)", "m", 1.0),
-    ("Lining and interface", "lining.young", "lining Young's modulus", "MPa", 1e6),
-    ("Lining and interface", "lining.density", "lining unit weight", "kN/m³", 0.0),
-    ("Lining and interface", "interface.model", "interface model", "", 1.0),
-    ("Lining and interface", "interface.friction", "interface friction coefficient μ", "", 1.0),
-    ("Lining and interface", "excavation.deconfinement", "deconfinement λd before the lining", "", 1.0),
-    ("Design (EN 1992)", "design.concrete_strength", "concrete strength fck", "MPa", 1e6),
-    ("Design (EN 1992)", "design.reinforcement_area", "reinforcement per face As", "cm²/m", 1e-4),
-    ("Design (EN 1992)", "design.load_factor", "load factor γF", "", 1.0),
-    ("Mesh", "mesh.interface_size", "element size along the interface", "m", 1.0),
+#: (group, case JSON path, label) in the form's order; units from the parameter table
+#: (:func:`workflows.units.input_unit`) unless :data:`_TYPED_AS` says otherwise.
+_FIELDS: tuple[tuple[str, str, str], ...] = (
+    ("Geometry", "geometry.depth", "depth of the tunnel axis"),
+    ("Geometry", "geometry.inner_radius", "lining inner radius"),
+    ("Geometry", "geometry.thickness", "lining thickness"),
+    ("Geometry", "geometry.gap", "initial clearance lining–ground"),
+    ("Ground", "ground.model", "ground model"),
+    ("Ground", "ground.young", "Young's modulus E"),
+    ("Ground", "ground.poisson", "Poisson's ratio ν"),
+    ("Ground", "ground.density", "unit weight γ"),
+    ("Ground", "loads.lateral_ratio", "lateral earth pressure ratio K0"),
+    ("Ground", "ground.cohesion", "cohesion c (Mohr–Coulomb)"),
+    ("Ground", "ground.friction_angle", "friction angle φ (Mohr–Coulomb)"),
+    ("Ground", "ground.dilatancy", "dilatancy angle ψ (Mohr–Coulomb)"),
+    ("Ground", "loads.surface_load", "surface load"),
+    ("Ground", "water.table", "water table depth (empty: dry)"),
+    ("Lining and interface", "lining.young", "lining Young's modulus"),
+    ("Lining and interface", "lining.density", "lining unit weight"),
+    ("Lining and interface", "interface.model", "interface model"),
+    ("Lining and interface", "interface.friction", "interface friction coefficient μ"),
+    ("Lining and interface", "excavation.deconfinement", "deconfinement λd before the lining"),
+    ("Design (EN 1992)", "design.concrete_strength", "concrete strength fck"),
+    ("Design (EN 1992)", "design.reinforcement_area", "reinforcement per face As"),
+    ("Design (EN 1992)", "design.load_factor", "load factor γF"),
+    ("Mesh", "mesh.interface_size", "element size along the interface"),
 )
+#: Fields typed in a unit of their own: (unit, factor); factor 0 marks a density typed as a
+#: unit weight in kN/m³ (density = typed x 1000 / gravity).
+_TYPED_AS = {"geometry.gap": ("mm", 1e-3), "ground.density": ("kN/m³", 0.0), "lining.density": ("kN/m³", 0.0)}
 _CHOICES = {"ground.model": ("elastic", "mohr-coulomb"), "interface.model": ("frictionless", "coulomb", "bonded")}
 
 
@@ -51,30 +56,30 @@ class FormField:
     choices: Optional[tuple[str, ...]] = None
 
 
-def _default(data: dict, path: str) -> Any:
-    for part in path.split("."):
-        data = data[part]
-    return data
+def typed_unit(path: str) -> tuple[str, float]:
+    """``(unit, factor)`` in which the form's field ``path`` is typed: SI = typed x factor."""
+    if path in _TYPED_AS:
+        return _TYPED_AS[path]
+    unit, from_si = input_unit(flat_name(path), parameter_attrs(path).get("units"))
+    return unit, 1.0 / from_si
 
 
 def case_form() -> list[tuple[str, list[FormField]]]:
     """The form's fields by group (in the form's order), filled with the default case in the
     shown units."""
-    data = CaseSpec().model_dump(mode="json")
-    gravity = data["loads"]["gravity"]
-    fields = []
-    for group, path, label, unit, factor in _FIELDS:
-        value = _default(data, path)
-        if value is not None and path in _CHOICES:
-            shown: Any = value
-        elif value is None:
-            shown = ""
+    defaults = flat_parameters(CaseSpec())
+    gravity = CaseSpec().loads.gravity
+    groups: dict[str, list[FormField]] = {}
+    for group, path, label in _FIELDS:
+        unit, factor = typed_unit(path)
+        value = defaults[flat_name(path)]
+        if value is None:
+            shown: Any = ""
+        elif path in _CHOICES:
+            shown = value
         elif factor == 0.0:  # a density shown as a unit weight
             shown = f"{value * gravity / 1e3:.6g}"
         else:
             shown = f"{value / factor:.6g}"
-        fields.append(FormField(group, path, label, unit, factor, shown, _CHOICES.get(path)))
-    groups: dict[str, list[FormField]] = {}
-    for f in fields:
-        groups.setdefault(f.group, []).append(f)
+        groups.setdefault(group, []).append(FormField(group, path, label, unit, factor, shown, _CHOICES.get(path)))
     return list(groups.items())

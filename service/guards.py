@@ -5,15 +5,14 @@ from __future__ import annotations
 import base64
 import copy
 import json
-import os
 import secrets
-import tempfile
 import time
 from typing import Optional
 
 from fastapi import Depends, HTTPException, Request, status
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
+from workflows.files import can_write
 from workflows.result_store import free_bytes
 
 _bearer = HTTPBearer(auto_error=False, description="required on POST when TUNNEL_CONTACT_TOKEN is set")
@@ -117,23 +116,12 @@ def check_capacity(request: Request, new_cases: int = 1, need_bytes: int = 0) ->
 WRITABLE_TTL = 1.0
 
 
-def results_writable(root) -> bool:
-    """Whether a file can be created in the results directory (a read-only mount cannot)."""
-    try:
-        with tempfile.NamedTemporaryFile(dir=root, prefix=".health-", delete=True) as fh:
-            fh.write(b"ok")
-            fh.flush()
-        return os.access(root, os.W_OK)
-    except OSError:
-        return False
-
-
 def writable(state) -> bool:
     """Results directory and job records take writes (checked at most every :data:`WRITABLE_TTL` s)."""
     now = time.monotonic()
     cached = getattr(state, "writable", None)
     if cached is None or now - cached[0] > WRITABLE_TTL:
-        cached = (now, results_writable(state.jobs.root) and state.jobs.store.writable())
+        cached = (now, can_write(state.jobs.root) and state.jobs.store.writable())
         state.writable = cached
     return cached[1]
 

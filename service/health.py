@@ -8,9 +8,9 @@ from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
 
 from solver.spec import CaseSpec
+from workflows.files import can_write
 from workflows.result_store import estimated_result_bytes, free_bytes
 
-from .guards import results_writable
 from .params import jobs_of, settings_of
 from .schemas import Health
 
@@ -29,7 +29,7 @@ async def health(request: Request) -> Health | JSONResponse:
     settings = settings_of(request)
     free = await asyncio.to_thread(free_bytes, jobs.root)
     room = max(settings.min_free_bytes, DEFAULT_CASE_BYTES)
-    writable = await asyncio.to_thread(results_writable, jobs.root) and jobs.store.writable()
+    writable = await asyncio.to_thread(can_write, jobs.root) and jobs.store.writable()
     try:
         counts = jobs.store.status_counts()
     except sqlite3.Error:

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import sqlite3
 import threading
 import time
@@ -26,6 +25,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Iterator, Mapping, Optional, Sequence
+
+from workflows.files import can_write
 
 logger = logging.getLogger(__name__)
 
@@ -443,6 +444,10 @@ class JobStore:
                                (sweep_id, position, case_id))
         return self.get_sweep(sweep_id), new
 
+    def sweep_ids(self) -> set[str]:
+        """Ids of every recorded sweep."""
+        return {r["id"] for r in self._read("SELECT id FROM sweeps")}
+
     def get_sweep(self, sweep_id: str) -> Optional[SweepRecord]:
         with self._lock:
             row = self._db.execute("SELECT * FROM sweeps WHERE id = ?", (sweep_id,)).fetchone()
@@ -519,18 +524,6 @@ def move_aside(path: Path, problem: str) -> None:
                  "results", path.name, problem, path.name, stamp)
 
 
-def _writable_folder(folder: Path) -> bool:
-    """Whether files can be made in ``folder`` (made if missing); False on a read-only mount."""
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        probe = folder / f".probe-{os.getpid()}"
-        probe.write_bytes(b"")
-        probe.unlink()
-        return True
-    except OSError:
-        return False
-
-
 def open_job_records(path: Path | str, **options) -> tuple["JobStore", Optional[str]]:
     """The job records at ``path``, checked (:func:`integrity_problem`); a damaged database
     (a broken header: "file is not a database"; a broken page) is moved aside
@@ -538,7 +531,7 @@ def open_job_records(path: Path | str, **options) -> tuple["JobStore", Optional[
     (None if none): the caller rebuilds the records from the result store then
     (:meth:`service.jobs.Dispatcher.rebuild_records`)."""
     path = Path(path)
-    if not _writable_folder(path.parent):
+    if not can_write(path.parent):
         logger.error("job records %s are on a read-only store: serving what is recorded, taking no work",
                      path.name)
         return JobStore(path, read_only=True), None

@@ -368,11 +368,10 @@ class Dispatcher:
         """Add the sweeps recorded in the result store that the job records lack (a sweep run
         from the command line, or records lost): their cases done or failed as the store says,
         the rest queued (then solved like any queued case). Returns the ids imported."""
-        records = await asyncio.to_thread(lambda: list(ResultStore(self.root).sweep_records()))
+        known = self.store.sweep_ids()
+        records = await asyncio.to_thread(lambda: list(ResultStore(self.root).sweep_records(skip=known)))
         imported = []
         for record in records:
-            if self.store.get_sweep(record["id"]) is not None:
-                continue
             try:  # the cases from the sweep itself (the ids must be those recorded)
                 specs = {s.case_id: s.canonical_json()
                          for s in await asyncio.to_thread(expand_sweep, Sweep.model_validate(record["spec"]))}

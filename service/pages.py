@@ -119,8 +119,9 @@ async def sweep_page(sweep_id: SweepId, request: Request) -> HTMLResponse:
 async def case_page(case_id: CaseId, request: Request) -> HTMLResponse:
     case = cases.read_case(request, case_id)  # an unknown case: the error page (service.errors)
     values = {**(case.summary or {}), **{k: float(v) for k, v in case.non_finite.items()}}  # inf shown as inf
-    columns = [scalar_column(n) for n in ordered_scalars(values) if n not in DIAGNOSTICS]
-    diagnostics = [scalar_column(n) for n in ordered_scalars(values) if n in DIAGNOSTICS]
+    names = ordered_scalars(values)
+    columns = [scalar_column(n) for n in names if n not in DIAGNOSTICS]
+    diagnostics = [scalar_column(n) for n in names if n in DIAGNOSTICS]
     eta = values.get("max_utilization")
     verdict = None if eta is None else {"passes": bool(eta <= 1.0), "eta": f"{eta:.3g}"}
     return await _render(request, "case.html", case=case, values=values, columns=columns, plots=list(PLOTS),

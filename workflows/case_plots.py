@@ -319,9 +319,9 @@ def ground_reaction(ds: xr.Dataset) -> dict:
     (1 − released)·p0, from (0, p0)); the lining's characteristic line (``k_s`` of the thick
     ring, from ``u_in``, the convergence when it is placed, plus the gap); the FE end state
     (``u_end``: mean wall convergence, ``p_end``: mean pressure on the extrados, water
-    included); and Salençon's closed-form curve under isotropic p0 (``closed_u``, ``closed_p``)
-    for one homogeneous layer, None otherwise."""
-    from solver.analytic import salencon
+    included); and the closed-form curve under isotropic p0 (``closed_u``, ``closed_p``: Salençon's,
+    Kirsch's for elastic ground) for one homogeneous layer, None otherwise."""
+    from solver.analytic import interface_mean, salencon
     from solver.spec import CaseSpec
     from solver.strata import geostatic_state, strata
 
@@ -332,7 +332,6 @@ def ground_reaction(ds: xr.Dataset) -> dict:
     curve = json.loads(ds.attrs.get("ground_reaction_curve", "[]"))
     convergence = np.array([0.0] + [c["wall_convergence_m"] for c in curve])
     pressure = p0 * np.array([1.0] + [1.0 - c["released"] for c in curve])
-    w = ds["weight"].values
     gn = ds["ground_node"].values
     inward = ds["displacement_x"].values[gn] * ds["normal_x"].values + ds["displacement_y"].values[gn] * ds["normal_y"].values
     support = ds["contact_pressure"].values + (ds["water_pressure"].values if "water_pressure" in ds else 0.0)
@@ -340,17 +339,16 @@ def ground_reaction(ds: xr.Dataset) -> dict:
     b, a = g.outer_radius, g.inner_radius
     k_s = lining.young * (b**2 - a**2) / ((1 + lining.poisson) * b * ((1 - 2 * lining.poisson) * b**2 + a**2))
     out = {"p0": p0, "convergence": convergence, "pressure": pressure, "k_s": k_s,
-           "u_in": float(convergence[-1]) + g.gap, "u_end": float(np.sum(w * inward) / np.sum(w)),
-           "p_end": float(np.sum(w * support) / np.sum(w)), "closed_u": None, "closed_p": None}
-    ground = spec.ground.layers[0] if spec.ground.layers and len(spec.ground.layers) == 1 else spec.ground
-    if not spec.ground.layers or len(spec.ground.layers) == 1:
-        plastic = ground.model == "mohr-coulomb"
-        closed_p = np.linspace(p0, 0.0, 60)
-        out["closed_u"] = np.array([salencon(p0, ground.cohesion if plastic else 1e30,
-                                             ground.friction_angle if plastic else 0.0,
-                                             ground.dilatancy if plastic else 0.0, ground.young, ground.poisson,
-                                             g.hole_radius, p, n=801)["u_wall"] for p in closed_p])
-        out["closed_p"] = closed_p
+           "u_in": float(convergence[-1]) + g.gap, "u_end": interface_mean(ds, inward),
+           "p_end": interface_mean(ds, support), "closed_u": None, "closed_p": None}
+    if len(layers) == 1 and not layers[0].young_gradient:  # a homogeneous ground has a closed form
+        ground, closed_p = layers[0], np.linspace(p0, 0.0, 60)
+        if ground.model == "mohr-coulomb":
+            closed_u = [salencon(p0, ground.cohesion, ground.friction_angle, ground.dilatancy, ground.young,
+                                 ground.poisson, g.hole_radius, p, n=801)["u_wall"] for p in closed_p]
+        else:  # Kirsch's wall under isotropic unloading
+            closed_u = (p0 - closed_p) * g.hole_radius * (1 + ground.poisson) / ground.young
+        out["closed_u"], out["closed_p"] = np.asarray(closed_u), closed_p
     return out
 
 
@@ -372,12 +370,11 @@ def plot_ground_reaction(ds: xr.Dataset) -> Figure:
     mm, kpa = 1e3, 1e-3
     if grc["closed_u"] is not None:
         ax.plot(grc["closed_u"] * mm, grc["closed_p"] * kpa, color="0.45", ls="--", lw=1.2,
-                label="ground reaction, closed form (Salençon, isotropic p0)")
+                label="ground reaction, closed form (isotropic p0)")
     ax.plot(grc["convergence"] * mm, grc["pressure"] * kpa, color="tab:blue", lw=2.0, marker="o", ms=3,
             label="ground reaction, FE stage 1 (unsupported ground)")
     u_end = max(grc["u_end"], grc["u_in"])
-    reach = max(u_end, grc["u_in"]) + 1.3 * (u_end - grc["u_in"]) + 1e-9
-    line_u = np.array([grc["u_in"], reach])
+    line_u = np.array([grc["u_in"], u_end + 1.3 * (u_end - grc["u_in"]) + 1e-9])
     ax.plot(line_u * mm, grc["k_s"] * (line_u - grc["u_in"]) * kpa, color="tab:green", lw=1.8,
             label=f"lining characteristic line (k_s = {grc['k_s'] * 1e-6:.3g} MPa/m)")
     ax.plot([grc["u_end"] * mm], [grc["p_end"] * kpa], marker="*", ms=14, color="tab:red", ls="none",

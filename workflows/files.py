@@ -25,7 +25,8 @@ import hashlib
 import logging
 import os
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 logger = logging.getLogger(__name__)
@@ -201,27 +202,34 @@ def _unlink(path: Path) -> bool:
         return False
 
 
-class _lock_if_free:
-    """Context: True when ``lock`` is absent or could be locked now (its writer has gone); the
-    lock is held inside the block so that removing it there is safe."""
-
-    def __init__(self, lock: Path):
-        self.lock = lock
-        self.fd: int | None = None
-
-    def __enter__(self) -> bool:
+@contextmanager
+def _lock_if_free(lock: Path) -> Iterator[bool]:
+    """True when ``lock`` is absent or could be locked now (its writer has gone); the lock is
+    held inside the block, so removing it there is safe."""
+    try:
+        fd = os.open(lock, os.O_RDONLY)
+    except FileNotFoundError:
+        yield True
+        return
+    except OSError:
+        yield False
+        return
+    try:
         try:
-            self.fd = os.open(self.lock, os.O_RDONLY)
-        except FileNotFoundError:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            yield False
+        else:
+            yield True
+    finally:
+        os.close(fd)
+
+
+def can_write(folder: Path | str) -> bool:
+    """Whether a file can be made in ``folder`` (made if missing): False on a read-only mount."""
+    try:
+        Path(folder).mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".probe-"):
             return True
-        except OSError:
-            return False
-        try:
-            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            return False
-        return True
-
-    def __exit__(self, *exc) -> None:
-        if self.fd is not None:
-            os.close(self.fd)
+    except OSError:
+        return False

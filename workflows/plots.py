@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import textwrap
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import xarray as xr
@@ -90,6 +91,19 @@ def _case_colors(n: int) -> list:
     return [colormaps["viridis"](i / (n - 1)) for i in range(n)]
 
 
+def _value_colours(values) -> tuple[list, Any]:
+    """Viridis colours of numbers (on a log scale when all are positive and span a factor
+    over 5) and the ``ScalarMappable`` their colour bar is drawn from."""
+    from matplotlib import colormaps
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import LogNorm, Normalize
+
+    v = np.asarray(values, dtype=float)
+    log = bool(np.all(v > 0) and v.max() > 5 * v.min())
+    mappable = ScalarMappable(norm=(LogNorm if log else Normalize)(v.min(), v.max()), cmap=colormaps["viridis"])
+    return [mappable.to_rgba(x) for x in v], mappable
+
+
 class CaseColours:
     """How a sweep's figures tell cases apart: coloured by one varied parameter (a colour bar
     when it is a number, a legend when it is a choice) and faceted by a second one with at
@@ -98,7 +112,6 @@ class CaseColours:
 
     def __init__(self, combined: xr.Dataset):
         from matplotlib import colormaps
-        from matplotlib.colors import LogNorm, Normalize
 
         n = combined.sizes["case"]
         varied = [p for p in case_parameters(combined) if len(set(combined[p].values.tolist())) > 1]
@@ -108,13 +121,9 @@ class CaseColours:
         self.facet = next((p for p in varied if p != self.param
                            and len(set(combined[p].values.tolist())) <= MAX_FACETS), None)
         self.labels = case_labels(combined)
-        self.norm = None
-        self.cmap = colormaps["viridis"]
+        self.mappable = None  # of the colour bar, when coloured by a number
         if self.param is not None and self.param in numeric:
-            v = combined[self.param].values.astype(float)
-            log = bool(np.all(v > 0) and v.max() > 5 * v.min())
-            self.norm = (LogNorm if log else Normalize)(v.min(), v.max())
-            self.colors = [self.cmap(self.norm(x)) for x in v]
+            self.colors, self.mappable = _value_colours(combined[self.param].values)
             self.legend = False
         elif self.param is not None:
             categories = list(dict.fromkeys(combined[self.param].values.tolist()))
@@ -132,10 +141,8 @@ class CaseColours:
 
     def finish(self, fig: Figure, axes) -> None:
         """The colour bar (numeric colouring) or one legend of unique labels (otherwise)."""
-        from matplotlib.cm import ScalarMappable
-
-        if self.norm is not None:
-            bar = fig.colorbar(ScalarMappable(norm=self.norm, cmap=self.cmap), ax=axes, shrink=0.9)
+        if self.mappable is not None:
+            bar = fig.colorbar(self.mappable, ax=axes, shrink=0.9)
             bar.set_label(self.param, fontsize="small")
         elif self.legend:
             handles, labels = axes.flat[0].get_legend_handles_labels()
@@ -289,14 +296,8 @@ def _scalar_panel(ax, combined: xr.Dataset, scalar: str, param: str, *, legend: 
     colors = _case_colors(len(groups))
     by_value = len(groups) > 6 and len(others) == 1 and np.issubdtype(combined[others[0]].dtype, np.number)
     if by_value:  # many lines of one other number: coloured by it, with a colour bar
-        from matplotlib import colormaps
-        from matplotlib.cm import ScalarMappable
-        from matplotlib.colors import Normalize
-
-        values = [float(key[0]) for key in groups]
-        norm = Normalize(min(values), max(values))
-        colors = [colormaps["viridis"](norm(v)) for v in values]
-        bar = ax.figure.colorbar(ScalarMappable(norm=norm, cmap="viridis"), ax=ax, pad=0.01)
+        colors, mappable = _value_colours([float(key[0]) for key in groups])
+        bar = ax.figure.colorbar(mappable, ax=ax, pad=0.01)
         bar.set_label(others[0], fontsize="xx-small")
         bar.ax.tick_params(labelsize="xx-small")
     for color, (key, members) in zip(colors, groups.items()):

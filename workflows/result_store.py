@@ -33,7 +33,7 @@ import shutil
 import threading
 import time
 from contextlib import contextmanager
-from collections.abc import Iterator, Sequence
+from collections.abc import Collection, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Union
@@ -106,7 +106,7 @@ def check_case_id(case_id: str) -> str:
 
     Every id is checked before it becomes part of a path.
     """
-    if not isinstance(case_id, str) or not _CASE_ID.fullmatch(case_id):
+    if not _is_case_id(case_id):
         raise ValueError(f"case id {case_id!r} is not 16 lowercase hex digits")
     return case_id
 
@@ -211,11 +211,14 @@ class ResultStore:
             write_atomically(target, lambda tmp: Path(tmp).write_text(json.dumps(record)))
         return target
 
-    def sweep_records(self) -> Iterator[dict[str, Any]]:
-        """Every readable sweep record of the store (a damaged one is logged and skipped)."""
+    def sweep_records(self, skip: Collection[str] = ()) -> Iterator[dict[str, Any]]:
+        """Every readable sweep record of the store but those of the sweeps ``skip`` (not read);
+        a damaged one is logged and skipped."""
         if not self.records_dir.is_dir():
             return
         for path in sorted(self.records_dir.glob("*.json")):
+            if path.stem in skip:
+                continue
             try:
                 record = json.loads(path.read_text())
                 check_case_id(record["id"])

@@ -75,11 +75,6 @@ class Sweep(BaseModel):
             return vary
         out = {}
         for path, entry in vary.items():
-            _check_unicode(path, "a parameter path")
-            if isinstance(entry, (list, tuple)):
-                for value in entry:
-                    if isinstance(value, str):
-                        _check_unicode(value, f"{path}: a value")
             if isinstance(entry, dict):
                 try:
                     entry = Distribution.model_validate(entry)

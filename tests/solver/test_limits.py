@@ -17,7 +17,7 @@ COARSE = {"mesh": {"interface_size": 0.25, "far_size": 8.0}}
     ({}, "active-set contact iteration"),
     ({"interface": {"model": "coulomb", "friction": 0.3}}, "Coulomb"),
     ({"ground": {"model": "mohr-coulomb", "cohesion": 3.0e4, "friction_angle": 28.0,
-                 "tensile_strength": 1.0e4}}, "iteration"),
+                 "tensile_strength": 1.0e4}}, "plastic iteration"),
 ])
 def test_every_solver_loop_stops_past_the_limit_naming_itself(extra, where):
     spec = CaseSpec.model_validate({**COARSE, **extra})

@@ -168,3 +168,19 @@ def test_convergence_confinement_equilibrium_on_yielding_ground():
     assert star.get_ydata()[0] == pytest.approx(grc["p_end"] * 1e-3)
     line = line("lining characteristic line")
     assert line.get_xdata()[0] == pytest.approx(grc["u_in"] * 1e3) and line.get_ydata()[0] == 0.0
+
+
+def test_the_ground_reaction_figure_of_an_elastic_hole_follows_kirsch():
+    """Elastic ground records its one stage-1 point; the figure's closed form is Kirsch's wall
+    displacement (1 + ν) (p0 − p) a / E, which that point lies on."""
+    from workflows.case_plots import ground_reaction
+
+    case = _hole(0.0)
+    case["ground"] = {"density": 0.0, "young": E, "poisson": NU}
+    case["excavation"] = {"deconfinement": 0.5}
+    grc = ground_reaction(run_case(CaseSpec.model_validate(case)))
+    assert grc["pressure"].tolist() == pytest.approx([P0, 0.5 * P0])
+    a = CaseSpec.model_validate(case).geometry.hole_radius
+    assert grc["convergence"][-1] == pytest.approx((1 + NU) * 0.5 * P0 * a / E, rel=0.03)
+    assert np.interp(0.5 * P0, grc["closed_p"][::-1], grc["closed_u"][::-1]) == pytest.approx(
+        (1 + NU) * 0.5 * P0 * a / E, rel=1e-9)
