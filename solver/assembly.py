@@ -329,6 +329,27 @@ def point_basis(body: Body, points: np.ndarray = SUBTRIANGLE_CENTROIDS) -> Basis
     return Basis(body.basis.mesh, body.basis.elem, quadrature=(points, W))
 
 
+def gradient_operator(body: Body, basis: Basis) -> sp.csr_matrix:
+    """The displacement gradient at the quadrature points of ``basis`` as a sparse operator on
+    ``body``'s unknowns: ``(G @ x).reshape(2, 2, E, Q)`` is ``du_i/dx_j`` of the free-DOF vector
+    ``x`` (in the unknowns' basis). Its transpose integrates: ``Gᵀ w`` with ``w`` a gradient-shaped
+    field times the points' weights is ``∫ w : ∇v`` for every test function ``v``."""
+    dofs = basis.element_dofs  # (Nbfun, E)
+    rows, cols, vals = [], [], []
+    shape = (2, 2) + basis.dx.shape
+    index = np.arange(np.prod(shape)).reshape(shape)
+    for i in range(basis.Nbfun):
+        g = basis.basis[i][0].grad  # (2, 2, E, Q)
+        nz = g != 0.0
+        rows.append(index[nz])
+        cols.append(np.broadcast_to(dofs[i][None, None, :, None], shape)[nz])
+        vals.append(g[nz])
+    full = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(index.size, basis.N))
+    G = full[:, body.free]
+    return (G @ body.skew.matrix()).tocsr() if body.skew is not None else G.tocsr()
+
+
 def stress_at(body: Body, young: float, poisson: float, u_nodes: np.ndarray,
               basis: Basis | None = None) -> np.ndarray:
     """Stress (4, E, P) in Pa (xx, yy, xy, zz; tension positive) at the points of ``basis``

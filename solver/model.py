@@ -42,6 +42,7 @@ from . import friction, water
 from .assembly import (
     Basis,
     assemble_body,
+    gradient_operator,
     gravity_load,
     ground_constraints,
     lining_constraints,
@@ -219,6 +220,7 @@ class TunnelModel:
         self._factorize(rows_of_model(spec.interface.model))
         self._units: dict[str, np.ndarray] = {}
         self._point_bases: dict = {}
+        self._gradients: dict = {}
         self._seepage: "OrderedDict[tuple, water.SeepageModel]" = OrderedDict()
         self._lock = threading.Lock()
 
@@ -241,6 +243,15 @@ class TunnelModel:
         if body not in self._point_bases:
             self._point_bases[body] = point_basis(getattr(self, body).body)
         return self._point_bases[body]
+
+    def gradient_operator(self, where: str):
+        """The ground's displacement gradient, as an operator on its unknowns, at its quadrature
+        points (``'gauss'``) or at the sub-triangle centroids (``'points'``); built on first use."""
+        if where not in self._gradients:
+            body = self.ground.body
+            basis = body.basis if where == "gauss" else self.point_basis("ground")
+            self._gradients[where] = gradient_operator(body, basis)
+        return self._gradients[where]
 
     def _factorize(self, rows: Rows) -> None:
         """Both bodies' factorizations serving ``rows`` (built once; timed)."""
@@ -388,6 +399,24 @@ class TunnelModel:
                 "what double precision resolves (e.g. loads or stiffnesses many orders of magnitude apart)")
         return sol
 
+    def contact_tractions(self, spec: CaseSpec, d: np.ndarray, F2: float) -> tuple[BoltedSolution, np.ndarray]:
+        """The contact problem of the interface jumps ``d`` (and the lining's vertical load
+        ``F2``): its solution and the interface tractions ``t`` (normal, then tangential rows)."""
+        iface, m, g0, sv = self.mesh.interface, self.m, spec.geometry.gap, spec.solver
+        model = spec.interface.model
+        if model == "frictionless":
+            sol = solve_contact(self._dual(d, F2, g0), iface.theta, inner=sv.inner, tol=sv.tolerance,
+                                max_iterations=sv.max_iterations, bolt=sv.bolt)
+            return sol, np.r_[sol.lam, np.zeros(m - 2)]
+        if model == "bonded":
+            t, a = self._tie(d, F2)
+            return BoltedSolution(a=a, bolt=None), t
+        fp = friction.FrictionProblem(S=self.S, d=d, g0=g0, w=self.w, r=self.r, F2=F2, m=m,
+                                      mu=spec.interface.friction)
+        sol = friction.solve_coulomb(fp, iface.theta, tol=sv.tolerance, max_iterations=sv.max_iterations,
+                                     bolt=sv.bolt)
+        return sol, sol.t
+
     def _finish(self, spec: CaseSpec, rows: Rows, loads: StageLoads, stage: Forward, d: np.ndarray, F2: float,
                 t0: float, u1: np.ndarray | None = None) -> Solution:
         """The contact stage solved from its forward-solved loads: the contact problem, the
@@ -395,22 +424,9 @@ class TunnelModel:
         elsewhere (the yielding ground's), else stage 1 is ``λd K⁻¹ r``."""
         ground, lining = self.ground, self.lining
         iface = self.mesh.interface
-        m, g0, sv = self.m, spec.geometry.gap, spec.solver
+        m, g0 = self.m, spec.geometry.gap
         model = spec.interface.model
-        sol: BoltedSolution
-        if model == "frictionless":
-            sol = solve_contact(self._dual(d, F2, g0), iface.theta, inner=sv.inner, tol=sv.tolerance,
-                                max_iterations=sv.max_iterations, bolt=sv.bolt)
-            t = np.r_[sol.lam, np.zeros(m - 2)]
-        elif model == "bonded":
-            t, a = self._tie(d, F2)
-            sol = BoltedSolution(a=a, bolt=None)
-        else:
-            fp = friction.FrictionProblem(S=self.S, d=d, g0=g0, w=self.w, r=self.r, F2=F2, m=m,
-                                          mu=spec.interface.friction)
-            sol = friction.solve_coulomb(fp, iface.theta, tol=sv.tolerance, max_iterations=sv.max_iterations,
-                                         bolt=sv.bolt)
-            t = sol.t
+        sol, t = self.contact_tractions(spec, d, F2)
         t_solve = time.perf_counter()
         Wt = self.w * t
         if u1 is not None:

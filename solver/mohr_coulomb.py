@@ -20,6 +20,7 @@ The in-plane principal directions of the trial stress are kept (isotropy).
 from __future__ import annotations
 
 import itertools
+from typing import NamedTuple
 
 import numpy as np
 
@@ -80,78 +81,113 @@ def return_map(trial: np.ndarray, lam, mu, cohesion, friction_angle, dilatancy, 
     of the surface or outside it. Raises ``ArithmeticError`` if some point finds no admissible
     return.
     """
+    return return_stress(trial, Material.of(trial.shape[1], lam, mu, cohesion, friction_angle, dilatancy, tensile),
+                         flag_tolerance)
+
+
+class Material(NamedTuple):
+    """Per-point constants of the return (arrays (n,)): Lamé's λ, μ (Pa), cohesion c (Pa),
+    sin φ, cos φ, sin ψ and the tension cut-off σt (Pa)."""
+
+    lam: np.ndarray
+    mu: np.ndarray
+    c: np.ndarray
+    sin_phi: np.ndarray
+    cos_phi: np.ndarray
+    sin_psi: np.ndarray
+    tensile: np.ndarray
+
+    @classmethod
+    def of(cls, n: int, lam, mu, cohesion, friction_angle, dilatancy, tensile) -> "Material":
+        bc = lambda v: np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float), (n,)))  # noqa: E731
+        phi, psi = np.radians(bc(friction_angle)), np.radians(bc(dilatancy))
+        return cls(bc(lam), bc(mu), bc(cohesion), np.sin(phi), np.cos(phi), np.sin(psi), bc(tensile))
+
+    def at(self, index: np.ndarray) -> "Material":
+        return Material(*(v[index] for v in self))
+
+
+def return_stress(trial: np.ndarray, mat: Material, flag_tolerance: float = YIELD_TOL):
+    """:func:`return_map` with the material's constants prepared once (:class:`Material`)."""
     n = trial.shape[1]
-    bc = lambda v: np.broadcast_to(np.asarray(v, dtype=float), (n,)).copy()  # noqa: E731
-    lam, mu, c, t = bc(lam), bc(mu), bc(cohesion), bc(tensile)
-    phi, psi = np.radians(bc(friction_angle)), np.radians(bc(dilatancy))
-    sp, cp, sq = np.sin(phi), np.cos(phi), np.sin(psi)
-    major, minor, angle, szz = principal(trial)
-    vals = np.stack([major, minor, szz])  # (3, n)
-    order = np.argsort(-vals, axis=0, kind="stable")
-    s = np.take_along_axis(vals, order, axis=0)  # sorted σ1 ≥ σ2 ≥ σ3
-    scale = np.maximum(np.max(np.abs(s), axis=0), np.maximum(c, 1.0))
-    f = yield_values(s, c, sp, cp, t)
-    out = s.copy()
-    dep = np.zeros((3, n))
-    at_yield = np.max(f, axis=0) > -flag_tolerance * scale
-    todo = np.flatnonzero(np.max(f, axis=0) > YIELD_TOL * scale)
-    if todo.size:
-        # surfaces per point (angles may vary): a, b (n, 6, 3)
-        A = np.zeros((todo.size, 6, 3))
-        B = np.zeros((todo.size, 6, 3))
-        sp_t, sq_t = sp[todo], sq[todo]
-        for j, (i1, i2) in enumerate(((0, 2), (1, 2), (0, 1))):
-            A[:, j, i1], A[:, j, i2] = 1.0 + sp_t, -(1.0 - sp_t)
-            B[:, j, i1], B[:, j, i2] = 1.0 + sq_t, -(1.0 - sq_t)
-        for j in range(3):
-            A[:, 3 + j, j] = B[:, 3 + j, j] = 1.0
-        k_const = np.zeros((todo.size, 6))
-        k_const[:, :3] = (2.0 * c * cp)[todo, None]
-        k_const[:, 3:] = t[todo, None]
-        # isotropic elasticity in principal axes: D = λ 1 1ᵀ + 2μ I
-        lt, mt = lam[todo], mu[todo]
-        st = s[:, todo].T  # (m, 3)
-        pending = np.ones(todo.size, bool)
-        res = np.empty((todo.size, 3))
-        gam_strain = np.zeros((todo.size, 3))
-        for cand in CANDIDATES:
-            p = np.flatnonzero(pending)
-            if p.size == 0:
-                break
-            cs = list(cand)
-            a, b = A[p][:, cs], B[p][:, cs]  # (P, k, 3)
-            Db = lt[p, None, None] * b.sum(axis=2, keepdims=True) + 2.0 * mt[p, None, None] * b  # (P, k, 3)
-            M = np.einsum("pjx,plx->pjl", a, Db)
-            rhs = np.einsum("pjx,px->pj", a, st[p]) - k_const[p][:, cs]
-            with np.errstate(all="ignore"):
-                try:
-                    gam = np.linalg.solve(M, rhs[..., None])[..., 0]
-                except np.linalg.LinAlgError:
-                    continue
-            sig = st[p] - np.einsum("pl,plx->px", gam, Db)
-            fv = yield_values(sig.T, c[todo][p], sp[todo][p], cp[todo][p], t[todo][p])
-            sc = scale[todo][p]
-            ok = (np.all(gam >= -YIELD_TOL, axis=1) & np.all(fv <= YIELD_TOL * sc * 10, axis=0)
-                  & (sig[:, 0] >= sig[:, 1] - YIELD_TOL * sc) & (sig[:, 1] >= sig[:, 2] - YIELD_TOL * sc)
-                  & np.all(np.isfinite(sig), axis=1))
-            hit = p[ok]
-            res[hit] = sig[ok]
-            gam_strain[hit] = np.einsum("pl,plx->px", gam[ok], b[ok])
-            pending[hit] = False
-        if pending.any():
-            raise ArithmeticError(f"Mohr-Coulomb return mapping found no admissible stress at {pending.sum()} points")
-        out[:, todo] = res.T
-        dep[:, todo] = gam_strain.T
-        at_yield[todo] = True
-    # back to the trial's axes: undo the sort, then the in-plane directions
-    back = np.empty_like(out)
-    np.put_along_axis(back, order, out, axis=0)
-    dep_back = np.empty_like(dep)
-    np.put_along_axis(dep_back, order, dep, axis=0)
+    c, sp, cp, t = mat.c, mat.sin_phi, mat.cos_phi, mat.tensile
+    # a cheap screen of every point: the largest and least principal stresses without sorting
+    # or directions (most of the ground is elastic at any iterate)
+    sxx, syy, sxy, szz = trial
+    mid = 0.5 * (sxx + syy)
+    rad = np.hypot(0.5 * (sxx - syy), sxy)
+    s1 = np.maximum(mid + rad, szz)
+    s3 = np.minimum(mid - rad, szz)
+    scale = np.maximum(np.maximum(np.abs(s1), np.abs(s3)), np.maximum(c, 1.0))
+    fmax = np.maximum((s1 - s3) + (s1 + s3) * sp - 2.0 * c * cp, s1 - t)
+    at_yield = fmax > -flag_tolerance * scale
+    todo = np.flatnonzero(fmax > YIELD_TOL * scale)
     stress = np.array(trial, dtype=float)  # a state inside stays exactly as it was
+    dep = np.zeros((3, n))
     if todo.size:
-        stress[:, todo] = from_principal(back[0, todo], back[1, todo], angle[todo], back[2, todo])
-    return stress, dep_back, at_yield
+        m = mat.at(todo)
+        ret, dep_t = _return(trial[:, todo], m.lam, m.mu, m.c, m.sin_phi, m.cos_phi, m.sin_psi, m.tensile,
+                             scale[todo])
+        stress[:, todo], dep[:, todo] = ret, dep_t
+        at_yield[todo] = True
+    return stress, dep, at_yield
+
+
+def _return(trial, lam, mu, c, sp, cp, sq, t, scale):
+    """The multi-surface return of trial states (4, m) that lie outside: stress (4, m) and
+    principal plastic strain increments (3, m) in the trial's axes."""
+    m = trial.shape[1]
+    major, minor, angle, szz = principal(trial)
+    vals = np.stack([major, minor, szz])  # (3, m)
+    order = np.argsort(-vals, axis=0, kind="stable")
+    st = np.take_along_axis(vals, order, axis=0).T  # (m, 3) sorted σ1 ≥ σ2 ≥ σ3
+    # surfaces per point (angles may vary): a, b (m, 6, 3)
+    A = np.zeros((m, 6, 3))
+    B = np.zeros((m, 6, 3))
+    for j, (i1, i2) in enumerate(((0, 2), (1, 2), (0, 1))):
+        A[:, j, i1], A[:, j, i2] = 1.0 + sp, -(1.0 - sp)
+        B[:, j, i1], B[:, j, i2] = 1.0 + sq, -(1.0 - sq)
+    for j in range(3):
+        A[:, 3 + j, j] = B[:, 3 + j, j] = 1.0
+    k_const = np.zeros((m, 6))
+    k_const[:, :3] = (2.0 * c * cp)[:, None]
+    k_const[:, 3:] = t[:, None]
+    # isotropic elasticity in principal axes: D = λ 1 1ᵀ + 2μ I
+    pending = np.ones(m, bool)
+    res = np.empty((m, 3))
+    gam_strain = np.zeros((m, 3))
+    for cand in CANDIDATES:
+        p = np.flatnonzero(pending)
+        if p.size == 0:
+            break
+        cs = list(cand)
+        a, b = A[p][:, cs], B[p][:, cs]  # (P, k, 3)
+        Db = lam[p, None, None] * b.sum(axis=2, keepdims=True) + 2.0 * mu[p, None, None] * b  # (P, k, 3)
+        M = np.einsum("pjx,plx->pjl", a, Db)
+        rhs = np.einsum("pjx,px->pj", a, st[p]) - k_const[p][:, cs]
+        with np.errstate(all="ignore"):
+            try:
+                gam = np.linalg.solve(M, rhs[..., None])[..., 0]
+            except np.linalg.LinAlgError:
+                continue
+        sig = st[p] - np.einsum("pl,plx->px", gam, Db)
+        fv = yield_values(sig.T, c[p], sp[p], cp[p], t[p])
+        sc = scale[p]
+        ok = (np.all(gam >= -YIELD_TOL, axis=1) & np.all(fv <= YIELD_TOL * sc * 10, axis=0)
+              & (sig[:, 0] >= sig[:, 1] - YIELD_TOL * sc) & (sig[:, 1] >= sig[:, 2] - YIELD_TOL * sc)
+              & np.all(np.isfinite(sig), axis=1))
+        hit = p[ok]
+        res[hit] = sig[ok]
+        gam_strain[hit] = np.einsum("pl,plx->px", gam[ok], b[ok])
+        pending[hit] = False
+    if pending.any():
+        raise ArithmeticError(f"Mohr-Coulomb return mapping found no admissible stress at {pending.sum()} points")
+    # back to the trial's axes: undo the sort, then the in-plane directions
+    back = np.empty((3, m))
+    np.put_along_axis(back, order, res.T, axis=0)
+    dep = np.empty((3, m))
+    np.put_along_axis(dep, order, gam_strain.T, axis=0)
+    return from_principal(back[0], back[1], angle, back[2]), dep
 
 
 def equivalent(plastic_strain: np.ndarray) -> np.ndarray:

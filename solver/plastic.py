@@ -14,21 +14,23 @@ floored at :data:`MIN_TOLERANCE`; the plastic consistency holds at every point b
 mapping (:mod:`solver.mohr_coulomb`).
 
 Stages (SPEC §1.1): stage 1 releases λd of the excavation load in ``solver.load_steps``
-increments on the unsupported ground; the lining is placed on the ground as it stands; stage 2
+equal increments on the unsupported ground (those below the first yield, :func:`first_yield`,
+in one elastic solve; each increment starts from the last one's displacement repeated); the lining is placed on the ground as it stands; stage 2
 releases the rest (with the lining's weight, the water and a drained lining's seepage) in as
 many increments, each with its contact solve. The stress history lives at the quadrature
 points (degree 4, six per triangle); the stored face stresses are followed, with the same
-history, at the sub-triangle centroids.
+history, at the sub-triangle centroids. Strains come from one sparse gradient operator per
+set of points (:meth:`~solver.model.TunnelModel.gradient_operator`), whose transpose
+integrates the plastic load.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .assembly import _stress_components, point_basis
 from .contact import NotConvergedError
 from .limits import check_time
 from .ground import in_situ_stress, moduli
-from .mohr_coulomb import equivalent, return_map
+from .mohr_coulomb import Material, equivalent, return_stress
 from .post import mean_convergence
 from .strata import strata
 
@@ -47,8 +49,11 @@ DEPTH = 8
 class _Points:
     """The ground's stress history at one set of points (quadrature or output points)."""
 
-    def __init__(self, model, spec, basis):
+    def __init__(self, model, spec, where: str):
+        basis = model.ground.body.basis if where == "gauss" else model.point_basis("ground")
         self.basis = basis
+        self.G = model.gradient_operator(where)
+        self.weights = basis.dx
         layers = strata(spec)
         self.layers = layers
         band = model.band
@@ -57,69 +62,88 @@ class _Points:
         young, poisson = moduli(model.layers, band, y)
         young = np.broadcast_to(young, y.shape)
         poisson = np.broadcast_to(poisson, y.shape)
-        self.young, self.poisson = young, poisson
         lam = young * poisson / ((1 + poisson) * (1 - 2 * poisson))
         mu = young / (2 * (1 + poisson))
+        self.lam, self.mu = lam, mu
         per = lambda name: np.broadcast_to(  # noqa: E731
             np.array([getattr(s, name) for s in layers])[band][:, None], y.shape).ravel()
         self.yielding = np.broadcast_to(np.array([s.model == "mohr-coulomb" for s in layers])[band][:, None],
                                         y.shape).ravel()
         sel = self.yielding
-        self.lam, self.mu = lam.ravel()[sel], mu.ravel()[sel]
-        self.strength = {k: per(k)[sel] for k in ("cohesion", "friction_angle", "dilatancy", "tensile_strength")}
+        self.material = Material.of(int(sel.sum()), lam.ravel()[sel], mu.ravel()[sel],
+                                    *(per(k)[sel] for k in ("cohesion", "friction_angle", "dilatancy",
+                                                            "tensile_strength")))
         self.sigma0 = (in_situ_stress(spec, layers, band, y)["effective"]  # (4, E, Q)
                        if spec.excavation.method == "deconfinement" else np.zeros((4,) + y.shape))
         self.sigma = self.sigma0.copy()  # at the last converged increment
         self.grad = np.zeros((2, 2) + y.shape)
+        self.tau = np.zeros((4,) + y.shape)  # σ0′ + D ε - σ = D ε_p
         self.eqps = np.zeros(y.shape)
         self.at_yield = np.zeros(y.shape, bool)
         #: a point within this (relative) distance of the yield surface counts as at yield: the
         #: equilibrium iteration's tolerance leaves yielding points a hair inside it
         self.flag_tolerance = max(spec.solver.tolerance, MIN_TOLERANCE)
 
-    def gradient(self, body, u_nodes: np.ndarray) -> np.ndarray:
-        return self.basis.interpolate(body.full(u_nodes)).grad
+    def gradient(self, u_free: np.ndarray) -> np.ndarray:
+        """The displacement gradient (2, 2, E, Q) of the ground's unknowns ``u_free``."""
+        return (self.G @ u_free).reshape((2, 2) + self.shape)
 
     def trial(self, grad: np.ndarray):
-        """Stress, plastic strain increment and yield flags of a displacement gradient since
-        excavation, from the last converged increment."""
-        d = _stress_components(grad - self.grad, self.young, self.poisson)
-        trial = self.sigma + np.stack(d)
-        stress = trial.reshape(4, -1).copy()
-        dep = np.zeros((3, stress.shape[1]))
-        flags = np.zeros(stress.shape[1], bool)
+        """Stress, plastic strain increment, yield flags and ``D ε_p`` of a displacement
+        gradient since excavation, from the last converged increment."""
+        dg = grad - self.grad
+        lt = self.lam * (dg[0, 0] + dg[1, 1])
+        trial = self.sigma + np.stack([lt + 2 * self.mu * dg[0, 0], lt + 2 * self.mu * dg[1, 1],
+                                       self.mu * (dg[0, 1] + dg[1, 0]), lt])
+        flat = trial.reshape(4, -1)
+        dep = np.zeros((3, flat.shape[1]))
+        flags = np.zeros(flat.shape[1], bool)
         sel = self.yielding
-        if sel.any():
-            s = self.strength
-            ret, dp, fl = return_map(stress[:, sel], self.lam, self.mu, s["cohesion"], s["friction_angle"],
-                                     s["dilatancy"], s["tensile_strength"], flag_tolerance=self.flag_tolerance)
-            # at yield: on the surface, or flowing in this increment (a point the iteration's
-            # tolerance leaves a hair inside the surface is still yielding)
-            stress[:, sel], dep[:, sel], flags[sel] = ret, dp, fl | (np.abs(dp).max(axis=0) > 0)
-        return stress.reshape(trial.shape), dep, flags.reshape(self.shape)
+        if sel.all():
+            stress, dep, flags = return_stress(flat, self.material, self.flag_tolerance)
+        else:
+            stress = flat.copy()
+            if sel.any():
+                stress[:, sel], dep[:, sel], flags[sel] = return_stress(flat[:, sel], self.material,
+                                                                       self.flag_tolerance)
+        # at yield: on the surface, or flowing in this increment (a point the iteration's
+        # tolerance leaves a hair inside the surface is still yielding)
+        flags |= np.abs(dep).max(axis=0) > 0
+        stress = stress.reshape(trial.shape)
+        return stress, dep, flags.reshape(self.shape), self.tau + (trial - stress)
 
-    def commit(self, grad, stress, dep, flags) -> None:
-        self.grad, self.sigma = grad, stress
+    def commit(self, grad, stress, dep, flags, tau) -> None:
+        self.grad, self.sigma, self.tau = grad, stress, tau
         self.eqps = self.eqps + equivalent(dep).reshape(self.shape)
         self.at_yield = flags
 
 
-def _plastic_load(points: _Points, grad: np.ndarray, stress: np.ndarray) -> np.ndarray:
-    """Full-DOF ``∫Bᵀ(σ0′ + D ε(u) - σ)`` at the quadrature points of ``points``: only the
-    elements where the ground has yielded contribute (elsewhere the bracket is zero)."""
-    basis = points.basis
-    tau = points.sigma0 + np.stack(_stress_components(grad, points.young, points.poisson)) - stress
-    scale = max(float(np.max(np.abs(stress))), 1.0)
-    elements = np.flatnonzero(np.max(np.abs(tau), axis=(0, 2)) > 1e-12 * scale)
-    if elements.size == 0:
-        return np.zeros(basis.N)
-    tau = tau[:, elements]
-    dx = basis.dx[elements]
-    out = np.empty((basis.Nbfun, elements.size))
-    for i in range(basis.Nbfun):
-        g = basis.basis[i][0].grad[:, :, elements]
-        out[i] = np.sum((tau[0] * g[0, 0] + tau[1] * g[1, 1] + tau[2] * (g[0, 1] + g[1, 0])) * dx, axis=1)
-    return np.bincount(basis.element_dofs[:, elements].ravel(), out.ravel(), minlength=basis.N)
+def _plastic_load(points: _Points, tau: np.ndarray) -> np.ndarray:
+    """``∫Bᵀ(σ0′ + D ε(u) - σ)`` on the ground's unknowns, at the quadrature points of
+    ``points``, from ``tau`` = the bracket (4, E, Q): non-zero only where the ground has yielded."""
+    w = points.weights
+    return points.G.T @ np.stack([tau[0] * w, tau[2] * w, tau[2] * w, tau[1] * w]).ravel()
+
+
+def first_yield(points: _Points, u_unit: np.ndarray, limit: float) -> float:
+    """The largest fraction ``f`` ≤ ``limit`` of the displacement ``u_unit`` (from the last
+    converged state) for which every point's stress stays inside its yield surface: the
+    stress is linear in ``f``, the yield function convex in the stress, so the admissible
+    fractions are an interval ``[0, f*]``, found by bisection to 1e-4 of ``limit`` (from below)."""
+    if not points.yielding.any():
+        return limit
+    grad = points.gradient(u_unit)
+
+    def inside(f: float) -> bool:
+        return not points.trial(f * grad)[2].any()
+
+    if inside(limit):
+        return limit
+    low, high = 0.0, limit
+    while high - low > 1e-4 * limit:
+        mid = 0.5 * (low + high)
+        low, high = (mid, high) if inside(mid) else (low, mid)
+    return low
 
 
 class _Anderson:
@@ -175,8 +199,8 @@ def solve_staged(model, spec, rows, t0: float):
 
     ground, lining = model.ground, model.lining
     body = ground.body
-    gauss = _Points(model, spec, body.basis)
-    out = _Points(model, spec, point_basis(body))
+    gauss = _Points(model, spec, "gauss")
+    out = _Points(model, spec, "points")
     loads = model.stage_loads(spec)
     steps = spec.solver.load_steps
     tol = max(spec.solver.tolerance, MIN_TOLERANCE)
@@ -185,63 +209,77 @@ def solve_staged(model, spec, rows, t0: float):
     iface = model.mesh.interface
 
     def stress_of(u_free):
-        nodes = body.expand(u_free)
-        grad = gauss.gradient(body, nodes)
-        stress, dep, flags = gauss.trial(grad)
-        return nodes, grad, stress, dep, flags
+        grad = gauss.gradient(u_free)
+        return (u_free, grad) + gauss.trial(grad)
 
-    def commit(nodes, grad, stress, dep, flags):
-        gauss.commit(grad, stress, dep, flags)
-        og = out.gradient(body, nodes)
+    def commit(u_free, grad, stress, dep, flags, tau):
+        gauss.commit(grad, stress, dep, flags, tau)
+        og = out.gradient(u_free)
         out.commit(og, *out.trial(og))
 
-    # stage 1: λd r on the unsupported ground
+    # stage 1: λd r on the unsupported ground in ``steps`` equal increments; those the ground
+    # takes elastically in one solve (up to its first yield)
     u1 = np.zeros(body.n)
     p1 = np.zeros(body.n)
     if loads.release is not None and ld > 0:
         y_r = ground.forward(loads.release, rows)
-        for k in range(1, steps + 1):
+        u_r = ground.backward(y_r, rows)
+        start = first_yield(gauss, u_r, ld)
+        elastic = int(np.floor(start / ld * steps * (1 + 1e-12)))
+        if elastic:
+            u1 = ld * elastic / steps * u_r
+            commit(*stress_of(u1))
+            curve.extend((ld * k / steps, mean_convergence(body.expand(k / elastic * u1), iface))
+                         for k in range(1, elastic + 1))
+        u1_last = u1 - ld / steps * u_r
+        for k in range(elastic + 1, steps + 1):
             frac = ld * k / steps
             ref = frac * float(np.linalg.norm(loads.release))
             base = frac * y_r
 
             def G(x):
-                nodes, grad, stress, dep, flags = stress_of(x)
-                p = body.restrict(_plastic_load(gauss, grad, stress))
+                p = _plastic_load(gauss, stress_of(x)[-1])
                 return ground.backward(base + ground.forward(p, rows), rows), p
 
-            u1, p, its = _fixed_point(G, u1, body.K, tol * ref, f"stage 1, increment {k} of {steps}")
+            guess = 2 * u1 - u1_last  # the last increment's, repeated
+            u1_last = u1
+            u1, p, its = _fixed_point(G, guess, body.K, tol * ref, f"stage 1, increment {k} of {steps}")
             iterations += its
-            nodes, grad, stress, dep, flags = stress_of(u1)
+            state = stress_of(u1)
             p1 = p
-            commit(nodes, grad, stress, dep, flags)
+            commit(*state)
             curve.append((frac, mean_convergence(body.expand(u1), iface)))
     # stage 2: the rest, with the lining and contact
     full = StageLoads(loads.ground, loads.lining, None, loads.seepage)
     y_g = ground.forward(full.ground, rows)
     y_l = lining.forward(full.lining, rows)
     F2_full = float(model.rigid @ full.lining)
-    u2 = np.zeros(body.n)
-    last = {}
+    u2 = u2_last = np.zeros(body.n)
     for k in range(1, steps + 1):
         a = k / steps
         ref = a * float(np.linalg.norm(full.ground)) + float(np.linalg.norm(p1)) + abs(a * F2_full)
 
-        def G(x):
-            nodes, grad, stress, dep, flags = stress_of(u1 + x)
-            p = body.restrict(_plastic_load(gauss, grad, stress))
+        def stage_of(p):
             extra = p - p1
-            stage = Forward(ground=a * y_g + ground.forward(extra, rows), lining=a * y_l)
-            d = ground.jumps(stage.ground, rows) + lining.jumps(stage.lining, rows)
-            sol = model._finish(spec, rows, StageLoads(a * full.ground + extra, a * full.lining, None), stage, d,
-                                a * F2_full, t0, u1=u1)
-            last["sol"] = sol
-            return body.restrict(body.full(sol.u_ground)) - u1, p
+            return (StageLoads(a * full.ground + extra, a * full.lining, None),
+                    Forward(ground=a * y_g + ground.forward(extra, rows), lining=a * y_l))
 
-        u2, p, its = _fixed_point(G, u2, body.K, tol * ref, f"stage 2, increment {k} of {steps}")
+        def G(x):
+            p = _plastic_load(gauss, stress_of(u1 + x)[-1])
+            _, stage = stage_of(p)
+            _, t = model.contact_tractions(spec, ground.jumps(stage.ground, rows) + lining.jumps(stage.lining, rows),
+                                           a * F2_full)
+            return ground.backward(stage.ground, rows, model.w * t), p
+
+        guess = 2 * u2 - u2_last
+        u2_last = u2
+        u2, p, its = _fixed_point(G, guess, body.K, tol * ref, f"stage 2, increment {k} of {steps}")
         iterations += its
         commit(*stress_of(u1 + u2))
-    sol = last["sol"]  # the contact stage of the converged iterate
+    # the whole contact stage (both bodies, the checks) of the last increment's converged iterate
+    loads2, stage = stage_of(p)
+    sol = model._finish(spec, rows, loads2, stage, ground.jumps(stage.ground, rows) + lining.jumps(stage.lining, rows),
+                        F2_full, t0, u1=u1)
     E = out.shape[0]
     sol.plastic = {
         "stress": out.sigma.reshape(4, -1),
