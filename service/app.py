@@ -15,11 +15,12 @@ from fastapi import FastAPI
 from fastapi.exceptions import RequestValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from . import cases, health, pages, studies, sweeps
+from . import cases, health, pages, searches, studies, sweeps
 from .cluster import cluster_connection
 from .errors import http_error_handler, overflow_handler, request_validation_handler, store_error_handler
 from .guards import BodyLimitMiddleware, SameOriginMiddleware, TokenReadsMiddleware, openapi_auth_as_configured
 from .jobs import Dispatcher
+from .searches import Searches
 from .settings import Settings, get_settings
 from .job_records import open_job_records
 
@@ -41,6 +42,8 @@ async def lifespan(app: FastAPI):
                 await jobs.rebuild_records()
             await jobs.start()
             app.state.jobs = jobs
+            app.state.searches = Searches(jobs)
+            app.state.searches.resume()  # searches left running by an earlier run go on
             # Everything imported and built so far lives as long as the process. Taking it
             # out of the collector's view keeps full collections (~0.1 s over the ~200k
             # objects of dask, xarray, pydantic) from stalling requests.
@@ -50,6 +53,7 @@ async def lifespan(app: FastAPI):
             try:
                 yield
             finally:
+                await app.state.searches.stop()
                 await jobs.stop()
     finally:
         store.close()
@@ -81,7 +85,7 @@ def create_app(settings: Optional[Settings] = None) -> FastAPI:
     app.add_exception_handler(OverflowError, overflow_handler)
     app.add_exception_handler(StarletteHTTPException, http_error_handler)
     openapi_auth_as_configured(app)
-    for module in (cases, sweeps, studies, health, pages):
+    for module in (cases, sweeps, studies, searches, health, pages):
         app.include_router(module.router)
     pages.mount_static(app)
     serve_docs_offline(app)

@@ -12,12 +12,13 @@ from fastapi.responses import FileResponse, Response
 
 from workflows.artifacts import render_sweep_plot
 from workflows.plots import SWEEP_PLOT_NAMES
+from workflows.studies import StudyError, reliability, sensitivity
 
 from .comparison import ComparisonTable, comparison_table, table_csv, table_xlsx
-from .errors import responses
+from .errors import invalid, responses
 from .guards import require_token
 from .params import Offset, SweepId, jobs_of, sweep_or_404, sweep_results
-from .schemas import SweepCancelled, SweepPage, SweepStatus
+from .schemas import FieldError, SweepCancelled, SweepPage, SweepStatus
 
 router = APIRouter(prefix="/sweeps", tags=["sweeps"])
 
@@ -103,3 +104,97 @@ async def cancel_sweep(sweep_id: SweepId, request: Request) -> SweepCancelled:
     cancelled = await jobs.cancel(list(record.case_ids))
     status = SweepStatus.of(record, jobs.store.status_counts(record.case_ids))
     return SweepCancelled(**status.model_dump(), cancelled_now=cancelled)
+
+
+# -- analyses (SPEC §8) --------------------------------------------------------------------------
+
+#: Sweep modes whose cases are a random sample of the varied parameters' distributions.
+RANDOM_MODES = ("sobol", "lhs", "random")
+
+
+def _study_error(exc: StudyError):
+    """Bad input (an unknown output): 422; too few done cases: 409 (the sweep is not ready)."""
+    if any(field == "case_ids" for field, _ in exc.errors):
+        return invalid([FieldError(field="sweep", reason=r, type="not_ready") for _, r in exc.errors], 409)
+    return invalid([FieldError(field=f, reason=r, type="value_error") for f, r in exc.errors])
+
+
+async def _analysis(request: Request, sweep_id: str, fn, *args):
+    jobs = jobs_of(request)
+    record = sweep_or_404(request, sweep_id)
+    try:
+        return record, await asyncio.to_thread(fn, jobs.root, list(record.case_ids), *args)
+    except StudyError as exc:
+        return record, _study_error(exc)
+
+
+def _sensitivity_body(ds) -> dict:
+    def num(v):
+        v = float(v)
+        return None if v != v else v
+    return {"output": ds.attrs["output"], "method": ds.attrs["method"], "samples": int(ds.attrs["samples"]),
+            "not_done": int(ds.attrs["not_done"]),
+            "parameters": [{"parameter": str(p), **{k: num(ds[k].values[i]) for k in
+                            ("first_order", "first_order_ci", "total_order", "total_order_ci")}}
+                           for i, p in enumerate(ds["parameter"].values)]}
+
+
+def _png(fig) -> Response:
+    import io
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    return Response(buf.getvalue(), media_type="image/png")
+
+
+@router.get("/{sweep_id}/sensitivity", responses=responses(404, 409, 422))
+async def get_sensitivity(sweep_id: SweepId, request: Request, output: str = Query(..., examples=["max_abs_moment"])):
+    """Global sensitivity of the result scalar ``output`` to each parameter the sweep varies:
+    first-order and total indices with 95 % half-widths (SALib's HDMR on the sweep's own
+    sample from 300 done cases; below, the delta method's first-order index alone, the
+    total ``null``). 409 while fewer than 32 cases are done."""
+    _, ds = await _analysis(request, sweep_id, sensitivity, output)
+    return ds if isinstance(ds, Response) else _sensitivity_body(ds)
+
+
+@router.get("/{sweep_id}/sensitivity.png", response_class=Response,
+            responses={200: {"content": {"image/png": {}}}, **responses(404, 409, 422)})
+async def get_sensitivity_plot(sweep_id: SweepId, request: Request, output: str = Query(...)) -> Response:
+    """The sensitivity indices as bars with their intervals."""
+    from workflows.study_plots import plot_sensitivity
+
+    _, ds = await _analysis(request, sweep_id, sensitivity, output)
+    return ds if isinstance(ds, Response) else await asyncio.to_thread(lambda: _png(plot_sensitivity(ds)))
+
+
+def _reliability_body(record, r: dict) -> dict:
+    body = {k: v for k, v in r.items() if k != "values"}
+    if record.spec.get("mode", "grid") not in RANDOM_MODES:
+        body["note"] = " ".join(filter(None, [
+            f"the sweep is a {record.spec.get('mode', 'grid')}, not a random sample of the uncertain parameters: "
+            "the fraction of its cases above the limit is not a probability", body.get("note")]))
+    return body
+
+
+@router.get("/{sweep_id}/reliability", responses=responses(404, 409, 422))
+async def get_reliability(sweep_id: SweepId, request: Request, output: str = Query("max_utilization"),
+                          limit: float = Query(1.0, allow_inf_nan=False)):
+    """Probability that ``output`` exceeds ``limit`` over the sweep's done cases, its exact
+    (Clopper–Pearson) 95 % interval and β = -Φ⁻¹(P) (``null`` at P = 0 or 1); ``note`` says when
+    the estimate rests on few cases or the sweep is not a random sample."""
+    record, r = await _analysis(request, sweep_id, reliability, output, limit)
+    return r if isinstance(r, Response) else _reliability_body(record, r)
+
+
+@router.get("/{sweep_id}/reliability.png", response_class=Response,
+            responses={200: {"content": {"image/png": {}}}, **responses(404, 409, 422)})
+async def get_reliability_plot(sweep_id: SweepId, request: Request, output: str = Query("max_utilization"),
+                               limit: float = Query(1.0, allow_inf_nan=False)) -> Response:
+    """The output's distribution over the cases with the limit and the probability above it."""
+    from workflows.study_plots import plot_reliability
+
+    record, r = await _analysis(request, sweep_id, reliability, output, limit)
+    if isinstance(r, Response):
+        return r
+    r = {**r, "note": _reliability_body(record, r)["note"]}
+    return await asyncio.to_thread(lambda: _png(plot_reliability(r)))

@@ -46,16 +46,9 @@ async def submit_sweep(sweep: Sweep, request: Request, response: Response,
         known = jobs.store.statuses([c for c, _ in cases])
         check_capacity(request, len(cases) - len(known),
                        sum(estimated_result_bytes(s) for s in specs if s.case_id not in known))
-        record, new = jobs.store.add_sweep(sweep.sweep_id, sweep.name, sweep.canonical_json(), cases)
-        await jobs.record_sweep_on_disk(record)
+        record, new = await enqueue_sweep(jobs, sweep, cases)
         created = True
-        specs_by_id = dict(cases)
-        for case_id in new:
-            jobs.submit(case_id, specs_by_id[case_id])
-    # cases cancelled earlier (in this sweep or another) are submitted again
-    for case_id in jobs.store.requeue(record.case_ids):
-        new.append(case_id)
-        jobs.submit(case_id, CaseSpec.model_validate(jobs.store.get_case(case_id).spec).canonical_json())
+    new += requeue_cancelled(jobs, record)
     retried = []
     if retry:
         failed = jobs.store.status_counts(record.case_ids)["failed"]
@@ -88,3 +81,23 @@ async def get_sweep_result(sweep_id: SweepId, request: Request) -> FileResponse:
     path = await asyncio.to_thread(write_combined, jobs.root, sweep_id, done)
     return FileResponse(path, media_type=NETCDF, filename=f"sweep-{sweep_id}.nc",
                         headers={"X-Cases-Included": f"{len(done)}/{len(record.case_ids)}"})
+
+
+async def enqueue_sweep(jobs, sweep: Sweep, cases: list[tuple[str, str]]):
+    """Record the sweep (job records and its record on disk) and submit its cases not known
+    before; ``(record, new case ids)``. POST /sweeps and a search's trials come here."""
+    record, new = jobs.store.add_sweep(sweep.sweep_id, sweep.name, sweep.canonical_json(), cases)
+    await jobs.record_sweep_on_disk(record)
+    specs_by_id = dict(cases)
+    for case_id in new:
+        jobs.submit(case_id, specs_by_id[case_id])
+    return record, new
+
+
+def requeue_cancelled(jobs, record) -> list[str]:
+    """Submit again the sweep's cases cancelled earlier (in this sweep or another)."""
+    again = []
+    for case_id in jobs.store.requeue(record.case_ids):
+        again.append(case_id)
+        jobs.submit(case_id, CaseSpec.model_validate(jobs.store.get_case(case_id).spec).canonical_json())
+    return again

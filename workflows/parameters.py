@@ -152,6 +152,11 @@ def _paths_by_flat_name() -> dict[str, str]:
     return {flat_name(p): p for p in parameter_paths()}
 
 
+def parameter_path(flat: str) -> str:
+    """The dotted path of a flat parameter name (the name itself if it is none)."""
+    return _paths_by_flat_name().get(flat, flat)
+
+
 def flat_parameters(spec: CaseSpec | dict[str, Any] | str) -> dict[str, Any]:
     """All parameters of a case as ``{flat name: value}``.
 

@@ -81,3 +81,12 @@ def test_bad_distributions_name_the_parameter_and_field(entry, field):
 def test_grid_sweeps_keep_their_ids():
     assert Sweep.model_validate({"name": "x", "vary": {"loads.lateral_ratio": [0.5, 1.0]}}).sweep_id == "137ee315a4cb1fec"
     assert math.isclose(len(expand_sweep({"name": "x", "vary": {"loads.lateral_ratio": [0.5, 1.0]}})), 2)
+
+
+def test_sobol_points_beat_random_points_on_discrepancy():
+    from scipy.stats import qmc
+
+    for d in (2, 4):
+        sobol = qmc.discrepancy(unit_points("sobol", 256, d, seed=1))
+        rand = qmc.discrepancy(unit_points("random", 256, d, seed=1))
+        assert sobol < 0.2 * rand, (d, sobol, rand)

@@ -1,0 +1,189 @@
+"""``/searches`` (SPEC §8): the smallest value of a design parameter that meets a requirement
+over a set of grounds, found by bisection with each trial a sweep of the service's own.
+
+A search's record is a JSON file in the results store (``searches/<id>.json``, written
+atomically): its definition, status, trials and answer. The store is the truth: the job
+records can be rebuilt without losing a search, and on start-up every search still running
+is resumed. Resuming replays :func:`workflows.studies.next_trial` over the recorded trials;
+the trial in flight when the service stopped is submitted again, and its cases, known to the
+job records or stored, are not computed twice.
+"""
+from __future__ import annotations
+
+import asyncio
+import hashlib
+import json
+import logging
+import math
+import time
+from pathlib import Path
+from typing import Any, Optional
+
+from fastapi import APIRouter, Depends, Request, Response
+from pydantic import BaseModel
+
+from workflows.files import write_atomically
+from workflows.studies import Search, next_trial, trial_outcome
+from workflows.sweep import expand_sweep
+
+from .errors import responses
+from .guards import require_token
+from .params import not_found
+from .sweeps import enqueue_sweep, requeue_cancelled
+
+logger = logging.getLogger(__name__)
+router = APIRouter(prefix="/searches", tags=["studies"])
+
+#: Seconds between looks at a trial's cases.
+POLL = 0.25
+
+
+class SearchRecord(BaseModel):
+    id: str
+    name: str
+    search: dict[str, Any]
+    status: str  # running, done, failed
+    value: Optional[float] = None
+    satisfied: Optional[bool] = None
+    trials: list[dict[str, Any]] = []
+    max_trials: int
+    grid_cases: Optional[dict[str, int]] = None
+    error: Optional[str] = None
+    submitted_at: float
+    finished_at: Optional[float] = None
+
+
+def search_id(search: Search) -> str:
+    text = json.dumps(search.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+    return hashlib.blake2b(text.encode(), digest_size=8).hexdigest()
+
+
+def max_trials(search: Search) -> int:
+    return 2 + max(0, math.ceil(math.log2((search.high - search.low) / search.tolerance)))
+
+
+class Searches:
+    """The searches of one results store and the tasks that drive the running ones."""
+
+    def __init__(self, jobs):
+        self.jobs = jobs
+        self.folder = Path(jobs.root) / "searches"
+        self.tasks: dict[str, asyncio.Task] = {}
+
+    def path(self, ident: str) -> Path:
+        return self.folder / f"{ident}.json"
+
+    def read(self, ident: str) -> Optional[SearchRecord]:
+        try:
+            return SearchRecord.model_validate_json(self.path(ident).read_text())
+        except FileNotFoundError:
+            return None
+
+    def write(self, record: SearchRecord) -> None:
+        write_atomically(self.path(record.id), lambda tmp: tmp.write_text(record.model_dump_json(indent=1)))
+
+    def all(self) -> list[SearchRecord]:
+        out = []
+        for p in sorted(self.folder.glob("*.json")):
+            try:
+                out.append(SearchRecord.model_validate_json(p.read_text()))
+            except (OSError, ValueError) as exc:
+                logger.warning("search record %s unreadable: %s", p.name, exc)
+        return sorted(out, key=lambda r: -r.submitted_at)
+
+    def start(self, record: SearchRecord) -> None:
+        if record.status == "running" and record.id not in self.tasks:
+            self.tasks[record.id] = asyncio.get_running_loop().create_task(self._drive(record.id))
+
+    def resume(self) -> None:
+        for record in self.all():
+            self.start(record)
+
+    async def stop(self) -> None:
+        for task in self.tasks.values():
+            task.cancel()
+        await asyncio.gather(*self.tasks.values(), return_exceptions=True)
+        self.tasks.clear()
+
+    async def _drive(self, ident: str) -> None:
+        jobs = self.jobs
+        try:
+            record = self.read(ident)
+            search = Search.model_validate(record.search)
+            while True:
+                value, answer = next_trial(search, record.trials)
+                if answer is not None:
+                    from workflows.studies import grid_cases
+
+                    record = record.model_copy(update={**answer, "status": "done", "finished_at": time.time(),
+                                                       "grid_cases": grid_cases(search, record.trials)})
+                    await asyncio.to_thread(self.write, record)
+                    return
+                sweep = search.trial_sweep(value)
+                sweep_record = jobs.store.get_sweep(sweep.sweep_id)
+                if sweep_record is None:
+                    specs = await asyncio.to_thread(expand_sweep, sweep)
+                    sweep_record, _ = await enqueue_sweep(jobs, sweep, [(s.case_id, s.canonical_json())
+                                                                       for s in specs])
+                requeue_cancelled(jobs, sweep_record)
+                ids = list(sweep_record.case_ids)
+                while True:
+                    counts = jobs.store.status_counts(ids)
+                    if counts["queued"] == 0 and counts["running"] == 0:
+                        break
+                    await asyncio.sleep(POLL)
+                trial = await asyncio.to_thread(trial_outcome, search, value, jobs.root, ids)
+                record = record.model_copy(update={"trials": record.trials + [trial]})
+                await asyncio.to_thread(self.write, record)
+        except asyncio.CancelledError:
+            raise
+        except Exception as exc:  # a search that cannot go on says why; its trials stay
+            logger.exception("search %s failed", ident)
+            record = self.read(ident)
+            if record is not None:
+                self.write(record.model_copy(update={"status": "failed", "error": f"{type(exc).__name__}: {exc}",
+                                                     "finished_at": time.time()}))
+        finally:
+            self.tasks.pop(ident, None)
+
+
+def searches_of(request: Request) -> Searches:
+    return request.app.state.searches
+
+
+@router.post("", status_code=202, response_model=SearchRecord, dependencies=[Depends(require_token)],
+             responses=responses(401, 422, 503))
+async def submit_search(search: Search, request: Request, response: Response) -> SearchRecord:
+    """Start a search (or find the same one already made): the smallest ``parameter`` in
+    [low, high], to ``tolerance``, for which ``require`` holds in every case of ``over``. Its
+    trials are sweeps of this service; the search survives restarts of the API and workers."""
+    searches = searches_of(request)
+    ident = search_id(search)
+    record = searches.read(ident)
+    if record is None:
+        record = SearchRecord(id=ident, name=search.name, search=search.model_dump(mode="json"), status="running",
+                              max_trials=max_trials(search), submitted_at=time.time())
+        await asyncio.to_thread(searches.write, record)
+    searches.start(record)
+    response.headers["Location"] = f"/searches/{ident}"
+    return record
+
+
+@router.get("", response_model=list[SearchRecord])
+async def list_searches(request: Request) -> list[SearchRecord]:
+    """Every search, newest first."""
+    return await asyncio.to_thread(searches_of(request).all)
+
+
+@router.get("/{search_id}", response_model=SearchRecord, responses=responses(404))
+async def get_search(search_id: str, request: Request) -> SearchRecord:
+    """A search's progress (``trials`` of at most ``max_trials``), its trials and its answer:
+    ``value`` (None with ``satisfied`` false when no value in [low, high] meets the requirement)."""
+    record = await asyncio.to_thread(searches_of(request).read, search_id) if _is_id(search_id) else None
+    if record is None:
+        raise not_found("search", search_id)
+    return record
+
+
+def _is_id(text: str) -> bool:
+    return len(text) == 16 and all(c in "0123456789abcdef" for c in text)

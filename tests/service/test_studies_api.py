@@ -1,0 +1,77 @@
+"""Studies over REST (SPEC §8): a sampled sweep's sensitivity and reliability (JSON and
+figures), bad outputs named, and a search that survives a restart of the API and its workers
+(the lifespan of one app ends, a new app on the same store resumes it)."""
+from __future__ import annotations
+
+import time
+
+import pytest
+from fastapi.testclient import TestClient
+
+from service.app import create_app
+from service.settings import Settings
+from service_helpers import coarse_case
+
+SAMPLED = {"name": "lhs", "base": coarse_case(), "mode": "lhs", "samples": 32, "seed": 5,
+           "vary": {"loads.lateral_ratio": {"distribution": "uniform", "low": 0.4, "high": 1.0},
+                    "design.load_factor": {"distribution": "lognormal", "mean": 1.35, "std": 0.2}}}
+SEARCH = {"name": "thinnest", "base": coarse_case(geometry={"depth": 40.0, "height": 80.0},
+                                                  design={"concrete_strength": 2.0e7}),
+          "parameter": "geometry.thickness", "low": 0.15, "high": 0.5, "tolerance": 0.05,
+          "require": {"output": "max_utilization", "at_most": 1.0}, "over": {"loads.lateral_ratio": [0.7, 1.0]}}
+
+
+def _app(root):
+    return create_app(Settings(results=root, local_workers=2, poll_interval=0.1, reconcile_interval=3600))
+
+
+def _until(fn, timeout=240.0):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        value = fn()
+        if value:
+            return value
+        time.sleep(0.2)
+    raise AssertionError("timed out")
+
+
+@pytest.mark.slow
+def test_analyses_and_a_search_across_a_restart(tmp_path):
+    with TestClient(_app(tmp_path)) as client:
+        sweep = client.post("/sweeps", json=SAMPLED).json()
+        sid = sweep["id"]
+        assert client.get(f"/sweeps/{sid}/sensitivity", params={"output": "max_abs_moment"}).status_code in (200, 409)
+        _until(lambda: client.get(f"/sweeps/{sid}").json()["counts"]["done"] == 32)
+        s = client.get(f"/sweeps/{sid}/sensitivity", params={"output": "max_abs_moment"}).json()
+        assert s["method"] == "delta" and s["samples"] == 32
+        by = {p["parameter"]: p for p in s["parameters"]}
+        assert set(by) == {"loads.lateral_ratio", "design.load_factor"}
+        assert by["loads.lateral_ratio"]["first_order"] > by["design.load_factor"]["first_order"]
+        assert by["loads.lateral_ratio"]["total_order"] is None  # the delta method gives none
+        bad = client.get(f"/sweeps/{sid}/sensitivity", params={"output": "moment"})
+        assert bad.status_code == 422 and bad.json()["errors"][0]["field"] == "output"
+        r = client.get(f"/sweeps/{sid}/reliability", params={"limit": 0.5}).json()
+        assert r["samples"] == 32 and r["ci_low"] <= r["probability"] <= r["ci_high"]
+        for path in ("sensitivity.png?output=max_abs_moment", "reliability.png"):
+            png = client.get(f"/sweeps/{sid}/{path}")
+            assert png.status_code == 200 and png.content[:4] == b"\x89PNG", path
+        # a search: stop the API (and its workers) once the first trial is recorded
+        posted = client.post("/searches", json=SEARCH)
+        assert posted.status_code == 202
+        ident = posted.json()["id"]
+        assert client.post("/searches", json={**SEARCH, "low": 0.6}).status_code == 422
+        _until(lambda: len(client.get(f"/searches/{ident}").json()["trials"]) >= 1)
+    with TestClient(_app(tmp_path)) as client:  # a new API, new workers, the same store
+        done = _until(lambda: (lambda r: r if r["status"] != "running" else None)(
+            client.get(f"/searches/{ident}").json()))
+        assert done["status"] == "done" and done["satisfied"], done
+        values = [t["value"] for t in done["trials"]]
+        assert values[:2] == [0.5, 0.15] and len(values) <= done["max_trials"] == 5
+        answer = next(t for t in done["trials"] if t["value"] == done["value"])
+        assert answer["satisfied"] and answer["worst"] <= 1.0
+        assert not any(t["satisfied"] for t in done["trials"] if t["value"] < done["value"])
+        ids = [c for t in done["trials"] for c in t["case_ids"]]
+        assert len(set(ids)) == 2 * len(values)
+        assert all(client.get(f"/cases/{c}").json()["status"] == "done" for c in ids)
+        assert [s["id"] for s in client.get("/searches").json()] == [ident]
+        assert client.get("/searches/0123456789abcdef").status_code == 404

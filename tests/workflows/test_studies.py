@@ -1,0 +1,141 @@
+"""Studies beyond grids (SPEC §8) on a real 2-process LocalCluster: sensitivity (HDMR and the
+delta method), reliability against a closed form, the search for the thinnest passing lining."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+from scipy import stats
+
+from solver import CaseSpec, run_case
+from workflows import run_sweep
+from workflows.studies import Search, StudyError, next_trial, reliability, run_search, sensitivity
+
+COARSE = {"mesh": {"interface_size": 0.15, "far_size": 6.0}}
+#: γF lognormal: η = η1 γF exactly, so P(η > 1) = P(γF > 1/η1) in closed form
+GAMMA = {"distribution": "lognormal", "mean": 1.35, "std": 0.2}
+
+
+@pytest.fixture(scope="module")
+def client():
+    from distributed import Client, LocalCluster
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            Client(cluster) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory):
+    return tmp_path_factory.mktemp("studies")
+
+
+THIN = {**COARSE, "geometry": {"thickness": 0.2}, "design": {"concrete_strength": 1.6e7}}
+
+
+@pytest.mark.slow
+def test_reliability_contains_the_closed_form_of_a_lognormal_load_factor(client, store):
+    eta1 = float(run_case(CaseSpec.model_validate({**THIN, "design": {**THIN["design"], "load_factor": 1.0}}))
+                 ["max_utilization"])
+    sigma2 = math.log1p((GAMMA["std"] / GAMMA["mean"]) ** 2)
+    mu = math.log(GAMMA["mean"]) - 0.5 * sigma2
+    exact = float(stats.norm.sf((math.log(1.0 / eta1) - mu) / math.sqrt(sigma2)))
+    assert 0.1 < exact < 0.9, exact  # a probability the test can miss
+    ids = run_sweep({"name": "gamma", "base": THIN, "mode": "sobol", "samples": 128, "seed": 3,
+                     "vary": {"design.load_factor": GAMMA}}, store, client)
+    r = reliability(store, ids)
+    assert r["samples"] == 128 and r["ci_low"] <= exact <= r["ci_high"]
+    assert r["ci_high"] - r["ci_low"] < 0.2
+    assert r["beta"] == pytest.approx(-stats.norm.ppf(r["probability"]))
+    assert r["note"] is None
+    # a limit few cases exceed: said so
+    few = reliability(store, ids, limit=float(np.sort(r["values"])[-3]))
+    assert few["exceedances"] == 2 and "too few exceedances" in few["note"]
+    # the load factor moves the utilization, never the moment
+    assert sensitivity(store, ids, "max_abs_moment")["total_order"].item() == 0.0
+
+
+@pytest.mark.slow
+def test_sensitivity_finds_k0_for_the_moment_and_nothing_for_the_load_factor(client, store):
+    vary = {"loads.lateral_ratio": {"distribution": "uniform", "low": 0.4, "high": 1.0},
+            "excavation.deconfinement": {"distribution": "uniform", "low": 0.2, "high": 0.6},
+            "design.load_factor": {"distribution": "uniform", "low": 1.0, "high": 1.6}}
+    ids = run_sweep({"name": "lhs", "base": COARSE, "mode": "lhs", "samples": 320, "seed": 1, "vary": vary},
+                    store, client)
+    s = sensitivity(store, ids, "max_abs_moment")
+    assert s.attrs["method"] == "hdmr" and s.attrs["samples"] == 320
+    order = ["loads.lateral_ratio", "excavation.deconfinement", "design.load_factor"]
+    assert sorted(s["parameter"].values) == sorted(order)
+    s = s.sel(parameter=order)
+    first, total = s["first_order"].values, s["total_order"].values
+    assert np.argmax(first) == 0 and np.argmax(total) == 0 and first[0] > 0.6
+    assert abs(first[2]) < 0.02 and abs(total[2]) < 0.02  # γF cannot change a characteristic moment
+    assert np.all(s["first_order_ci"].values >= 0) and np.all(np.isfinite(s["total_order_ci"].values))
+    util = sensitivity(store, ids, "max_utilization").sel(parameter=order)
+    assert util["total_order"].values[2] > 0.05  # but it scales the utilization
+    # a small sample: the delta method's first-order index alone
+    small = sensitivity(store, ids[:64], "max_abs_moment").sel(parameter=order)
+    assert small.attrs["method"] == "delta" and np.argmax(small["first_order"].values) == 0
+    assert np.all(np.isnan(small["total_order"].values))
+
+
+def test_bad_analyses_name_the_field(store):
+    with pytest.raises(StudyError, match=r"^output: 'moment' is not a result scalar"):
+        sensitivity(store, ["0" * 16], "moment")
+    with pytest.raises(StudyError, match=r"^case_ids: 0 of the 1 cases are done"):
+        reliability(store, ["0" * 16])
+
+
+DEEP = {**COARSE, "geometry": {"depth": 40.0, "height": 80.0}, "design": {"concrete_strength": 2.0e7}}
+SEARCH = {"name": "thinnest", "base": DEEP, "parameter": "geometry.thickness", "low": 0.15, "high": 0.5,
+          "tolerance": 0.01, "require": {"output": "max_utilization", "at_most": 1.0},
+          "over": {"loads.lateral_ratio": [0.7, 0.85, 1.0]}}
+
+
+@pytest.mark.slow
+def test_search_finds_the_thinnest_passing_lining_and_one_step_thinner_fails(client, store):
+    found = run_search(SEARCH, store, client)
+    assert found["satisfied"] and 0.15 < found["value"] < 0.5
+    trials = found["trials"]
+    assert trials[0]["value"] == 0.5 and trials[1]["value"] == 0.15 and not trials[1]["satisfied"]
+    answer = next(t for t in trials if t["value"] == found["value"])
+    assert answer["satisfied"] and answer["worst"] <= 1.0 and len(answer["case_ids"]) == 3
+    thinner = run_sweep(Search.model_validate(SEARCH).trial_sweep(found["value"] - SEARCH["tolerance"]), store, client)
+    from workflows.studies import trial_outcome
+
+    assert not trial_outcome(Search.model_validate(SEARCH), found["value"] - 0.01, store, thinner)["satisfied"]
+    # bisection: ceil(log2(0.35 / 0.01)) + 2 trials of 3 cases against a 36-value grid's 108
+    assert len(trials) <= 8 and found["grid_cases"] == {"search": 3 * len(trials), "grid": 3 * 36}
+    # run again: every trial's cases are stored, the same answer without solving anything
+    assert run_search(SEARCH, store, client)["value"] == found["value"]
+
+
+def test_a_search_no_value_satisfies_is_answered_as_such():
+    search = Search.model_validate(SEARCH)
+    value, answer = next_trial(search, [])
+    assert value == 0.5 and answer is None
+    value, answer = next_trial(search, [{"value": 0.5, "satisfied": False}])
+    assert value is None and answer == {"value": None, "satisfied": False}
+    _, answer = next_trial(search, [{"value": 0.5, "satisfied": True}, {"value": 0.15, "satisfied": True}])
+    assert answer == {"value": 0.15, "satisfied": True}
+
+
+@pytest.mark.parametrize("change, field", [
+    ({"low": 0.6}, "high"),
+    ({"tolerance": 0.0}, "tolerance"),
+    ({"tolerance": 1.0}, "tolerance"),
+    ({"parameter": "interface.model"}, "parameter"),
+    ({"parameter": "geometry.thicknes"}, "parameter"),
+    ({"require": {"output": "moment", "at_most": 1.0}}, "output"),
+    ({"require": {"output": "max_utilization"}}, "at_most"),
+    ({"over": {"loads.lateral_ratio": {"distribution": "uniform", "low": 1.0, "high": 0.5}}, "mode": "lhs",
+      "samples": 8}, "over"),
+    ({"over": {"geometry.thickness": [0.2, 0.3]}}, "over"),
+])
+def test_bad_searches_name_the_field(change, field):
+    with pytest.raises(ValidationError) as err:
+        Search.model_validate({**SEARCH, **change})
+    assert any(field in ".".join(map(str, e["loc"])) or e["msg"].startswith(f"Value error, {field}:")
+               for e in err.value.errors()), str(err.value)

@@ -1,0 +1,310 @@
+"""Studies beyond grids (SPEC §8): the sensitivity of a result to a sweep's varied parameters,
+the probability that it exceeds a limit, and the search for the smallest design value that
+meets a requirement over a set of grounds.
+
+Sensitivity: a sweep's own sample, whatever drew it (Sobol' points, a Latin hypercube, Monte
+Carlo, even a grid), is analysed by SALib's HDMR (high-dimensional model representation: a
+least-squares fit of first- and second-order component functions, which works on any sample
+of at least 300 points, first-order and total indices with bootstrap intervals); a smaller
+sample gets the moment-independent *delta* method's first-order (Sobol') index alone, with the
+total index NaN. Saltelli's estimator (``SALib.analyze.sobol``) would need its own design
+(N·(2d+2) points along radial lines), which is not the sample a sweep has.
+
+Reliability: the fraction of the cases whose result exceeds the limit estimates the
+probability, with the exact (Clopper–Pearson) 95 % interval of a binomial proportion and the
+reliability index β = -Φ⁻¹(P). It is a probability only if the cases are a random sample of
+the uncertain parameters (a ``random``, ``lhs`` or ``sobol`` sweep); with few exceedances the
+interval is wide, and the answer says so.
+
+Search: bisection on the design parameter, assuming the requirement, once met, stays met for
+larger values (a thicker lining, a stronger concrete). Each trial is a sweep (the ``over``
+grounds with the parameter at the trial value), stored like any other, so a search run again
+finds its trials' cases done and resumes where it was.
+"""
+from __future__ import annotations
+
+import contextlib
+import io
+import math
+from typing import Any, Literal, Optional
+
+import numpy as np
+import xarray as xr
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from solver.dataset import SCALARS
+
+from .parameters import (canonical_path, flat_name, flat_parameters, is_parameter, parameter_path, set_parameter,
+                         varying_parameters)
+from .result_store import StoreLike, as_store
+from .sweep import Sweep, run_sweep
+
+#: Fewest samples HDMR accepts (SALib); below it the delta method's first-order index only.
+HDMR_MIN_SAMPLES = 300
+#: Fewest done cases a sensitivity or reliability estimate is made from (the delta method's
+#: bins need about 10 samples each; below 32 it returns NaN).
+MIN_SAMPLES = 32
+#: Exceedances (or non-exceedances) below which a reliability estimate is called small.
+FEW = 10
+
+
+class StudyError(ValueError):
+    """A study's input is wrong: ``errors`` is a list of ``(field, reason)``."""
+
+    def __init__(self, errors: list[tuple[str, str]]):
+        self.errors = errors
+        super().__init__("; ".join(f"{f}: {r}" for f, r in errors))
+
+
+def check_output(output: str, field: str = "output") -> str:
+    if output not in SCALARS:
+        raise StudyError([(field, f"{output!r} is not a result scalar (one of {', '.join(sorted(SCALARS))})")])
+    return output
+
+
+def study_sample(root: StoreLike, case_ids: list[str], output: str):
+    """The done cases of ``case_ids``: the varied parameters (paths), their values (n, d), the
+    output (n,) and how many cases are not done."""
+    check_output(output)
+    store = as_store(root)
+    stored = store.file_keys()
+    done = [c for c in case_ids if c in stored]
+    if len(done) < MIN_SAMPLES:
+        raise StudyError([("case_ids", f"{len(done)} of the {len(case_ids)} cases are done; a study needs at least "
+                                       f"{MIN_SAMPLES}")])
+    combined = store.open_results(done)
+    params = [flat_parameters(str(s)) for s in combined["case_spec"].values]
+    names = [n for n in varying_parameters(params)
+             if all(isinstance(p[n], (int, float)) and not isinstance(p[n], bool) for p in params)]
+    X = np.array([[float(p[n]) for n in names] for p in params]).reshape(len(done), len(names))
+    return [parameter_path(n) for n in names], X, combined[output].values.astype(float), len(case_ids) - len(done)
+
+
+def sensitivity(root: StoreLike, case_ids: list[str], output: str, *, seed: int = 0) -> xr.Dataset:
+    """First-order and total sensitivity indices of the result scalar ``output`` to each
+    parameter that varies across the done cases of ``case_ids`` (see the module's notes)."""
+    names, X, Y, missing = study_sample(root, case_ids, output)
+    if not names:
+        raise StudyError([("case_ids", "no numeric parameter varies across these cases")])
+    finite = np.isfinite(Y)
+    X, Y = X[finite], Y[finite]
+    d, n = len(names), len(Y)
+    first, first_ci, total, total_ci = (np.full(d, np.nan) for _ in range(4))
+    method = "hdmr" if n >= HDMR_MIN_SAMPLES else "delta"
+    if np.ptp(Y) <= 1e-12 * max(float(np.max(np.abs(Y))), 1e-300):  # a constant output depends on nothing
+        first[:], first_ci[:], total[:], total_ci[:] = 0.0, 0.0, 0.0, 0.0
+        method = "constant output"
+    else:
+        problem = {"num_vars": d, "names": names,
+                   "bounds": [[float(X[:, i].min()), float(X[:, i].max())] for i in range(d)]}
+        if method == "hdmr":
+            from SALib.analyze import hdmr
+
+            si = hdmr.analyze(problem, X, Y, maxorder=2 if d > 1 else 1, seed=seed)
+            terms = list(si["Term"])
+            for i, name in enumerate(names):
+                k = terms.index(name)
+                first[i], first_ci[i] = si["S"][k], si["S_conf"][k]
+                total[i], total_ci[i] = si["ST"][i], si["ST_conf"][i]
+        else:
+            from SALib.analyze import delta
+
+            with contextlib.redirect_stdout(io.StringIO()):  # SALib prints its bin notices
+                si = delta.analyze(problem, X, Y, seed=seed)
+            first, first_ci = np.asarray(si["S1"], float), np.asarray(si["S1_conf"], float)
+    ds = xr.Dataset(
+        {"first_order": ("parameter", first, {"long_name": "first-order sensitivity index"}),
+         "first_order_ci": ("parameter", first_ci, {"long_name": "95 % half-width of the first-order index"}),
+         "total_order": ("parameter", total, {"long_name": "total sensitivity index"}),
+         "total_order_ci": ("parameter", total_ci, {"long_name": "95 % half-width of the total index"})},
+        coords={"parameter": names},
+        attrs={"output": output, "samples": n, "method": method, "not_done": missing})
+    return ds
+
+
+def reliability(root: StoreLike, case_ids: list[str], output: str = "max_utilization",
+                limit: float = 1.0) -> dict[str, Any]:
+    """Probability that ``output`` exceeds ``limit`` over the done cases of ``case_ids``: the
+    fraction, its exact 95 % interval, β = -Φ⁻¹(P) (None where P is 0 or 1) and a note when the
+    estimate rests on few cases."""
+    from scipy import stats
+
+    if not math.isfinite(limit):
+        raise StudyError([("limit", "must be a finite number")])
+    _, _, Y, missing = study_sample(root, case_ids, output)
+    n = int(Y.size)
+    k = int(np.sum(Y > limit))
+    p = k / n
+    ci = stats.binomtest(k, n).proportion_ci(0.95, method="exact")
+
+    def beta(q: float) -> Optional[float]:
+        return None if q <= 0.0 or q >= 1.0 else float(-stats.norm.ppf(q))
+
+    note = None
+    if min(k, n - k) < FEW:
+        note = (f"{k} of {n} cases exceed {limit:g}: too few {'exceedances' if k < FEW else 'non-exceedances'} "
+                "for a tight estimate; the interval is exact but wide (more samples narrow it)")
+    return {"output": output, "limit": float(limit), "probability": p, "ci_low": float(ci.low),
+            "ci_high": float(ci.high), "beta": beta(p), "beta_ci": [beta(float(ci.high)), beta(float(ci.low))],
+            "samples": n, "exceedances": k, "not_done": missing, "note": note, "values": Y.tolist()}
+
+
+# -- search -------------------------------------------------------------------------------------
+
+
+class Requirement(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    output: str = Field("max_utilization", description="a result scalar (SPEC §3)")
+    at_most: Optional[float] = Field(None, allow_inf_nan=False)
+    at_least: Optional[float] = Field(None, allow_inf_nan=False)
+
+    @model_validator(mode="after")
+    def _one_bound(self) -> "Requirement":
+        check_output(self.output, "output")
+        if (self.at_most is None) == (self.at_least is None):
+            raise ValueError("at_most: give exactly one of at_most and at_least")
+        return self
+
+    def worst(self, values: np.ndarray) -> float:
+        return float(np.max(values) if self.at_most is not None else np.min(values))
+
+    def met(self, worst: float) -> bool:
+        return worst <= self.at_most if self.at_most is not None else worst >= self.at_least
+
+
+class Search(BaseModel):
+    """The smallest value of ``parameter`` in [low, high] (to ``tolerance``) for which
+    ``require`` holds in every case of ``over`` (SPEC §8)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    name: str = Field(..., min_length=1, max_length=200)
+    base: dict[str, Any] = Field(default_factory=dict)
+    parameter: str = Field(..., description="a numeric case field, e.g. geometry.thickness")
+    low: float = Field(..., allow_inf_nan=False)
+    high: float = Field(..., allow_inf_nan=False)
+    tolerance: float = Field(..., gt=0, allow_inf_nan=False)
+    require: Requirement = Field(default_factory=lambda: Requirement(at_most=1.0))
+    over: dict[str, Any] = Field(default_factory=dict, description="the vary of a sweep (SPEC §5, §8)")
+    mode: Literal["grid", "zip", "sobol", "lhs", "random"] = "grid"
+    samples: Optional[int] = None
+    seed: Optional[int] = None
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "Search":
+        if not self.low < self.high:
+            raise ValueError(f"high: must exceed low ({self.low} >= {self.high})")
+        if not self.tolerance < self.high - self.low:
+            raise ValueError(f"tolerance: must be less than high - low ({self.high - self.low:g})")
+        if self.parameter in self.over:
+            raise ValueError(f"over: varies {self.parameter}, the parameter searched")
+        self.trial_sweep(self.low)  # the parameter and the grounds are checked as a sweep would be
+        return self
+
+    def trial_sweep(self, value: float) -> Sweep:
+        """The sweep of one trial: every ``over`` case with the parameter at ``value``."""
+        from pydantic import ValidationError
+
+        from solver import CaseSpec
+
+        from .sweep import SweepError, expand_sweep
+
+        base = _deep_copy(self.base)
+        path = canonical_path(self.parameter)
+        try:
+            current = flat_parameters(CaseSpec.model_validate(base)).get(flat_name(path))
+        except ValidationError as exc:
+            raise ValueError(f"base: {_first(exc)}") from None
+        if not is_parameter(path, base) or isinstance(current, bool) or not isinstance(current, (int, float)):
+            raise ValueError(f"parameter: {self.parameter!r} is not a numeric case field")
+        set_parameter(base, path, float(value))
+        extra = {k: getattr(self, k) for k in ("samples", "seed") if getattr(self, k) is not None}
+        vary = self.over or {self.parameter: [float(value)]}
+        try:
+            sweep = Sweep.model_validate({"name": f"{self.name}: {self.parameter} = {value:.6g}", "base": base,
+                                          "vary": vary, "mode": self.mode, **extra})
+            expand_sweep(sweep)
+        except ValidationError as exc:
+            raise ValueError(f"over: {_first(exc)}") from None
+        except SweepError as exc:
+            field, reason = exc.errors[0]
+            raise ValueError(f"over: {field}: {reason}") from None
+        return sweep
+
+
+def _first(exc) -> str:
+    e = exc.errors()[0]
+    where = ".".join(str(p) for p in e["loc"])
+    return f"{where}: {e['msg'].removeprefix('Value error, ')}" if where else e["msg"].removeprefix("Value error, ")
+
+
+def _deep_copy(data: Any) -> Any:
+    if isinstance(data, dict):
+        return {k: _deep_copy(v) for k, v in data.items()}
+    if isinstance(data, list):
+        return [_deep_copy(v) for v in data]
+    return data
+
+
+def next_trial(search: Search, trials: list[dict]) -> tuple[Optional[float], Optional[dict]]:
+    """The next value to try, or the answer: ``(value, None)`` or ``(None, answer)``.
+
+    The high end first (if it fails, nothing in the range passes), then the low end (if it
+    passes, it is the answer), then bisection of the bracket until it is within the tolerance;
+    the answer is the smallest value seen to pass."""
+    passed = sorted(t["value"] for t in trials if t["satisfied"])
+    failed = sorted(t["value"] for t in trials if not t["satisfied"])
+    if not trials:
+        return search.high, None
+    if search.high in failed:
+        return None, {"value": None, "satisfied": False}
+    if len(trials) == 1:
+        return search.low, None
+    if search.low in passed:
+        return None, {"value": search.low, "satisfied": True}
+    hi = min(passed)
+    lo = max(v for v in failed if v < hi)
+    if hi - lo <= search.tolerance:
+        return None, {"value": hi, "satisfied": True}
+    return 0.5 * (lo + hi), None
+
+
+def trial_outcome(search: Search, value: float, root: StoreLike, case_ids: list[str]) -> dict:
+    """A trial's record from its stored cases: the worst output over the done ones; a trial
+    with a failed case does not pass (the requirement must hold in every case)."""
+    store = as_store(root)
+    stored = store.file_keys()
+    done = [c for c in case_ids if c in stored]
+    out = search.require.output
+    values = store.open_results(done)[out].values.astype(float) if done else np.array([])
+    worst = search.require.worst(values) if values.size else float("nan")
+    failed = len(case_ids) - len(done)
+    return {"value": float(value), "case_ids": list(case_ids), "worst": worst if math.isfinite(worst) else None,
+            "failed": failed, "satisfied": bool(failed == 0 and math.isfinite(worst) and search.require.met(worst))}
+
+
+def run_search(search: Search | dict, root: StoreLike, client=None, *, progress: bool = False) -> dict:
+    """Run ``search`` (SPEC §8) on dask and return ``{"value", "satisfied", "trials"}``; each
+    trial's cases are stored as any sweep's, so a search run again resumes where it stopped."""
+    from .sweep import _client_or_local
+
+    search = Search.model_validate(search)
+    trials: list[dict] = []
+    with _client_or_local(client) as c:
+        while True:
+            value, answer = next_trial(search, trials)
+            if answer is not None:
+                return {**answer, "trials": trials, "grid_cases": grid_cases(search, trials)}
+            ids = run_sweep(search.trial_sweep(value), root, c, progress=progress, retry_failed=False)
+            trials.append(trial_outcome(search, value, root, ids))
+
+
+def grid_cases(search: Search, trials: list[dict]) -> dict:
+    """Cases the search ran against those of a grid over [low, high] at its tolerance."""
+    per_trial = len(trials[0]["case_ids"]) if trials else 0
+    steps = int(math.ceil((search.high - search.low) / search.tolerance)) + 1
+    return {"search": per_trial * len(trials), "grid": per_trial * steps}
+
+
+__all__ = ["Requirement", "Search", "StudyError", "next_trial", "reliability", "run_search", "sensitivity"]
