@@ -60,6 +60,20 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("list", help="list the cases of the result store (done and failed) as a table")
     results(p)
 
+    p = sub.add_parser("search", help="find the smallest design value meeting a requirement over a set of cases")
+    p.add_argument("search", metavar="SEARCH.json", help="search file (SPEC §8)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    scheduler(p)
+    results(p)
+
+    p = sub.add_parser("analyse", help="sensitivity or reliability of a stored sweep's result")
+    p.add_argument("sweep_id", metavar="SWEEP_ID", help="a sweep id or a unique prefix of one")
+    what = p.add_mutually_exclusive_group(required=True)
+    what.add_argument("--sensitivity", metavar="OUTPUT", help="sensitivity indices of this result scalar")
+    what.add_argument("--reliability", metavar="OUTPUT", help="probability that this result scalar exceeds --limit")
+    p.add_argument("--limit", type=float, default=1.0, help="the limit of --reliability (default 1)")
+    results(p)
+
     p = sub.add_parser("serve", help="run the REST service")
     p.add_argument("--host", default=None,
                    help="bind address (default: $TUNNEL_CONTACT_HOST or 127.0.0.1)")
@@ -95,6 +109,12 @@ def main(argv: list[str] | None = None) -> int:
                                           progress=not args.no_progress, retry_failed=args.retry_failed)
         if args.command == "list":
             return commands.list_command(args.results)
+        if args.command == "search":
+            return commands.search_command(args.search, args.results, scheduler=args.scheduler,
+                                           progress=not args.no_progress)
+        if args.command == "analyse":
+            return commands.analyse_command(args.sweep_id, args.results, sensitivity=args.sensitivity,
+                                            reliability=args.reliability, limit=args.limit)
         if args.command == "report":
             return commands.report_command(args.case_id, args.results, output=args.output)
         return commands.show_command(args.case_id, args.results)

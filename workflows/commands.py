@@ -139,11 +139,7 @@ def sweep_command(sweep_file: str, results: str, *, scheduler: str | None = None
     ``run``). Returns 1 if any case failed, else 0.
     """
     sweep = load_sweep(sweep_file)
-    client = None
-    if scheduler:
-        from distributed import Client
-
-        client = Client(scheduler, timeout="10s")
+    client = _scheduler_client(scheduler)
     try:
         case_ids = run_sweep(sweep, ResultStore(results), client=client, progress=progress,
                              retry_failed=retry_failed)
@@ -157,6 +153,78 @@ def sweep_command(sweep_file: str, results: str, *, scheduler: str | None = None
     failed = [r for r in rows if r["status"] != "done"]
     print(f"{len(rows) - len(failed)} of {len(rows)} cases done; results in {results}", file=out)
     return 1 if failed else 0
+
+
+def _scheduler_client(scheduler: str | None):
+    if not scheduler:
+        return None
+    from distributed import Client
+
+    return Client(scheduler, timeout="10s")
+
+
+def search_command(search_file: str, results: str, *, scheduler: str | None = None, progress: bool = True,
+                   out: TextIO | None = None) -> int:
+    """Run a search (SPEC §8) and print its trials and answer; 1 if no value satisfies."""
+    out = out or sys.stdout
+    from .studies import Search, run_search
+
+    try:
+        search = Search.model_validate(_read_json(search_file))
+    except ValidationError as exc:
+        raise InputError(f"{search_file}: {_one_line(exc)}") from None
+    client = _scheduler_client(scheduler)
+    try:
+        found = run_search(search, ResultStore(results), client, progress=progress)
+    finally:
+        if client is not None:
+            client.close()
+    need = search.require
+    bound = f"<= {need.at_most:g}" if need.at_most is not None else f">= {need.at_least:g}"
+    print(f"{'trial':>5} {search.parameter:>22} {'worst ' + need.output:>26} {'failed':>6}  meets {bound}", file=out)
+    for k, t in enumerate(found["trials"], 1):
+        worst = "-" if t["worst"] is None else f"{t['worst']:.4g}"
+        print(f"{k:>5} {t['value']:>22.6g} {worst:>26} {t['failed']:>6}  {'yes' if t['satisfied'] else 'no'}", file=out)
+    cases = found["grid_cases"]
+    if found["value"] is None:
+        print(f"no value of {search.parameter} in [{search.low:g}, {search.high:g}] meets {need.output} {bound}",
+              file=out)
+        return 1
+    print(f"smallest {search.parameter} meeting {need.output} {bound} over {len(found['trials'][0]['case_ids'])} "
+          f"cases: {found['value']:.6g} (to {search.tolerance:g}); {cases['search']} cases solved against "
+          f"{cases['grid']} for a grid of that resolution", file=out)
+    return 0
+
+
+def analyse_command(sweep_id: str, results: str, *, sensitivity: str | None = None,
+                    reliability: str | None = None, limit: float = 1.0, out: TextIO | None = None) -> int:
+    """Print a stored sweep's sensitivity or reliability analysis (SPEC §8)."""
+    out = out or sys.stdout
+    from . import studies
+
+    store = ResultStore(results)
+    matches = [r for r in store.sweep_records() if r["id"].startswith(sweep_id)]
+    if len(matches) != 1:
+        raise InputError(f"sweep {sweep_id!r}: {'no' if not matches else 'more than one'} stored sweep has that id")
+    record = matches[0]
+    try:
+        if sensitivity:
+            ds = studies.sensitivity(store, record["case_ids"], sensitivity)
+            print(f"sensitivity of {sensitivity} ({ds.attrs['samples']} cases, {ds.attrs['method']}):", file=out)
+            print(f"{'parameter':>28} {'first order':>18} {'total':>18}", file=out)
+            for i, name in enumerate(ds["parameter"].values):
+                cells = [f"{ds[k].values[i]:.3f} ± {ds[k + '_ci'].values[i]:.3f}" for k in ("first_order", "total_order")]
+                print(f"{name:>28} {cells[0]:>18} {cells[1]:>18}", file=out)
+        else:
+            r = studies.reliability(store, record["case_ids"], reliability or "max_utilization", limit)
+            beta = "-" if r["beta"] is None else f"{r['beta']:.3f}"
+            print(f"P({r['output']} > {limit:g}) = {r['probability']:.4g}, 95 % [{r['ci_low']:.4g}, "
+                  f"{r['ci_high']:.4g}], beta = {beta}; {r['exceedances']} of {r['samples']} cases", file=out)
+            if r["note"]:
+                print(f"note: {r['note']}", file=out)
+    except studies.StudyError as exc:
+        raise InputError(str(exc)) from None
+    return 0
 
 
 def known_case_ids(store: ResultStore) -> list[str]:

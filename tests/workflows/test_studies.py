@@ -36,7 +36,7 @@ THIN = {**COARSE, "geometry": {"thickness": 0.2}, "design": {"concrete_strength"
 
 
 @pytest.mark.slow
-def test_reliability_contains_the_closed_form_of_a_lognormal_load_factor(client, store):
+def test_reliability_contains_the_closed_form_of_a_lognormal_load_factor(client, store, capsys):
     eta1 = float(run_case(CaseSpec.model_validate({**THIN, "design": {**THIN["design"], "load_factor": 1.0}}))
                  ["max_utilization"])
     sigma2 = math.log1p((GAMMA["std"] / GAMMA["mean"]) ** 2)
@@ -55,6 +55,16 @@ def test_reliability_contains_the_closed_form_of_a_lognormal_load_factor(client,
     assert few["exceedances"] == 2 and "too few exceedances" in few["note"]
     # the load factor moves the utilization, never the moment
     assert sensitivity(store, ids, "max_abs_moment")["total_order"].item() == 0.0
+    # the command line says the same
+    from service.cli import main
+    from workflows import Sweep
+
+    sid = Sweep.model_validate({"name": "gamma", "base": THIN, "mode": "sobol", "samples": 128, "seed": 3,
+                                "vary": {"design.load_factor": GAMMA}}).sweep_id
+    assert main(["analyse", sid[:6], "--reliability", "max_utilization", "--results", str(store)]) == 0
+    assert f"= {r['probability']:.4g}, 95 % [{r['ci_low']:.4g}" in capsys.readouterr().out
+    assert main(["analyse", sid, "--sensitivity", "moment", "--results", str(store)]) == 2
+    assert "output: 'moment' is not a result scalar" in capsys.readouterr().err
 
 
 @pytest.mark.slow
@@ -95,7 +105,7 @@ SEARCH = {"name": "thinnest", "base": DEEP, "parameter": "geometry.thickness", "
 
 
 @pytest.mark.slow
-def test_search_finds_the_thinnest_passing_lining_and_one_step_thinner_fails(client, store):
+def test_search_finds_the_thinnest_passing_lining_and_one_step_thinner_fails(client, store, capsys):
     found = run_search(SEARCH, store, client)
     assert found["satisfied"] and 0.15 < found["value"] < 0.5
     trials = found["trials"]
@@ -110,6 +120,16 @@ def test_search_finds_the_thinnest_passing_lining_and_one_step_thinner_fails(cli
     assert len(trials) <= 8 and found["grid_cases"] == {"search": 3 * len(trials), "grid": 3 * 36}
     # run again: every trial's cases are stored, the same answer without solving anything
     assert run_search(SEARCH, store, client)["value"] == found["value"]
+    # and from the command line (an embedded cluster; nothing left to solve)
+    import json
+
+    from service.cli import main
+
+    path = store / "search.json"
+    path.write_text(json.dumps(SEARCH))
+    assert main(["search", str(path), "--results", str(store), "--no-progress"]) == 0
+    assert f"smallest geometry.thickness meeting max_utilization <= 1 over 3 cases: {found['value']:.6g}" in \
+        capsys.readouterr().out
 
 
 def test_a_search_no_value_satisfies_is_answered_as_such():
