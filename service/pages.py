@@ -10,9 +10,11 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import time
 from pathlib import Path
 from typing import Optional
+from urllib.parse import urlencode
 
 import httpx
 from fastapi import APIRouter, FastAPI, Request
@@ -20,14 +22,17 @@ from fastapi.responses import HTMLResponse
 from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 
+from solver.dataset import SCALARS
 from workflows.plots import PLOTS, SWEEP_PLOT_NAMES
+from workflows.studies import MIN_SAMPLES
 from workflows.units import DIAGNOSTICS
 
-from . import cases, studies
+from . import cases, searches, studies
 from .comparison import comparison_table, ordered_scalars, scalar_column, shown
 from .form import case_form
-from .params import CaseId, SweepId, jobs_of, sweep_or_404
+from .params import CaseId, SearchId, SweepId, jobs_of, sweep_or_404
 from .schemas import SweepStatus
+from .studies import RANDOM_MODES
 
 logger = logging.getLogger(__name__)
 
@@ -94,9 +99,11 @@ async def _render(request: Request, name: str, **context) -> HTMLResponse:
 @router.get("/", response_class=HTMLResponse)
 async def index(request: Request) -> HTMLResponse:
     sweep_page = await studies.list_sweeps(request, limit=20, offset=0)
+    search_list = (await searches.list_searches(request, limit=20, offset=0)).items
     case_page = await cases.list_cases(request, status=None, limit=20, offset=0, newest_first=True)
     workers = (await jobs_of(request).cluster_state())[1]
-    return await _render(request, "index.html", sweeps=sweep_page, cases=case_page, workers=workers)
+    return await _render(request, "index.html", sweeps=sweep_page, cases=case_page, workers=workers,
+                         searches=search_list)
 
 
 async def error_page(request: Request, status_code: int, detail: str) -> HTMLResponse:
@@ -107,12 +114,29 @@ async def error_page(request: Request, status_code: int, detail: str) -> HTMLRes
 
 
 @router.get("/ui/sweeps/{sweep_id}", response_class=HTMLResponse)
-async def sweep_page(sweep_id: SweepId, request: Request) -> HTMLResponse:
+async def sweep_page(sweep_id: SweepId, request: Request, output: str = "max_abs_moment",
+                     reliability_output: str = "max_utilization", limit: float = 1.0) -> HTMLResponse:
     store = jobs_of(request).store
     record = sweep_or_404(request, sweep_id)  # read once for the status, the table and the spec
     status = SweepStatus.of(record, store.status_counts(record.case_ids))
+    outputs = sorted(SCALARS)
+    output = output if output in SCALARS else "max_abs_moment"
+    reliability_output = reliability_output if reliability_output in SCALARS else "max_utilization"
+    limit = limit if math.isfinite(limit) else 1.0
+    mode = record.spec.get("mode", "grid")
+    analyses = {"min_samples": MIN_SAMPLES, "outputs": outputs, "output": output, "limit": limit,
+                "reliability_output": reliability_output, "mode": mode, "random": mode in RANDOM_MODES,
+                "sensitivity_png": f"/sweeps/{sweep_id}/sensitivity.png?{urlencode({'output': output})}",
+                "reliability_png": f"/sweeps/{sweep_id}/reliability.png?"
+                                   f"{urlencode({'output': reliability_output, 'limit': limit})}"}
     return await _render(request, "sweep.html", sweep=status, table=comparison_table(store, record),
-                         spec=record.spec, plots=SWEEP_PLOT_NAMES)
+                         spec=record.spec, plots=SWEEP_PLOT_NAMES, analyses=analyses)
+
+
+@router.get("/ui/searches/{search_id}", response_class=HTMLResponse)
+async def search_page(search_id: SearchId, request: Request) -> HTMLResponse:
+    record = await searches.get_search(search_id, request)
+    return await _render(request, "search.html", search=record)
 
 
 @router.get("/ui/cases/{case_id}", response_class=HTMLResponse)

@@ -12,6 +12,7 @@ from .job_records import SweepRecord
 
 CaseId = Annotated[str, Path(pattern=CASE_ID_PATTERN, description="case id, 16 lowercase hex digits")]
 SweepId = Annotated[str, Path(pattern=CASE_ID_PATTERN, description="sweep id, 16 lowercase hex digits")]
+SearchId = Annotated[str, Path(pattern=CASE_ID_PATTERN, description="search id, 16 lowercase hex digits")]
 
 #: Largest page offset (SQLite integers are 64-bit; no store holds a billion records).
 MAX_OFFSET = 1_000_000_000

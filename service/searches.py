@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 from typing import Any, Optional
 
-from fastapi import APIRouter, Depends, Request, Response
+from fastapi import APIRouter, Depends, Query, Request, Response
 from pydantic import BaseModel
 
 from workflows.files import write_atomically
@@ -28,7 +28,7 @@ from workflows.sweep import expand_sweep
 
 from .errors import responses
 from .guards import require_token
-from .params import not_found
+from .params import Offset, SearchId, not_found
 from .sweeps import enqueue_sweep, requeue_cancelled
 
 logger = logging.getLogger(__name__)
@@ -169,21 +169,43 @@ async def submit_search(search: Search, request: Request, response: Response) ->
     return record
 
 
-@router.get("", response_model=list[SearchRecord])
-async def list_searches(request: Request) -> list[SearchRecord]:
-    """Every search, newest first."""
-    return await asyncio.to_thread(searches_of(request).all)
+class SearchPage(BaseModel):
+    items: list[SearchRecord]
+    total: int
+    limit: int
+    offset: int
 
 
-@router.get("/{search_id}", response_model=SearchRecord, responses=responses(404))
-async def get_search(search_id: str, request: Request) -> SearchRecord:
+@router.get("", response_model=SearchPage, responses=responses(422))
+async def list_searches(request: Request, limit: int = Query(20, ge=1, le=200), offset: Offset = 0) -> SearchPage:
+    """Searches, newest first, a page at a time."""
+    every = await asyncio.to_thread(searches_of(request).all)
+    return SearchPage(items=every[offset:offset + limit], total=len(every), limit=limit, offset=offset)
+
+
+@router.get("/{search_id}", response_model=SearchRecord, responses=responses(404, 422))
+async def get_search(search_id: SearchId, request: Request) -> SearchRecord:
     """A search's progress (``trials`` of at most ``max_trials``), its trials and its answer:
     ``value`` (None with ``satisfied`` false when no value in [low, high] meets the requirement)."""
-    record = await asyncio.to_thread(searches_of(request).read, search_id) if _is_id(search_id) else None
+    record = await asyncio.to_thread(searches_of(request).read, search_id)
     if record is None:
         raise not_found("search", search_id)
     return record
 
 
-def _is_id(text: str) -> bool:
-    return len(text) == 16 and all(c in "0123456789abcdef" for c in text)
+@router.get("/{search_id}/trials.png", response_class=Response,
+            responses={200: {"content": {"image/png": {}}}, **responses(404, 422)})
+async def get_search_plot(search_id: SearchId, request: Request) -> Response:
+    """The search converging: the values tried, the bracket left and each trial's worst output."""
+    import io
+
+    from workflows.study_plots import plot_search
+
+    record = await get_search(search_id, request)
+
+    def render() -> bytes:
+        buf = io.BytesIO()
+        plot_search(record.search, record.trials, record.value).savefig(buf, format="png", dpi=110)
+        return buf.getvalue()
+
+    return Response(await asyncio.to_thread(render), media_type="image/png")

@@ -60,9 +60,48 @@ def plot_reliability(r: dict) -> Figure:
     twin.set_ylabel("fraction of cases above")
     twin.set_ylim(0, 1.02)
     beta = "β = —" if r["beta"] is None else f"β = {r['beta']:.2f}"
-    ax.set_title(f"P({r['output']} > {r['limit']:g}) = {r['probability']:.3g} "
+    fig.suptitle(f"P({r['output']} > {r['limit']:g}) = {r['probability']:.3g} "
                  f"[{r['ci_low']:.3g}, {r['ci_high']:.3g}] (95 %), {beta}; {r['samples']} cases", fontsize=10)
     if r.get("note"):
-        fig.text(0.01, 0.005, r["note"], fontsize=7, color="#8B0000", va="bottom", wrap=True)
+        import textwrap
+
+        ax.set_title("\n".join(textwrap.wrap(r["note"], 110)), fontsize=7, color="#8B0000")
     ax.legend(loc="upper left", fontsize=8)
+    return fig
+
+
+def plot_search(search: dict, trials: list[dict], value) -> Figure:
+    """A search converging: the value tried at each trial (passing or not) with the bracket
+    that remains, and the worst output of each trial against the requirement."""
+    need = search["require"]
+    fig = Figure(figsize=(7.5, 4.6), layout="constrained")
+    top, bottom = fig.subplots(2, 1, sharex=True)
+    k = np.arange(1, len(trials) + 1)
+    values = np.array([t["value"] for t in trials], float)
+    ok = np.array([t["satisfied"] for t in trials], bool)
+    lo, hi = [], []
+    for i in range(len(trials)):
+        seen = trials[: i + 1]
+        passed = [t["value"] for t in seen if t["satisfied"]]
+        below = [t["value"] for t in seen if not t["satisfied"] and (not passed or t["value"] < min(passed))]
+        hi.append(min(passed) if passed else search["high"])
+        lo.append(max(below) if below else search["low"])
+    top.fill_between(k, lo, hi, step="mid", color="#4C72B0", alpha=0.15, label="bracket left")
+    top.plot(k[ok], values[ok], "o", color="#55A868", label="meets", gid="passing")
+    top.plot(k[~ok], values[~ok], "x", color="#C44E52", ms=8, label="fails", gid="failing")
+    if value is not None:
+        top.axhline(value, color="k", lw=0.8, ls="--", label=f"answer {value:.4g}")
+    top.set_ylabel(search["parameter"])
+    top.legend(fontsize=8, loc="best")
+    top.set_title(f"{search['name']}: smallest {search['parameter']} with {need['output']} "
+                  + (f"≤ {need['at_most']:g}" if need.get("at_most") is not None else f"≥ {need['at_least']:g}"),
+                  fontsize=10)
+    worst = np.array([np.nan if t["worst"] is None else t["worst"] for t in trials], float)
+    bottom.plot(k, worst, "o-", color="#4C72B0", gid="worst")
+    bound = need.get("at_most") if need.get("at_most") is not None else need.get("at_least")
+    bottom.axhline(bound, color="#C44E52", lw=1.5, label="requirement")
+    bottom.set_ylabel(f"worst {need['output']}")
+    bottom.set_xlabel("trial")
+    bottom.set_xticks(k)
+    bottom.legend(fontsize=8)
     return fig

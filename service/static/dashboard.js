@@ -107,6 +107,18 @@
     }, 1000);
   };
 
+  TC.searchPage = (searchId) => {
+    // redraw the status and trials when a trial is recorded or the search ends
+    const status = () => document.getElementById("search-status");
+    TC.poll(async () => {
+      const search = await TC.getJSON("/searches/" + searchId);
+      if (String(search.trials.length) !== status().dataset.trials || search.status !== status().dataset.status) {
+        await TC.swap(["#search-status", "#search-trials"]);
+      }
+      return search.status === "running" ? 1000 : false;
+    }, 1000);
+  };
+
   TC.sweepPage = (sweepId) => {
     const sort = TC.sortable(document.getElementById("comparison"));
     const status = document.getElementById("sweep-status");

@@ -63,7 +63,9 @@ def test_openapi_lists_every_endpoint_with_response_models(client):
         "/cases", "/cases/{case_id}", "/cases/{case_id}/result.nc", "/cases/{case_id}/plots/{name}.png",
         "/cases/{case_id}/report.pdf", "/sweeps", "/sweeps/{sweep_id}", "/sweeps/{sweep_id}/result.nc", "/health",
         "/sweeps/{sweep_id}/table", "/sweeps/{sweep_id}/summary.csv", "/sweeps/{sweep_id}/summary.xlsx", "/sweeps/{sweep_id}/plots/{name}.png",
-        "/sweeps/{sweep_id}/cancel"}
+        "/sweeps/{sweep_id}/cancel", "/sweeps/{sweep_id}/sensitivity", "/sweeps/{sweep_id}/sensitivity.png",
+        "/sweeps/{sweep_id}/reliability", "/sweeps/{sweep_id}/reliability.png", "/searches", "/searches/{search_id}",
+        "/searches/{search_id}/trials.png"}
     post = schema["paths"]["/cases"]["post"]
     assert "202" in post["responses"] and "422" in post["responses"]
     assert {"Case", "CaseAccepted", "CasePage", "SweepStatus", "SweepAccepted", "Health"} <= set(

@@ -1,0 +1,69 @@
+"""The studies on the dashboard (SPEC §8) in a real headless Chromium, against a dask scheduler,
+two workers and the API as separate processes: a sampled sweep's sensitivity bars and
+reliability figure (re-drawn for another output and limit from the page's form), and a search
+page that follows its trials live to the answer."""
+from __future__ import annotations
+
+import httpx
+import pytest
+
+from service.process import running_cluster, running_service
+from service_helpers import coarse_case, wait_until
+import test_dashboard
+from test_dashboard import images_loaded, screenshot
+
+pytestmark = pytest.mark.slow
+browser = test_dashboard.browser  # the headless Chromium fixture
+
+SAMPLED = {"name": "ground uncertainty", "base": coarse_case(), "mode": "lhs", "samples": 64, "seed": 2,
+           "vary": {"loads.lateral_ratio": {"distribution": "uniform", "low": 0.4, "high": 1.0},
+                    "design.load_factor": {"distribution": "lognormal", "mean": 1.35, "std": 0.2}}}
+SEARCH = {"name": "thinnest lining", "base": coarse_case(geometry={"depth": 40.0, "height": 80.0},
+                                                         design={"concrete_strength": 2.0e7}),
+          "parameter": "geometry.thickness", "low": 0.15, "high": 0.5, "tolerance": 0.05,
+          "require": {"output": "max_utilization", "at_most": 1.0}, "over": {"loads.lateral_ratio": [0.7, 1.0]}}
+
+
+@pytest.fixture(scope="module")
+def service(tmp_path_factory):
+    logs = tmp_path_factory.mktemp("logs")
+    with running_cluster(2, logs=logs) as scheduler:
+        with running_service(tmp_path_factory.mktemp("results"), scheduler=scheduler, log=logs / "api.log") as url:
+            yield url
+
+
+def test_sweep_analyses_and_a_live_search_page(service, browser, tmp_path):
+    url = service
+    sweep = httpx.post(f"{url}/sweeps", json=SAMPLED).json()
+    wait_until(lambda: httpx.get(f"{url}/sweeps/{sweep['id']}").json()["counts"]["done"] == 64, timeout=180,
+               what="the sampled sweep")
+    browser.get(f"{url}/ui/sweeps/{sweep['id']}")
+    wait_until(lambda: all(images_loaded(browser, "#analyses img")) and len(images_loaded(browser, "#analyses img"))
+               == 2, timeout=60, what="the analyses' figures")
+    screenshot(browser, tmp_path / "sweep-analyses.png")
+    # another output and limit from the form: the figures follow
+    browser.execute_script("document.getElementById('analysis-output').value = 'max_thrust';"
+                           "document.getElementById('analysis-limit').value = '0.4';")
+    browser.find_element("css selector", "#analysis-form button").click()
+    wait_until(lambda: "output=max_thrust" in browser.find_element("css selector", "img[data-plot=sensitivity]")
+               .get_attribute("src"), timeout=30, what="the new sensitivity figure")
+    assert "limit=0.4" in browser.find_element("css selector", "img[data-plot=reliability]").get_attribute("src")
+    browser.execute_script("document.getElementById('analyses').scrollIntoView()")
+    wait_until(lambda: all(images_loaded(browser, "#analyses img")), timeout=60, what="the new figures")
+    screenshot(browser, tmp_path / "sweep-analyses-thrust.png")
+
+    search = httpx.post(f"{url}/searches", json=SEARCH).json()
+    browser.get(f"{url}/ui/searches/{search['id']}")
+    assert browser.find_element("css selector", "#search-status").get_attribute("data-status") == "running"
+    # the page follows the search by itself to its answer
+    wait_until(lambda: browser.find_element("css selector", "#search-status").get_attribute("data-status") == "done",
+               timeout=180, what="the search page to show the answer")
+    done = httpx.get(f"{url}/searches/{search['id']}").json()
+    answer = browser.find_element("css selector", "#search-answer").text
+    assert f"geometry.thickness = {done['value']:.4g}" in answer
+    rows = browser.find_elements("css selector", "#trials-table tbody tr")
+    assert len(rows) == len(done["trials"]) >= 3
+    wait_until(lambda: all(images_loaded(browser, "img[data-plot=trials]")), timeout=30, what="the trials figure")
+    screenshot(browser, tmp_path / "search.png")
+    browser.get(url)
+    assert browser.find_element("css selector", f"#searches tr[data-key='{search['id']}']")
