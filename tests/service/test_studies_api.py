@@ -10,15 +10,10 @@ from fastapi.testclient import TestClient
 
 from service.app import create_app
 from service.settings import Settings
-from service_helpers import coarse_case
+from service_helpers import THINNEST_SEARCH, sampled_sweep
 
-SAMPLED = {"name": "lhs", "base": coarse_case(), "mode": "lhs", "samples": 64, "seed": 5,
-           "vary": {"loads.lateral_ratio": {"distribution": "uniform", "low": 0.4, "high": 1.0},
-                    "design.load_factor": {"distribution": "lognormal", "mean": 1.35, "std": 0.2}}}
-SEARCH = {"name": "thinnest", "base": coarse_case(geometry={"depth": 40.0, "height": 80.0},
-                                                  design={"concrete_strength": 2.0e7}),
-          "parameter": "geometry.thickness", "low": 0.15, "high": 0.5, "tolerance": 0.05,
-          "require": {"output": "max_utilization", "at_most": 1.0}, "over": {"loads.lateral_ratio": [0.7, 1.0]}}
+SAMPLED = sampled_sweep("lhs", 64, 5)
+SEARCH = THINNEST_SEARCH
 
 
 def _app(root):

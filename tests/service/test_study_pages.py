@@ -8,20 +8,15 @@ import httpx
 import pytest
 
 from service.process import running_cluster, running_service
-from service_helpers import coarse_case, wait_until
+from service_helpers import THINNEST_SEARCH, sampled_sweep, wait_until
 import test_dashboard
 from test_dashboard import images_loaded, screenshot
 
 pytestmark = pytest.mark.slow
 browser = test_dashboard.browser  # the headless Chromium fixture
 
-SAMPLED = {"name": "ground uncertainty", "base": coarse_case(), "mode": "lhs", "samples": 64, "seed": 2,
-           "vary": {"loads.lateral_ratio": {"distribution": "uniform", "low": 0.4, "high": 1.0},
-                    "design.load_factor": {"distribution": "lognormal", "mean": 1.35, "std": 0.2}}}
-SEARCH = {"name": "thinnest lining", "base": coarse_case(geometry={"depth": 40.0, "height": 80.0},
-                                                         design={"concrete_strength": 2.0e7}),
-          "parameter": "geometry.thickness", "low": 0.15, "high": 0.5, "tolerance": 0.05,
-          "require": {"output": "max_utilization", "at_most": 1.0}, "over": {"loads.lateral_ratio": [0.7, 1.0]}}
+SAMPLED = sampled_sweep("ground uncertainty", 64, 2)
+SEARCH = THINNEST_SEARCH
 
 
 @pytest.fixture(scope="module")
@@ -54,15 +49,20 @@ def test_sweep_analyses_and_a_live_search_page(service, browser, tmp_path):
 
     search = httpx.post(f"{url}/searches", json=SEARCH).json()
     browser.get(f"{url}/ui/searches/{search['id']}")
-    assert browser.find_element("css selector", "#search-status").get_attribute("data-status") == "running"
+
+    def shown():  # read at once: the page swaps its parts as trials land
+        return browser.execute_script(
+            "const s = document.getElementById('search-status');"
+            "return [s.dataset.status, document.getElementById('search-answer').textContent,"
+            "        document.querySelectorAll('#trials-table tbody tr').length];")
+
+    assert shown()[0] == "running"
     # the page follows the search by itself to its answer
-    wait_until(lambda: browser.find_element("css selector", "#search-status").get_attribute("data-status") == "done",
-               timeout=180, what="the search page to show the answer")
+    wait_until(lambda: shown()[0] == "done", timeout=180, what="the search page to show the answer")
     done = httpx.get(f"{url}/searches/{search['id']}").json()
-    answer = browser.find_element("css selector", "#search-answer").text
-    assert f"geometry.thickness = {done['value']:.4g}" in answer
-    rows = browser.find_elements("css selector", "#trials-table tbody tr")
-    assert len(rows) == len(done["trials"]) >= 3
+    wait_until(lambda: shown()[2] == len(done["trials"]), timeout=30, what="every trial in the table")
+    status, answer, rows = shown()
+    assert f"geometry.thickness = {done['value']:.4g}" in answer and rows >= 3
     wait_until(lambda: all(images_loaded(browser, "img[data-plot=trials]")), timeout=30, what="the trials figure")
     screenshot(browser, tmp_path / "search.png")
     browser.get(url)
