@@ -5,8 +5,10 @@ of the utilization and the probability that the section fails.
 
     python -m bench.study [--samples 1024] [--workers 2] [--json]
 
-Every case has its own ground stiffness, so every case builds its own model (mesh, assembly,
-factorization); the cases that share one (none here) would cost about 15 ms each.
+Every case has its own ground stiffness; they still share one model per worker: the ground's
+stiffness is linear in its modulus, so a case solves on the model's factorization with K⁺
+scaled (:class:`solver.flexibility.ScaledBody`). 2026-11-25, two cores: 227 s before that
+reuse (every case built its own model), 61 s with it.
 """
 from __future__ import annotations
 

@@ -79,7 +79,7 @@ def _ground_state(model: TunnelModel, sol: Solution) -> dict:
     spec = sol.spec
     basis = model.point_basis("ground")
     y = np.asarray(basis.global_coordinates())[1]
-    young, poisson = moduli(model.layers, model.band, y)
+    young, poisson = moduli(strata(spec), model.band, y)  # the case's moduli
     if sol.plastic is not None:  # the return-mapped history at these points, not Hooke's law
         effective = sol.plastic["stress"].reshape((4,) + y.shape)
     else:

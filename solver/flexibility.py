@@ -99,6 +99,10 @@ class FactoredBody:
     def _columns(self, B: sp.csr_matrix) -> sp.csr_matrix:
         return B if self._keep is None else B[:, self._keep].tocsr()
 
+    def stiffness(self) -> sp.csr_matrix:
+        """The body's stiffness on its free DOFs (:class:`ScaledBody` scales it)."""
+        return self.body.K
+
     def drop(self) -> None:
         """Forget the factorizations (rebuilt on next use)."""
         self._factors.clear()
@@ -158,6 +162,31 @@ class FactoredBody:
         u = np.zeros((self.body.n,) + x.shape[1:])
         u[self._keep] = x
         return u
+
+
+class ScaledBody:
+    """A :class:`FactoredBody` whose stiffness is ``scale`` times the one it factorized (the
+    same body with every Young's modulus multiplied by ``scale``): ``K⁺`` and the flexibility
+    divide by it, the loads' forward half is unchanged. What a sweep over the ground's
+    stiffness shares one factorization by."""
+
+    def __init__(self, base: "FactoredBody", scale: float):
+        self.base, self.scale = base, float(scale)
+
+    def __getattr__(self, name):  # body, B, m, forward, factor, ... as the base's
+        return getattr(self.base, name)
+
+    def jumps(self, y: np.ndarray, rows: Rows) -> np.ndarray:
+        return self.base.jumps(y, rows) / self.scale
+
+    def backward(self, y: np.ndarray, rows: Rows, Wt: np.ndarray | None = None) -> np.ndarray:
+        return self.base.backward(y, rows, Wt) / self.scale
+
+    def flexibility(self, rows: Rows) -> np.ndarray:
+        return self.base.flexibility(rows) / self.scale
+
+    def stiffness(self) -> sp.csr_matrix:
+        return self.scale * self.base.body.K
 
 
 def in_row_order(B: sp.csr_matrix) -> np.ndarray:

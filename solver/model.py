@@ -33,6 +33,7 @@ import os
 import threading
 import time
 from collections import OrderedDict
+import copy
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -54,6 +55,7 @@ from .ground import load_coefficients as _layer_coefficients
 from .contact import BoltedSolution, BoltTrial, DualProblem, SolverError, pressure_scale, solve_contact
 from .flexibility import (
     FactoredBody,
+    ScaledBody,
     Rows,
     interface_operator,
     interface_rows,
@@ -88,13 +90,19 @@ def accepted_residual(tolerance: float) -> float:
 
 
 def model_key(spec: CaseSpec) -> str:
-    """The canonical JSON of what a :class:`TunnelModel` fixes (cases with equal keys share one)."""
+    """The canonical JSON of what a :class:`TunnelModel` fixes (cases with equal keys share one).
+
+    The ground's Young's moduli (and their gradients) enter relative to the first layer's:
+    the ground's stiffness matrix is linear in them, so a case whose ground is the model's
+    with every modulus times α solves on the model's factorization with ``K⁺`` divided by α
+    (:class:`~solver.flexibility.ScaledBody`)."""
+    layers = strata(spec)
+    e0 = layers[0].young  # the ground's stiffness enters as ratios to it: a model serves every scale
     shared = {
         "geometry": spec.geometry.model_dump(mode="json"),
         "mesh": spec.mesh.model_dump(mode="json"),
         "boundaries": spec.boundaries.model_dump(mode="json"),
-        "ground": {"young": spec.ground.young, "poisson": spec.ground.poisson},
-        "strata": [[s.top, s.bottom, s.young, s.poisson, s.young_gradient] for s in strata(spec)],
+        "strata": [[s.top, s.bottom, s.young / e0, s.poisson, s.young_gradient / e0] for s in layers],
         "lining": {"young": spec.lining.young, "poisson": spec.lining.poisson},
     }
     return json.dumps(shared, sort_keys=True, separators=(",", ":"))
@@ -193,6 +201,8 @@ class TunnelModel:
         gb = vector_basis(self.mesh.ground)
         iface = self.mesh.interface
         self.layers = strata(spec)
+        #: the first layer's Young's modulus the ground was assembled and factorized with (Pa)
+        self.ground_young = self.layers[0].young
         self.band = self.mesh.ground_band
         young, poisson = moduli(self.layers, self.band, np.asarray(gb.global_coordinates())[1])
         # interface nodes carry normal and tangential unknowns (skew basis): each contact row
@@ -261,14 +271,16 @@ class TunnelModel:
         self.timings["factorization"] += time.perf_counter() - t0
 
     def _flexibility(self, rows: Rows) -> np.ndarray:
+        """``S_ground / α + S_lining`` (each body's flexibility computed once per model)."""
         if rows not in self._S:
             self._factorize(rows)
             t0 = time.perf_counter()
-            S = self.ground.flexibility(rows)
-            S += self.lining.flexibility(rows)  # each exactly symmetric
+            base = getattr(self.ground, "base", self.ground)
+            self._S[rows] = (base.flexibility(rows), self.lining.flexibility(rows))  # each exactly symmetric
             self.timings["flexibility"] = self.timings.get("flexibility", 0.0) + time.perf_counter() - t0
-            self._S[rows] = S
-        return self._S[rows]
+        ground, lining = self._S[rows]
+        scale = getattr(self.ground, "scale", 1.0)
+        return ground + lining if scale == 1.0 else ground / scale + lining
 
     @property
     def S(self) -> np.ndarray:
@@ -381,16 +393,17 @@ class TunnelModel:
                 "lining.joints: a segmental lining is accepted and validated but this version does not solve its "
                 "joints yet; the case is not computed rather than answered as if the lining were monolithic")
         t0 = time.perf_counter()
+        model = self.for_case(spec)
         with blas_threads():
             rows = rows_of_model(spec.interface.model)
             self._factorize(rows)
             if spec.plastic:
                 from .plastic import solve_staged
 
-                sol = solve_staged(self, spec, rows, t0)
+                sol = solve_staged(model, spec, rows, t0)
             else:
-                loads, stage, d, F2 = self._contact_stage(spec, rows)
-                sol = self._finish(spec, rows, loads, stage, d, F2, t0)
+                loads, stage, d, F2 = model._contact_stage(spec, rows)
+                sol = model._finish(spec, rows, loads, stage, d, F2, t0)
         limit = accepted_residual(spec.solver.tolerance)
         if not sol.kkt_residual <= limit:  # NaN too: never a result above the tolerance
             raise SolverError(
@@ -416,6 +429,17 @@ class TunnelModel:
         sol = friction.solve_coulomb(fp, iface.theta, tol=sv.tolerance, max_iterations=sv.max_iterations,
                                      bolt=sv.bolt)
         return sol, sol.t
+
+    def for_case(self, spec: CaseSpec) -> "TunnelModel":
+        """This model as ``spec``'s: itself, or, when the case's ground is this model's with
+        every modulus times α, a view whose ground is :class:`ScaledBody` (α) sharing every
+        factorization and cache."""
+        scale = strata(spec)[0].young / self.ground_young
+        if scale == 1.0:
+            return self
+        view = copy.copy(self)
+        view.ground = ScaledBody(self.ground, scale)
+        return view
 
     def _finish(self, spec: CaseSpec, rows: Rows, loads: StageLoads, stage: Forward, d: np.ndarray, F2: float,
                 t0: float, u1: np.ndarray | None = None) -> Solution:
@@ -452,7 +476,7 @@ class TunnelModel:
         p_ref = max(float(np.max(np.abs(t))), pressure_scale(F2, iface.normal[1], iface.weight))
         closed = (g0 - J[:m] <= CONTACT_GAP_TOL * u_ref) | (model == "bonded")
         slipping = closed & (np.abs(jt) > CONTACT_GAP_TOL * u_ref)
-        residuals = [(fb.body.K @ u + fb.B.T @ Wt - f, np.abs(f) + np.abs(fb.B.T @ Wt))
+        residuals = [(fb.stiffness() @ u + fb.B.T @ Wt - f, np.abs(f) + np.abs(fb.B.T @ Wt))
                      for fb, u, f in ((ground, u_g, loads.ground), (lining, u_l, loads.lining))]
         balance = F2 + float(np.sum(self.r * Wt))
         balance_scale = abs(F2) + float(np.sum(np.abs(self.r * Wt)))
@@ -515,8 +539,9 @@ class TunnelModel:
 
     def dual_problem(self, spec: CaseSpec) -> DualProblem:
         """The frictionless contact stage of ``spec`` in interface form (:class:`DualProblem`)."""
-        d, F2 = self._contact_stage(spec, "normal")[2:]
-        return self._dual(d, F2, spec.geometry.gap)
+        model = self.for_case(spec)
+        d, F2 = model._contact_stage(spec, "normal")[2:]
+        return model._dual(d, F2, spec.geometry.gap)
 
     def _tie(self, d: np.ndarray, F2: float) -> tuple[np.ndarray, float]:
         """Bonded interface: J = 0 at every row and the lining balance; no bolt needed."""

@@ -59,7 +59,7 @@ class _Points:
         band = model.band
         y = np.asarray(basis.global_coordinates())[1]  # (E, Q)
         self.shape = y.shape
-        young, poisson = moduli(model.layers, band, y)
+        young, poisson = moduli(layers, band, y)  # the case's (the model's may differ by a scale)
         young = np.broadcast_to(young, y.shape)
         poisson = np.broadcast_to(poisson, y.shape)
         lam = young * poisson / ((1 + poisson) * (1 - 2 * poisson))
@@ -206,6 +206,7 @@ def solve_staged(model, spec, rows, t0: float):
     tol = max(spec.solver.tolerance, MIN_TOLERANCE)
     ld = spec.excavation.deconfinement if loads.release is not None else 0.0
     iterations, curve = 0, []
+    K = ground.stiffness()
     iface = model.mesh.interface
 
     def stress_of(u_free):
@@ -243,7 +244,7 @@ def solve_staged(model, spec, rows, t0: float):
 
             guess = 2 * u1 - u1_last  # the last increment's, repeated
             u1_last = u1
-            u1, p, its = _fixed_point(G, guess, body.K, tol * ref, f"stage 1, increment {k} of {steps}")
+            u1, p, its = _fixed_point(G, guess, K, tol * ref, f"stage 1, increment {k} of {steps}")
             iterations += its
             state = stress_of(u1)
             p1 = p
@@ -273,7 +274,7 @@ def solve_staged(model, spec, rows, t0: float):
 
         guess = 2 * u2 - u2_last
         u2_last = u2
-        u2, p, its = _fixed_point(G, guess, body.K, tol * ref, f"stage 2, increment {k} of {steps}")
+        u2, p, its = _fixed_point(G, guess, K, tol * ref, f"stage 2, increment {k} of {steps}")
         iterations += its
         commit(*stress_of(u1 + u2))
     # the whole contact stage (both bodies, the checks) of the last increment's converged iterate
