@@ -183,7 +183,7 @@ def search_command(search_file: str, results: str, *, scheduler: str | None = No
     bound = f"<= {need.at_most:g}" if need.at_most is not None else f">= {need.at_least:g}"
     print(f"{'trial':>5} {search.parameter:>22} {'worst ' + need.output:>26} {'failed':>6}  meets {bound}", file=out)
     for k, t in enumerate(found["trials"], 1):
-        worst = "-" if t["worst"] is None else f"{t['worst']:.4g}"
+        worst = "-" if t["worst"] is None else f"{t['worst']:.5g}"
         print(f"{k:>5} {t['value']:>22.6g} {worst:>26} {t['failed']:>6}  {'yes' if t['satisfied'] else 'no'}", file=out)
     cases = found["grid_cases"]
     if found["value"] is None:
