@@ -26,9 +26,13 @@ from workflows.files import write_atomically
 from workflows.studies import Search, next_trial, trial_outcome
 from workflows.sweep import expand_sweep
 
-from .errors import responses
-from .guards import require_token
-from .params import Offset, SearchId, not_found
+from workflows.result_store import estimated_result_bytes
+from workflows.sweep import sweep_size
+
+from .errors import invalid, responses
+from .guards import check_capacity, require_token
+from .params import Offset, SearchId, not_found, settings_of
+from .schemas import FieldError
 from .sweeps import enqueue_sweep, requeue_cancelled
 
 logger = logging.getLogger(__name__)
@@ -152,15 +156,23 @@ def searches_of(request: Request) -> Searches:
 
 
 @router.post("", status_code=202, response_model=SearchRecord, dependencies=[Depends(require_token)],
-             responses=responses(401, 422, 503))
-async def submit_search(search: Search, request: Request, response: Response) -> SearchRecord:
+             responses=responses(401, 422, 429, 503))
+async def submit_search(search: Search, request: Request, response: Response):
     """Start a search (or find the same one already made): the smallest ``parameter`` in
     [low, high], to ``tolerance``, for which ``require`` holds in every case of ``over``. Its
-    trials are sweeps of this service; the search survives restarts of the API and workers."""
+    trials are sweeps of this service (each within the sweep cap; the first must fit the
+    store and the queue); the search survives restarts of the API and workers."""
     searches = searches_of(request)
     ident = search_id(search)
     record = searches.read(ident)
     if record is None:
+        trial = search.trial_sweep(search.high)
+        size, cap = sweep_size(trial), settings_of(request).max_sweep_cases
+        if size > cap:
+            return invalid([FieldError(field="over", type="too_many_cases",
+                                       reason=f"a trial has {size:,} cases, over this service's cap of {cap:,}")])
+        first = await asyncio.to_thread(expand_sweep, trial)
+        check_capacity(request, size, sum(estimated_result_bytes(s) for s in first))
         record = SearchRecord(id=ident, name=search.name, search=search.model_dump(mode="json"), status="running",
                               max_trials=max_trials(search), submitted_at=time.time())
         await asyncio.to_thread(searches.write, record)

@@ -512,3 +512,12 @@ def test_cancel_stops_a_running_case_and_frees_its_worker(client, app):
     # the worker is free: a small case is solved
     assert finished(client, client.post("/cases", json=coarse_case(loads={"surface_load": 4.321e4})).json()["id"])[
         "status"] == "done"
+
+
+def test_a_search_whose_trials_exceed_the_sweep_cap_is_refused_naming_over(client):
+    search = {"name": "big", "parameter": "geometry.thickness", "low": 0.2, "high": 0.5, "tolerance": 0.01,
+              "over": {"loads.lateral_ratio": [0.4 + 0.01 * i for i in range(60)]}}
+    response = client.post("/searches", json=search)
+    assert response.status_code == 422 and response.json()["errors"][0]["field"] == "over"
+    assert "60 cases, over this service's cap of 50" in response.json()["detail"]
+    assert client.get("/searches").json()["total"] == 0
