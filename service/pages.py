@@ -24,7 +24,7 @@ from fastapi.templating import Jinja2Templates
 
 from solver.dataset import SCALARS
 from workflows.plots import PLOTS, SWEEP_PLOT_NAMES
-from workflows.studies import MIN_SAMPLES
+from workflows.studies import MIN_SAMPLES, SENSITIVITY_MIN_SAMPLES
 from workflows.units import DIAGNOSTICS
 
 from . import cases, searches, studies
@@ -124,7 +124,7 @@ async def sweep_page(sweep_id: SweepId, request: Request, output: str = "max_abs
     reliability_output = reliability_output if reliability_output in SCALARS else "max_utilization"
     limit = limit if math.isfinite(limit) else 1.0
     mode = record.spec.get("mode", "grid")
-    analyses = {"min_samples": MIN_SAMPLES, "outputs": outputs, "output": output, "limit": limit,
+    analyses = {"min_samples": MIN_SAMPLES, "sensitivity_min": SENSITIVITY_MIN_SAMPLES, "outputs": outputs, "output": output, "limit": limit,
                 "reliability_output": reliability_output, "mode": mode, "random": mode in RANDOM_MODES,
                 "sensitivity_png": f"/sweeps/{sweep_id}/sensitivity.png?{urlencode({'output': output})}",
                 "reliability_png": f"/sweeps/{sweep_id}/reliability.png?"

@@ -152,7 +152,7 @@ async def get_sensitivity(sweep_id: SweepId, request: Request, output: str = Que
     """Global sensitivity of the result scalar ``output`` to each parameter the sweep varies:
     first-order and total indices with 95 % half-widths (SALib's HDMR on the sweep's own
     sample from 300 done cases; below, the delta method's first-order index alone, the
-    total ``null``). 409 while fewer than 32 cases are done."""
+    total ``null``). 409 while fewer than 128 cases are done."""
     _, ds = await _analysis(request, sweep_id, sensitivity, output)
     return ds if isinstance(ds, Response) else _sensitivity_body(ds)
 

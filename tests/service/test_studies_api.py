@@ -12,7 +12,7 @@ from service.app import create_app
 from service.settings import Settings
 from service_helpers import THINNEST_SEARCH, sampled_sweep
 
-SAMPLED = sampled_sweep("lhs", 64, 5)
+SAMPLED = sampled_sweep("lhs", 128, 5)
 SEARCH = THINNEST_SEARCH
 
 
@@ -36,9 +36,9 @@ def test_analyses_and_a_search_across_a_restart(tmp_path):
         sweep = client.post("/sweeps", json=SAMPLED).json()
         sid = sweep["id"]
         assert client.get(f"/sweeps/{sid}/sensitivity", params={"output": "max_abs_moment"}).status_code in (200, 409)
-        _until(lambda: client.get(f"/sweeps/{sid}").json()["counts"]["done"] == 64)
+        _until(lambda: client.get(f"/sweeps/{sid}").json()["counts"]["done"] == 128)
         s = client.get(f"/sweeps/{sid}/sensitivity", params={"output": "max_abs_moment"}).json()
-        assert s["method"].startswith("delta") and s["samples"] == 64
+        assert s["method"].startswith("delta") and s["samples"] == 128
         by = {p["parameter"]: p for p in s["parameters"]}
         assert set(by) == {"loads.lateral_ratio", "design.load_factor"}
         assert by["loads.lateral_ratio"]["first_order"] > 0.5
@@ -48,7 +48,7 @@ def test_analyses_and_a_search_across_a_restart(tmp_path):
         bad = client.get(f"/sweeps/{sid}/sensitivity", params={"output": "moment"})
         assert bad.status_code == 422 and bad.json()["errors"][0]["field"] == "output"
         r = client.get(f"/sweeps/{sid}/reliability", params={"limit": 0.5}).json()
-        assert r["samples"] == 64 and r["ci_low"] <= r["probability"] <= r["ci_high"]
+        assert r["samples"] == 128 and r["ci_low"] <= r["probability"] <= r["ci_high"]
         for path in ("sensitivity.png?output=max_abs_moment", "reliability.png"):
             png = client.get(f"/sweeps/{sid}/{path}")
             assert png.status_code == 200 and png.content[:4] == b"\x89PNG", path
