@@ -23,7 +23,7 @@ from fastapi import APIRouter, Depends, Query, Request, Response
 from pydantic import BaseModel
 
 from workflows.files import write_atomically
-from workflows.studies import Search, next_trial, trial_outcome
+from workflows.studies import Search, grid_cases, next_trial, trial_outcome
 from workflows.sweep import expand_sweep
 
 from workflows.result_store import estimated_result_bytes
@@ -117,8 +117,6 @@ class Searches:
             while True:
                 value, answer = next_trial(search, record.trials)
                 if answer is not None:
-                    from workflows.studies import grid_cases
-
                     record = record.model_copy(update={**answer, "status": "done", "finished_at": time.time(),
                                                        "grid_cases": grid_cases(search, record.trials)})
                     await asyncio.to_thread(self.write, record)

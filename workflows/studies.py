@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import logging
 import math
 from typing import Any, Literal, Optional
 
@@ -38,6 +39,8 @@ from .parameters import (canonical_path, flat_name, flat_parameters, is_paramete
                          varying_parameters)
 from .result_store import StoreLike, as_store
 from .sweep import Sweep, run_sweep
+
+logger = logging.getLogger(__name__)
 
 #: Fewest samples HDMR accepts (SALib); below it the delta method's first-order index only.
 HDMR_MIN_SAMPLES = 300
@@ -100,22 +103,28 @@ def sensitivity(root: StoreLike, case_ids: list[str], output: str, *, seed: int 
     else:
         problem = {"num_vars": d, "names": names,
                    "bounds": [[float(X[:, i].min()), float(X[:, i].max())] for i in range(d)]}
+        si = None
         if method == "hdmr":
             from SALib.analyze import hdmr
 
-            si = hdmr.analyze(problem, X, Y, maxorder=2 if d > 1 else 1, seed=seed)
+            try:
+                si = hdmr.analyze(problem, X, Y, maxorder=2 if d > 1 else 1, seed=seed)
+            except (RuntimeError, ValueError, np.linalg.LinAlgError) as exc:  # too many terms for the sample
+                logger.warning("HDMR failed on %d cases of %d parameters (%s): the delta method instead", n, d, exc)
+                method = "delta"
+        if si is not None:
             terms = list(si["Term"])
             for i, name in enumerate(names):
                 k = terms.index(name)
                 first[i], first_ci[i] = si["S"][k], si["S_conf"][k]
                 total[i], total_ci[i] = si["ST"][i], si["ST_conf"][i]
-        else:
+        elif method == "delta":
             from SALib.analyze import delta
 
             with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):  # its notices
                 si = delta.analyze(problem, X, Y, seed=seed)
             first, first_ci = np.asarray(si["S1"], float), np.asarray(si["S1_conf"], float)
-            method = f"delta (fewer than {HDMR_MIN_SAMPLES} cases: first order only)"
+            method = "delta (first order only)"
     ds = xr.Dataset(
         {"first_order": ("parameter", first, {"long_name": "first-order sensitivity index"}),
          "first_order_ci": ("parameter", first_ci, {"long_name": "95 % half-width of the first-order index"}),
