@@ -133,7 +133,7 @@ def _sensitivity_body(ds) -> dict:
         v = float(v)
         return None if v != v else v
     return {"output": ds.attrs["output"], "method": ds.attrs["method"], "samples": int(ds.attrs["samples"]),
-            "not_done": int(ds.attrs["not_done"]),
+            "not_done": int(ds.attrs["not_done"]), "noise_floor": float(ds.attrs["noise_floor"]),
             "parameters": [{"parameter": str(p), **{k: num(ds[k].values[i]) for k in
                             ("first_order", "first_order_ci", "total_order", "total_order_ci")}}
                            for i, p in enumerate(ds["parameter"].values)]}
@@ -152,7 +152,8 @@ async def get_sensitivity(sweep_id: SweepId, request: Request, output: str = Que
     """Global sensitivity of the result scalar ``output`` to each parameter the sweep varies:
     first-order and total indices with 95 % half-widths (SALib's HDMR on the sweep's own
     sample from 300 done cases; below, the delta method's first-order index alone, the
-    total ``null``). 409 while fewer than 128 cases are done."""
+    total ``null``, and ``noise_floor``: a dummy parameter's index, below which an index
+    cannot be told from zero). 409 while fewer than 128 cases are done."""
     _, ds = await _analysis(request, sweep_id, sensitivity, output)
     return ds if isinstance(ds, Response) else _sensitivity_body(ds)
 

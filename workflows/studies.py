@@ -88,7 +88,10 @@ def study_sample(root: StoreLike, case_ids: list[str], output: str, minimum: int
 
 def sensitivity(root: StoreLike, case_ids: list[str], output: str, *, seed: int = 0) -> xr.Dataset:
     """First-order and total sensitivity indices of the result scalar ``output`` to each
-    parameter that varies across the done cases of ``case_ids`` (see the module's notes)."""
+    parameter that varies across the done cases of ``case_ids`` (see the module's notes).
+    The attribute ``noise_floor`` is, for the delta method, the index (plus its half-width) of
+    a dummy parameter that changes nothing: an index below it cannot be told from zero (0
+    for HDMR, whose indices of such a parameter stay below 0.02 from 300 cases)."""
     names, X, Y, missing = study_sample(root, case_ids, output, SENSITIVITY_MIN_SAMPLES)
     if not names:
         raise StudyError([("case_ids", "no numeric parameter varies across these cases")])
@@ -96,6 +99,7 @@ def sensitivity(root: StoreLike, case_ids: list[str], output: str, *, seed: int 
     X, Y = X[finite], Y[finite]
     d, n = len(names), len(Y)
     first, first_ci, total, total_ci = (np.full(d, np.nan) for _ in range(4))
+    floor = 0.0
     method = "hdmr" if n >= HDMR_MIN_SAMPLES else "delta"  # the estimator the sample suits
     if np.ptp(Y) <= 1e-12 * max(float(np.max(np.abs(Y))), 1e-300):  # a constant output depends on nothing
         first[:], first_ci[:], total[:], total_ci[:] = 0.0, 0.0, 0.0, 0.0
@@ -121,9 +125,14 @@ def sensitivity(root: StoreLike, case_ids: list[str], output: str, *, seed: int 
         elif method == "delta":
             from SALib.analyze import delta
 
+            # a dummy parameter (independent of everything) measures the estimator's floor on
+            # this sample: an index at or below the dummy's cannot be told from zero
+            dummy = np.random.default_rng(seed).random(n)
+            with_dummy = {"num_vars": d + 1, "names": names + ["dummy"], "bounds": problem["bounds"] + [[0.0, 1.0]]}
             with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):  # its notices
-                si = delta.analyze(problem, X, Y, seed=seed)
-            first, first_ci = np.asarray(si["S1"], float), np.asarray(si["S1_conf"], float)
+                si = delta.analyze(with_dummy, np.column_stack([X, dummy]), Y, seed=seed)
+            first, first_ci = np.asarray(si["S1"][:d], float), np.asarray(si["S1_conf"][:d], float)
+            floor = float(si["S1"][d] + si["S1_conf"][d])
             method = "delta (first order only)"
     ds = xr.Dataset(
         {"first_order": ("parameter", first, {"long_name": "first-order sensitivity index"}),
@@ -131,7 +140,8 @@ def sensitivity(root: StoreLike, case_ids: list[str], output: str, *, seed: int 
          "total_order": ("parameter", total, {"long_name": "total sensitivity index"}),
          "total_order_ci": ("parameter", total_ci, {"long_name": "95 % half-width of the total index"})},
         coords={"parameter": names},
-        attrs={"output": output, "samples": n, "method": method, "not_done": missing})
+        attrs={"output": output, "samples": n, "method": method, "not_done": missing,
+               "noise_floor": floor})
     return ds
 
 

@@ -30,6 +30,10 @@ def plot_sensitivity(ds: xr.Dataset) -> Figure:
     if np.isfinite(total).any():
         ax.barh(y - 0.18, total[order], 0.36, xerr=ds["total_order_ci"].values[order], color="#DD8452",
                 label="total", capsize=3, gid="total_order")
+    floor = float(ds.attrs.get("noise_floor", 0.0))
+    if floor > 0:
+        ax.axvspan(0, floor, color="0.85", zorder=0, label=f"noise floor ({floor:.2f}: a dummy parameter)",
+                   gid="noise_floor")
     ax.set_yticks(y, [names[i] for i in order])
     ax.axvline(0, color="k", lw=0.8)
     ax.set_xlim(min(-0.05, float(np.nanmin(first)) - 0.05), 1.05)
