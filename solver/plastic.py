@@ -106,9 +106,7 @@ class _Points:
             if sel.any():
                 stress[:, sel], dep[:, sel], flags[sel] = return_stress(flat[:, sel], self.material,
                                                                        self.flag_tolerance)
-        # at yield: on the surface, or flowing in this increment (a point the iteration's
-        # tolerance leaves a hair inside the surface is still yielding)
-        flags |= np.abs(dep).max(axis=0) > 0
+        # (a point flowing in this increment is at yield: return_stress flags every point it returns)
         stress = stress.reshape(trial.shape)
         return stress, dep, flags.reshape(self.shape), self.tau + (trial - stress)
 
@@ -126,23 +124,31 @@ def _plastic_load(points: _Points, tau: np.ndarray) -> np.ndarray:
 
 
 def first_yield(points: _Points, u_unit: np.ndarray, limit: float) -> float:
-    """The largest fraction ``f`` ≤ ``limit`` of the displacement ``u_unit`` (from the last
-    converged state) for which every point's stress stays inside its yield surface: the
-    stress is linear in ``f``, the yield function convex in the stress, so the admissible
-    fractions are an interval ``[0, f*]``, found by bisection to 1e-4 of ``limit`` (from below)."""
+    """The largest fraction ``f`` ≤ ``limit`` of the displacement ``u_unit`` (added to the last
+    converged state) for which every point's stress stays inside its yield surface. The stress
+    is linear in ``f`` and the yield function convex in the stress, so each point's admissible
+    fractions are an interval ``[0, f_i]``: a point inside at ``limit`` is inside all the way,
+    and the bisection (to 1e-4 of ``limit``, from below) looks only at the points that are not."""
     if not points.yielding.any():
         return limit
-    grad = points.gradient(u_unit)
+    g = points.gradient(u_unit)
+    lt = points.lam * (g[0, 0] + g[1, 1])
+    rate = np.stack([lt + 2 * points.mu * g[0, 0], lt + 2 * points.mu * g[1, 1],
+                     points.mu * (g[0, 1] + g[1, 0]), lt]).reshape(4, -1)[:, points.yielding]
+    start = points.sigma.reshape(4, -1)[:, points.yielding]
 
-    def inside(f: float) -> bool:
-        return not points.trial(f * grad)[2].any()
+    def at_yield(f: float, where, material) -> np.ndarray:
+        return return_stress(start[:, where] + f * rate[:, where], material, points.flag_tolerance)[2]
 
-    if inside(limit):
+    everywhere = slice(None)
+    out = np.flatnonzero(at_yield(limit, everywhere, points.material))
+    if out.size == 0:
         return limit
+    material = points.material.at(out)
     low, high = 0.0, limit
     while high - low > 1e-4 * limit:
         mid = 0.5 * (low + high)
-        low, high = (mid, high) if inside(mid) else (low, mid)
+        low, high = (low, mid) if at_yield(mid, out, material).any() else (mid, high)
     return low
 
 
@@ -172,17 +178,18 @@ class _Anderson:
 
 
 def _fixed_point(G, x0: np.ndarray, K, atol: float, where: str):
-    """Solve ``x = G(x)`` (``G`` returns the new iterate and the plastic load it used) by
-    constant-stiffness iterations with Anderson mixing, until the out-of-balance force
-    ``‖K (G(x) - x)‖`` is at most ``atol``."""
+    """Solve ``x = G(x)`` by constant-stiffness iterations with Anderson mixing, until the
+    out-of-balance force ``‖K (G(x) - x)‖`` of an iterate ``x`` is at most ``atol``. ``G``
+    returns the new iterate, the plastic load and the yield state at ``x``; the answer is that
+    iterate with its plastic load and yield state (the state the stop test measured)."""
     acc = _Anderson(DEPTH)
     x, force = x0, float("inf")
     for count in range(1, MAX_STEP_ITERATIONS + 1):
         check_time("plastic iteration", count)
-        gx, p = G(x)
+        gx, p, state = G(x)
         force = float(np.linalg.norm(K @ (gx - x)))
         if force <= atol:
-            return gx, p, count
+            return x, p, state, count
         x = acc.step(x, gx)
     raise NotConvergedError(
         f"solver.load_steps: the yielding ground did not reach equilibrium in {where} (out-of-balance force "
@@ -239,14 +246,14 @@ def solve_staged(model, spec, rows, t0: float):
             base = frac * y_r
 
             def G(x):
-                p = _plastic_load(gauss, stress_of(x)[-1])
-                return ground.backward(base + ground.forward(p, rows), rows), p
+                state = stress_of(x)
+                p = _plastic_load(gauss, state[-1])
+                return ground.backward(base + ground.forward(p, rows), rows), p, state
 
             guess = 2 * u1 - u1_last  # the last increment's, repeated
             u1_last = u1
-            u1, p, its = _fixed_point(G, guess, K, tol * ref, f"stage 1, increment {k} of {steps}")
+            u1, p, state, its = _fixed_point(G, guess, K, tol * ref, f"stage 1, increment {k} of {steps}")
             iterations += its
-            state = stress_of(u1)
             p1 = p
             commit(*state)
             curve.append((frac, mean_convergence(body.expand(u1), iface)))
@@ -266,17 +273,18 @@ def solve_staged(model, spec, rows, t0: float):
                     Forward(ground=a * y_g + ground.forward(extra, rows), lining=a * y_l))
 
         def G(x):
-            p = _plastic_load(gauss, stress_of(u1 + x)[-1])
+            state = stress_of(u1 + x)
+            p = _plastic_load(gauss, state[-1])
             _, stage = stage_of(p)
             _, t = model.contact_tractions(spec, ground.jumps(stage.ground, rows) + lining.jumps(stage.lining, rows),
                                            a * F2_full)
-            return ground.backward(stage.ground, rows, model.w * t), p
+            return ground.backward(stage.ground, rows, model.w * t), p, state
 
         guess = 2 * u2 - u2_last
         u2_last = u2
-        u2, p, its = _fixed_point(G, guess, K, tol * ref, f"stage 2, increment {k} of {steps}")
+        u2, p, state, its = _fixed_point(G, guess, K, tol * ref, f"stage 2, increment {k} of {steps}")
         iterations += its
-        commit(*stress_of(u1 + u2))
+        commit(*state)
     # the whole contact stage (both bodies, the checks) of the last increment's converged iterate
     loads2, stage = stage_of(p)
     sol = model._finish(spec, rows, loads2, stage, ground.jumps(stage.ground, rows) + lining.jumps(stage.lining, rows),
