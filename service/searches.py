@@ -207,15 +207,8 @@ async def get_search(search_id: SearchId, request: Request) -> SearchRecord:
             responses={200: {"content": {"image/png": {}}}, **responses(404, 422)})
 async def get_search_plot(search_id: SearchId, request: Request) -> Response:
     """The search converging: the values tried, the bracket left and each trial's worst output."""
-    import io
-
-    from workflows.study_plots import plot_search
+    from workflows.study_plots import plot_search, png
 
     record = await get_search(search_id, request)
-
-    def render() -> bytes:
-        buf = io.BytesIO()
-        plot_search(record.search, record.trials, record.value).savefig(buf, format="png", dpi=110)
-        return buf.getvalue()
-
-    return Response(await asyncio.to_thread(render), media_type="image/png")
+    figure = await asyncio.to_thread(lambda: png(plot_search(record.search, record.trials, record.value)))
+    return Response(figure, media_type="image/png")

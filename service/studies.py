@@ -140,11 +140,9 @@ def _sensitivity_body(ds) -> dict:
 
 
 def _png(fig) -> Response:
-    import io
+    from workflows.study_plots import png
 
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    return Response(buf.getvalue(), media_type="image/png")
+    return Response(png(fig), media_type="image/png")
 
 
 @router.get("/{sweep_id}/sensitivity", responses=responses(404, 409, 422))

@@ -99,6 +99,14 @@ class FactoredBody:
     def _columns(self, B: sp.csr_matrix) -> sp.csr_matrix:
         return B if self._keep is None else B[:, self._keep].tocsr()
 
+    #: the stiffness over the one factorized (:class:`ScaledBody` has its own)
+    scale = 1.0
+
+    @property
+    def base(self) -> "FactoredBody":
+        """The body whose factorizations serve (itself; a :class:`ScaledBody`'s base)."""
+        return self
+
     def stiffness(self) -> sp.csr_matrix:
         """The body's stiffness on its free DOFs (:class:`ScaledBody` scales it)."""
         return self.body.K

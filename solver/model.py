@@ -275,12 +275,10 @@ class TunnelModel:
         if rows not in self._S:
             self._factorize(rows)
             t0 = time.perf_counter()
-            base = getattr(self.ground, "base", self.ground)
-            self._S[rows] = (base.flexibility(rows), self.lining.flexibility(rows))  # each exactly symmetric
+            self._S[rows] = (self.ground.base.flexibility(rows), self.lining.flexibility(rows))  # each symmetric
             self.timings["flexibility"] = self.timings.get("flexibility", 0.0) + time.perf_counter() - t0
         ground, lining = self._S[rows]
-        scale = getattr(self.ground, "scale", 1.0)
-        return ground + lining if scale == 1.0 else ground / scale + lining
+        return ground / self.ground.scale + lining
 
     @property
     def S(self) -> np.ndarray:

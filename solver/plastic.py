@@ -84,6 +84,12 @@ class _Points:
         #: equilibrium iteration's tolerance leaves yielding points a hair inside it
         self.flag_tolerance = max(spec.solver.tolerance, MIN_TOLERANCE)
 
+    def hooke(self, grad: np.ndarray) -> np.ndarray:
+        """The elastic stress (4, E, Q) of a displacement gradient (2, 2, E, Q), plane strain."""
+        lt = self.lam * (grad[0, 0] + grad[1, 1])
+        return np.stack([lt + 2 * self.mu * grad[0, 0], lt + 2 * self.mu * grad[1, 1],
+                         self.mu * (grad[0, 1] + grad[1, 0]), lt])
+
     def gradient(self, u_free: np.ndarray) -> np.ndarray:
         """The displacement gradient (2, 2, E, Q) of the ground's unknowns ``u_free``."""
         return (self.G @ u_free).reshape((2, 2) + self.shape)
@@ -91,10 +97,7 @@ class _Points:
     def trial(self, grad: np.ndarray):
         """Stress, plastic strain increment, yield flags and ``D ε_p`` of a displacement
         gradient since excavation, from the last converged increment."""
-        dg = grad - self.grad
-        lt = self.lam * (dg[0, 0] + dg[1, 1])
-        trial = self.sigma + np.stack([lt + 2 * self.mu * dg[0, 0], lt + 2 * self.mu * dg[1, 1],
-                                       self.mu * (dg[0, 1] + dg[1, 0]), lt])
+        trial = self.sigma + self.hooke(grad - self.grad)
         flat = trial.reshape(4, -1)
         dep = np.zeros((3, flat.shape[1]))
         flags = np.zeros(flat.shape[1], bool)
@@ -131,10 +134,7 @@ def first_yield(points: _Points, u_unit: np.ndarray, limit: float) -> float:
     and the bisection (to 1e-4 of ``limit``, from below) looks only at the points that are not."""
     if not points.yielding.any():
         return limit
-    g = points.gradient(u_unit)
-    lt = points.lam * (g[0, 0] + g[1, 1])
-    rate = np.stack([lt + 2 * points.mu * g[0, 0], lt + 2 * points.mu * g[1, 1],
-                     points.mu * (g[0, 1] + g[1, 0]), lt]).reshape(4, -1)[:, points.yielding]
+    rate = points.hooke(points.gradient(u_unit)).reshape(4, -1)[:, points.yielding]
     start = points.sigma.reshape(4, -1)[:, points.yielding]
 
     def at_yield(f: float, where, material) -> np.ndarray:
@@ -237,8 +237,8 @@ def solve_staged(model, spec, rows, t0: float):
         if elastic:
             u1 = ld * elastic / steps * u_r
             commit(*stress_of(u1))
-            curve.extend((ld * k / steps, mean_convergence(body.expand(k / elastic * u1), iface))
-                         for k in range(1, elastic + 1))
+            reached = mean_convergence(body.expand(u1), iface)  # linear in the load up to here
+            curve.extend((ld * k / steps, reached * k / elastic) for k in range(1, elastic + 1))
         u1_last = u1 - ld / steps * u_r
         for k in range(elastic + 1, steps + 1):
             frac = ld * k / steps
@@ -268,16 +268,17 @@ def solve_staged(model, spec, rows, t0: float):
         ref = a * float(np.linalg.norm(full.ground)) + float(np.linalg.norm(p1)) + abs(a * F2_full)
 
         def stage_of(p):
+            """The contact stage's loads, their forward halves and interface jumps."""
             extra = p - p1
-            return (StageLoads(a * full.ground + extra, a * full.lining, None),
-                    Forward(ground=a * y_g + ground.forward(extra, rows), lining=a * y_l))
+            stage = Forward(ground=a * y_g + ground.forward(extra, rows), lining=a * y_l)
+            jumps = ground.jumps(stage.ground, rows) + lining.jumps(stage.lining, rows)
+            return StageLoads(a * full.ground + extra, a * full.lining, None), stage, jumps
 
         def G(x):
             state = stress_of(u1 + x)
             p = _plastic_load(gauss, state[-1])
-            _, stage = stage_of(p)
-            _, t = model.contact_tractions(spec, ground.jumps(stage.ground, rows) + lining.jumps(stage.lining, rows),
-                                           a * F2_full)
+            _, stage, d = stage_of(p)
+            _, t = model.contact_tractions(spec, d, a * F2_full)
             return ground.backward(stage.ground, rows, model.w * t), p, state
 
         guess = 2 * u2 - u2_last
@@ -286,9 +287,7 @@ def solve_staged(model, spec, rows, t0: float):
         iterations += its
         commit(*state)
     # the whole contact stage (both bodies, the checks) of the last increment's converged iterate
-    loads2, stage = stage_of(p)
-    sol = model._finish(spec, rows, loads2, stage, ground.jumps(stage.ground, rows) + lining.jumps(stage.lining, rows),
-                        F2_full, t0, u1=u1)
+    sol = model._finish(spec, rows, *stage_of(p), F2_full, t0, u1=u1)
     E = out.shape[0]
     sol.plastic = {
         "stress": out.sigma.reshape(4, -1),

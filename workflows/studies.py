@@ -24,6 +24,7 @@ finds its trials' cases done and resumes where it was.
 from __future__ import annotations
 
 import contextlib
+import copy
 import io
 import logging
 import math
@@ -222,52 +223,39 @@ class Search(BaseModel):
             raise ValueError(f"tolerance: must be less than high - low ({self.high - self.low:g})")
         if self.parameter in self.over:
             raise ValueError(f"over: varies {self.parameter}, the parameter searched")
-        self.trial_sweep(self.low)  # the parameter and the grounds are checked as a sweep would be
+        from pydantic import ValidationError
+
+        from solver import CaseSpec
+        from solver.errors import field_errors
+
+        from .sweep import SweepError, expand_sweep
+
+        def first(exc) -> str:
+            return "{}: {}".format(*field_errors(exc)[0]).lstrip(": ")
+
+        path = canonical_path(self.parameter)
+        try:
+            current = flat_parameters(CaseSpec.model_validate(self.base)).get(flat_name(path))
+        except ValidationError as exc:
+            raise ValueError(f"base: {first(exc)}") from None
+        if not is_parameter(path, self.base) or isinstance(current, bool) or not isinstance(current, (int, float)):
+            raise ValueError(f"parameter: {self.parameter!r} is not a numeric case field")
+        try:  # the grounds, as a sweep would check them
+            expand_sweep(self.trial_sweep(self.low))
+        except ValidationError as exc:
+            raise ValueError(f"over: {first(exc)}") from None
+        except SweepError as exc:
+            raise ValueError("over: {}: {}".format(*exc.errors[0])) from None
         return self
 
     def trial_sweep(self, value: float) -> Sweep:
         """The sweep of one trial: every ``over`` case with the parameter at ``value``."""
-        from pydantic import ValidationError
-
-        from solver import CaseSpec
-
-        from .sweep import SweepError, expand_sweep
-
-        base = _deep_copy(self.base)
-        path = canonical_path(self.parameter)
-        try:
-            current = flat_parameters(CaseSpec.model_validate(base)).get(flat_name(path))
-        except ValidationError as exc:
-            raise ValueError(f"base: {_first(exc)}") from None
-        if not is_parameter(path, base) or isinstance(current, bool) or not isinstance(current, (int, float)):
-            raise ValueError(f"parameter: {self.parameter!r} is not a numeric case field")
-        set_parameter(base, path, float(value))
+        base = copy.deepcopy(self.base)
+        set_parameter(base, canonical_path(self.parameter), float(value))
         extra = {k: getattr(self, k) for k in ("samples", "seed") if getattr(self, k) is not None}
-        vary = self.over or {self.parameter: [float(value)]}
-        try:
-            sweep = Sweep.model_validate({"name": f"{self.name}: {self.parameter} = {value:.6g}", "base": base,
-                                          "vary": vary, "mode": self.mode, **extra})
-            expand_sweep(sweep)
-        except ValidationError as exc:
-            raise ValueError(f"over: {_first(exc)}") from None
-        except SweepError as exc:
-            field, reason = exc.errors[0]
-            raise ValueError(f"over: {field}: {reason}") from None
-        return sweep
-
-
-def _first(exc) -> str:
-    e = exc.errors()[0]
-    where = ".".join(str(p) for p in e["loc"])
-    return f"{where}: {e['msg'].removeprefix('Value error, ')}" if where else e["msg"].removeprefix("Value error, ")
-
-
-def _deep_copy(data: Any) -> Any:
-    if isinstance(data, dict):
-        return {k: _deep_copy(v) for k, v in data.items()}
-    if isinstance(data, list):
-        return [_deep_copy(v) for v in data]
-    return data
+        return Sweep.model_validate({"name": f"{self.name}: {self.parameter} = {value:.6g}", "base": base,
+                                     "vary": self.over or {self.parameter: [float(value)]}, "mode": self.mode,
+                                     **extra})
 
 
 def next_trial(search: Search, trials: list[dict]) -> tuple[Optional[float], Optional[dict]]:

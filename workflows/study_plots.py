@@ -10,6 +10,15 @@ from solver.dataset import SCALARS
 from .units import display_unit
 
 
+def png(figure: Figure, dpi: int = 110) -> bytes:
+    """A figure as PNG bytes (what the service answers with)."""
+    import io
+
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=dpi)
+    return buffer.getvalue()
+
+
 def _output_label(name: str) -> tuple[str, float]:
     unit, factor = display_unit(SCALARS[name][0], name)[:2] if name in SCALARS else ("", 1.0)
     long_name = SCALARS.get(name, ("", name))[1]

@@ -113,6 +113,7 @@ def test_stage_1_is_elastic_up_to_the_first_yield_of_kirsch():
     u = np.array([c["wall_convergence_m"] for c in curve])
     elastic = int(f * 10)
     np.testing.assert_allclose(u[:elastic] / np.array(released[:elastic]), u[0] / 0.1, rtol=1e-9)  # one line
+    assert u[0] == pytest.approx(0.1 * P0 * A * (1 + NU) / E, rel=0.03)  # Kirsch's wall, f = 0.1
     assert u[elastic] / released[elastic] > u[0] / 0.1 * (1 + 1e-5)  # then the ground yields
     assert u[-1] > 1.2 * u[0] / 0.1
 
