@@ -197,6 +197,11 @@ def test_examples_are_valid():
     cases = expand_sweep(load_sweep(root / "sweep.json"))
     assert 4 <= len(cases) <= 8
     assert all(c.mesh == CaseSpec().mesh for c in cases)
+    from workflows.studies import Search
+
+    assert len(expand_sweep(load_sweep(root / "sobol-study.json"))) == 1024  # the README's study
+    search = Search.model_validate_json((root / "thinnest-lining.json").read_text())  # and search
+    assert search.parameter == "geometry.thickness" and len(expand_sweep(search.trial_sweep(search.low))) == 3
 
 
 def test_dict_input_and_alias():
