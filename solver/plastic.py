@@ -261,11 +261,11 @@ def solve_staged(model, spec, rows, t0: float):
     full = StageLoads(loads.ground, loads.lining, None, loads.seepage)
     y_g = ground.forward(full.ground, rows)
     y_l = lining.forward(full.lining, rows)
-    F2_full = float(model.rigid @ full.lining)
+    F2_full = model.mode_loads(full.lining)
     u2 = u2_last = np.zeros(body.n)
     for k in range(1, steps + 1):
         a = k / steps
-        ref = a * float(np.linalg.norm(full.ground)) + float(np.linalg.norm(p1)) + abs(a * F2_full)
+        ref = a * float(np.linalg.norm(full.ground)) + float(np.linalg.norm(p1)) + float(np.sum(np.abs(a * F2_full)))
 
         def stage_of(p):
             """The contact stage's loads, their forward halves and interface jumps."""
