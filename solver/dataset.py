@@ -209,7 +209,7 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
     attrs = {
         "bolt_search": [vars(t) for t in sol.trials],
         "timings_seconds": {**model.timings, **sol.timings},
-        "lining_translation_m": float(sol.a),
+        "lining_translation_m": float(sol.a) if np.ndim(sol.a) == 0 else [float(x) for x in sol.a],
         "interface_model": spec.interface.model,
         "excavation_method": spec.excavation.method,
         **({"plastic_iterations": int(sol.plastic["iterations"])} if sol.plastic is not None else {}),
