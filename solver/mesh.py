@@ -18,6 +18,7 @@ scalar DOF ``j`` of its P2 basis.
 """
 from __future__ import annotations
 
+import math
 import threading
 from dataclasses import dataclass
 
@@ -171,21 +172,31 @@ def joint_angles(spec: CaseSpec) -> list[float]:
     return sorted(round(float(t), 9) for t in angles if t <= 180.0 + 1e-9)
 
 
+#: Node spacings across a joint's contact strip, at least: an open joint carries its thrust on a
+#: zone near the strip's edge that the strip's nodes must resolve (with 2, the default mesh put the
+#: whole thrust of every open joint on the edge node).
+STRIP_SPACINGS = 8
+#: Element layers through a segmental lining, at most.
+MAX_JOINT_LAYERS = 24
+
+
 def joint_layers(spec: CaseSpec) -> int:
-    """Element layers through the lining: :func:`~solver.sizing.lining_layers`, raised for a
-    segmental lining until the joints' contact strip ends at nodes (the radial lines carry
-    2L + 1 equally spaced nodes, so ``L a / t`` must be whole); if no count up to twice the
-    usual one does, the usual one (the strip is then the nodes within ``a``, see
-    :func:`solver.joints.joint_rows`)."""
+    """Element layers through the lining: :func:`~solver.sizing.lining_layers`; for a segmental
+    lining at least enough for :data:`STRIP_SPACINGS` node spacings across the joints' strip
+    (the radial lines carry 2L + 1 equally spaced nodes), and the least such count for which the
+    strip ends at nodes (``L a / t`` whole) if one is below :data:`MAX_JOINT_LAYERS`; else the
+    strip is the nodes within ``a`` (:func:`solver.joints.joint_rows`)."""
     layers = lining_layers(spec)
     j, t = spec.lining.joints, spec.geometry.thickness
-    if not j.count or j.contact_height is None:
+    if not j.count:
         return layers
-    for n in range(layers, 2 * layers + 1):
-        ratio = n * j.contact_height / t
+    a = j.contact_height or t
+    least = max(layers, math.ceil(STRIP_SPACINGS * t / (2.0 * a) - 1e-9))
+    for n in range(least, MAX_JOINT_LAYERS + 1):
+        ratio = n * a / t
         if abs(ratio - round(ratio)) <= 1e-6:
             return n
-    return layers
+    return min(least, MAX_JOINT_LAYERS)
 
 
 def sector_angles(spec: CaseSpec) -> list[float]:

@@ -92,16 +92,23 @@ def test_a_full_height_joint_opens_where_the_eccentricity_passes_the_kern():
 
 
 def test_open_joints_rotate_more_than_closed_ones():
-    """K0 = 0.75, a = 0.15 m: the crown and invert joints open, the others stay closed; the open
-    ones rotate ten times more (measured: 8.4e-4 and 9.5e-4 against 7.9e-5 and 9.1e-5 rad), and
-    the faces of an open joint gape (opening > 0) where a closed joint's stay in contact."""
-    _, sol = _solve(loads={"lateral_ratio": 0.75}, lining={"joints": {"count": 6, "contact_height": 0.15}})
-    j = sol.joints
-    assert j.open.any() and not j.open.all()
-    assert np.min(np.abs(j.rotation[j.open])) > 5 * np.max(np.abs(j.rotation[~j.open]))
-    assert np.all(j.opening[j.open] > 1e-5) and np.all(j.opening[~j.open] < 1e-12)
-    # the moment's sign is the rotation's: positive M (intrados compressed) opens the extrados
-    assert np.all(np.sign(j.rotation[j.open]) == np.sign(j.moment[j.open]))
+    """A closed joint is a linear rotational spring: its faces' relative rotation per unit moment
+    is the same at every closed joint and load (measured 5.1-5.6e-9 rad per N·m/m for a = 0.15 m,
+    t = 0.3 m); an open joint is softer (K0 = 0.8: the crown and invert joints open, 9.4e-9 and
+    1.06e-8), its faces gape over the strip (opening > 0) where a closed joint's stay in contact,
+    and its rotation has the moment's sign (M > 0, intrados compressed, opens the extrados)."""
+    closed, opened = [], []
+    for k0 in (0.8, 0.9):
+        _, sol = _solve(loads={"lateral_ratio": k0}, lining={"joints": {"count": 6, "contact_height": 0.15}})
+        j = sol.joints
+        flexibility = j.rotation / j.moment
+        assert np.all(flexibility > 0)
+        closed += list(flexibility[~j.open])
+        opened += list(flexibility[j.open])
+        assert np.all(j.opening[j.open] > 1e-7) and np.all(j.opening[~j.open] < 1e-12)
+    assert len(closed) >= 4 and len(opened) >= 2
+    assert max(closed) < 1.15 * min(closed)
+    assert min(opened) > 1.5 * max(closed)
 
 
 def test_six_segments_with_a_realistic_strip_lower_the_default_moments():
