@@ -34,6 +34,7 @@ exactly (:func:`solver.friction._box_qp`), then the set iteration resumes from i
 """
 from __future__ import annotations
 
+import functools
 import logging
 from dataclasses import dataclass, field
 
@@ -77,6 +78,10 @@ class FloatingProblem:
     @property
     def k(self) -> int:
         return self.G.shape[1]
+
+    @functools.cached_property
+    def WSW(self) -> np.ndarray:
+        return (self.w[:, None] * self.S) * self.w[None, :]
 
     def jumps(self, t: np.ndarray, a: np.ndarray) -> np.ndarray:
         return self.d - self.S @ (self.w * t) - self.G @ a
@@ -127,25 +132,45 @@ def _solve_sets(fp: FloatingProblem, SW: np.ndarray, sets: _Sets, bolts) -> tupl
     H = np.flatnonzero(held)
     slip = np.flatnonzero(sets.slip)
     n, k = H.size, fp.k
-    col = np.full(fp.d.size, -1)
-    col[H] = np.arange(n)
-    wG = fp.w[:, None] * fp.G
-    A = np.zeros((n + k, n + k))
-    A[:n, :n] = SW[np.ix_(H, H)]
-    A[:n, n:] = fp.G[H]
-    A[n:, :n] = wG[H].T
-    if slip.size:
-        f = fp.mu[slip] * sets.sign[slip]
-        pc = col[fp.partner[slip]]
-        np.add.at(A[:n].T, pc, (SW[np.ix_(H, slip)] * f).T)
-        np.add.at(A[n:].T, pc, (wG[slip] * f[:, None]))
     rhs = np.r_[fp.d[H] - fp.target()[H], -fp.F]
-    y = np.linalg.solve(A, rhs)
+    y = None if slip.size else _symmetric(fp, H, rhs)
+    if y is None:  # slipping rows make the system unsymmetric: LU of the whole
+        col = np.full(fp.d.size, -1)
+        col[H] = np.arange(n)
+        wG = fp.w[:, None] * fp.G
+        A = np.zeros((n + k, n + k))
+        A[:n, :n] = SW[np.ix_(H, H)]
+        A[:n, n:] = fp.G[H]
+        A[n:, :n] = wG[H].T
+        if slip.size:
+            f = fp.mu[slip] * sets.sign[slip]
+            pc = col[fp.partner[slip]]
+            np.add.at(A[:n].T, pc, (SW[np.ix_(H, slip)] * f).T)
+            np.add.at(A[n:].T, pc, (wG[slip] * f[:, None]))
+        y = np.linalg.solve(A, rhs)
     t = np.zeros(fp.d.size)
     t[H] = y[:n]
     if slip.size:
         t[slip] = fp.mu[slip] * sets.sign[slip] * t[fp.partner[slip]]
     return t, y[n:]
+
+
+def _symmetric(fp: FloatingProblem, H: np.ndarray, rhs: np.ndarray) -> np.ndarray | None:
+    """The sets' system without slipping rows, by the Cholesky factor of the flexibility block:
+    with its rows scaled by w it is ``[[W S W, W G], [(W G)ᵀ, 0]]`` (as
+    :func:`solver.contact.solve_on_set`); None if the block is not positive definite."""
+    w = fp.w[H]
+    A = fp.WSW[np.ix_(H, H)]
+    C = w[:, None] * fp.G[H]
+    try:
+        factor = la.cho_factor(A, check_finite=False)
+    except la.LinAlgError:
+        return None
+    n = H.size
+    X = la.cho_solve(factor, np.column_stack([w * rhs[:n], C]), check_finite=False)
+    # [A C; Cᵀ 0][t; a] = [w r; -F]: a from the k×k Schur complement Cᵀ A⁻¹ C
+    a = la.solve(C.T @ X[:, 1:], C.T @ X[:, 0] - rhs[n:], check_finite=False)
+    return np.r_[X[:, 0] - X[:, 1:] @ a, a]
 
 
 def _update(fp: FloatingProblem, t: np.ndarray, J: np.ndarray, c: float, bolts) -> _Sets:
@@ -208,8 +233,10 @@ def choose_bolts(fp: FloatingProblem, score: np.ndarray, *, keep=(), exclude=())
     Q, r = _span(G, base)
     bolts = list(keep)
     excluded = set(exclude) | set(keep)
-    order = [i for i in np.argsort(-score, kind="stable")
-             if fp.kind[i] == UNILATERAL and i not in excluded and np.any(G[i] != 0)]
+    usable = (fp.kind == UNILATERAL) & np.any(G != 0, axis=1)
+    usable[list(excluded)] = False
+    order = np.argsort(-score, kind="stable")
+    order = order[usable[order]]
     for i in order:
         if r == fp.k:
             break
@@ -291,7 +318,7 @@ def solve_bolted(fp: FloatingProblem, bolts, sets: _Sets, *, tol: float, max_ite
     if status == "done":
         return t, a, sets, steps
     log.info("segmental contact: active sets %s after %d steps; Tresca fixed point", status, steps)
-    WSW = fp.w[:, None] * SW
+    WSW = fp.WSW
     while steps < max_iter:
         if steps % 64 == 0:
             check_time("segmental contact fixed-point iteration", steps)
