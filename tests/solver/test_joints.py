@@ -14,6 +14,7 @@ import pytest
 
 from solver import CaseSpec
 from solver.contact import solve_contact
+from solver.design import interaction_envelope, joint_utilization
 from solver.floating import EQUALITY, UNILATERAL, DriftError, FloatingProblem, kkt, solve_floating
 from solver.model import TunnelModel
 from solver.post import lining_forces
@@ -191,3 +192,20 @@ def test_a_rejected_bolt_set_is_replaced_from_the_pressures():
     sol = solve_floating(fp, tol=1e-12, max_iterations=100)
     assert kkt(fp, sol.t, sol.a) < 1e-10
     assert np.all(sol.t[:3] >= -1e-12)
+
+
+def test_the_joint_check_is_en_1992_12_10_on_the_strip():
+    """At the strip's plain (12.10) envelope the joint's utilization is 1: M_Rd(N) = N (a - x)/2,
+    x = γF N / fcd,pl; it scales with the moment at a given thrust; a thrust the strip cannot
+    take at all, or a moment without thrust, is inf."""
+    spec = CaseSpec.model_validate({})
+    a, design = 0.15, spec.design
+    env_n, env_m = interaction_envelope(a, concrete_strength=design.concrete_strength, steel_strength=0.0,
+                                        reinforcement_area=0.0, axis_distance=0.0)
+    up = (env_m > 0) & (env_n > 0.05 * env_n.max()) & (env_n < 0.95 * env_n.max())
+    n_ed, m_ed = env_n[up], env_m[up]
+    g = design.load_factor
+    np.testing.assert_allclose(joint_utilization(n_ed / g, m_ed / g, a, design), 1.0, rtol=1e-9)
+    np.testing.assert_allclose(joint_utilization(n_ed / g, -0.5 * m_ed / g, a, design), 0.5, rtol=1e-9)
+    assert joint_utilization(1.01 * env_n.max() / g, 0.0, a, design) == np.inf
+    assert joint_utilization(0.0, 1e3, a, design) == np.inf and joint_utilization(0.0, 0.0, a, design) == 0.0
