@@ -209,3 +209,23 @@ def test_the_joint_check_is_en_1992_12_10_on_the_strip():
     np.testing.assert_allclose(joint_utilization(n_ed / g, -0.5 * m_ed / g, a, design), 0.5, rtol=1e-9)
     assert joint_utilization(1.01 * env_n.max() / g, 0.0, a, design) == np.inf
     assert joint_utilization(0.0, 1e3, a, design) == np.inf and joint_utilization(0.0, 0.0, a, design) == 0.0
+
+
+@pytest.mark.parametrize("case", [
+    {"ground": {"model": "mohr-coulomb", "cohesion": 3.0e4, "friction_angle": 28.0}},
+    {"water": {"table": 5.0}},
+    {"water": {"table": 5.0, "lining": "drained"}, "interface": {"model": "coulomb", "friction": 0.4}},
+])
+def test_segments_work_with_yielding_ground_and_water(case):
+    """The joints' path under the other physics: a yielding ground's stage 2 solves the segmental
+    contact problem at every iterate, water loads the segments; the answer meets the KKT conditions,
+    the thrust stays in the strips, and the lining's weight and the water's uplift are the
+    monolithic lining's (same concrete, same extrados)."""
+    _, mono = _solve(**case)
+    _, seg = _solve(**case, lining={"joints": {"count": 6, "contact_height": 0.15}})
+    assert seg.kkt_residual < 1e-8
+    assert np.all(seg.joints.eccentricity_ratio <= 1 + 1e-9) and np.all(seg.joints.thrust > 0)
+    assert seg.lining_weight == pytest.approx(mono.lining_weight, rel=1e-9)
+    assert seg.water_uplift == pytest.approx(mono.water_uplift, rel=1e-9, abs=1e-9)
+    if "ground" in case:
+        assert seg.plastic["iterations"] > 0 and seg.plastic["at_yield"].any()
