@@ -74,6 +74,9 @@ class FloatingProblem:
     labels: tuple[str, ...]
     p_scale: float
     where: tuple[str, ...] = ()
+    #: (R,) rows of one group (a joint's strip) are bolts together only if no other row will do:
+    #: an open joint presses on its strip's edge alone, so its second row would pull
+    group: np.ndarray | None = None
 
     @property
     def k(self) -> int:
@@ -237,13 +240,17 @@ def choose_bolts(fp: FloatingProblem, score: np.ndarray, *, keep=(), exclude=())
     usable[list(excluded)] = False
     order = np.argsort(-score, kind="stable")
     order = order[usable[order]]
-    for i in order:
-        if r == fp.k:
-            break
-        g = G[i] - Q @ (Q.T @ G[i])
-        if np.linalg.norm(g) > 1e-6 * np.linalg.norm(G[i]):
-            bolts.append(int(i))
-            Q, r = _span(G, base + bolts[len(keep):])
+    group = fp.group if fp.group is not None else -1 - np.arange(fp.d.size)
+    for first_of_group in (True, False):
+        for i in order:
+            if r == fp.k:
+                break
+            if i in bolts or (first_of_group and np.any(group[bolts] == group[i])):
+                continue
+            g = G[i] - Q @ (Q.T @ G[i])
+            if np.linalg.norm(g) > 1e-6 * np.linalg.norm(G[i]):
+                bolts.append(int(i))
+                Q, r = _span(G, base + bolts[len(keep):])
     if r < fp.k:
         free = la.null_space(Q.T) if r else np.eye(fp.k)
         named = sorted({fp.labels[int(np.argmax(np.abs(free[:, j])))] for j in range(free.shape[1])})

@@ -343,7 +343,8 @@ class TunnelModel:
         fp = floating.FloatingProblem(
             S=self._flexibility(rows), d=d, g0=g0, w=self.w[:size], G=self.G[:size], F=np.atleast_1d(F),
             kind=kind, partner=partner, mu=mu, labels=self.modes.label,
-            p_scale=pressure_scale(float(np.linalg.norm(F)), iface.normal[1], iface.weight), where=tuple(where))
+            p_scale=pressure_scale(float(np.linalg.norm(F)), iface.normal[1], iface.weight), where=tuple(where),
+            group=np.r_[-1 - np.arange(m), jr.joint, -1 - m - np.arange(R - m - nj)][:size])
         sv = spec.solver
         sol = floating.solve_floating(fp, tol=sv.tolerance, max_iterations=sv.max_iterations)
         t = np.zeros(R)
