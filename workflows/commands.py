@@ -25,6 +25,8 @@ from solver.dataset import SCALARS
 from solver.errors import field_errors, format_errors
 from solver.spec import is_number
 
+from .joint_check import joint_report
+from .joint_plots import has_joints
 from .parameters import flat_parameters, parameter_attrs, varying_parameters
 from .result_store import ResultStore, StoreLike, as_store, case_warnings, check_case_id
 from .summary import summarize
@@ -283,6 +285,8 @@ def show_command(case_id: str, results: str, *, out: TextIO = sys.stdout) -> int
     print(format_summary(summarize(ds)), file=out)
     if "utilization" in ds:
         print(utilization_report(ds), file=out)
+    if has_joints(ds):
+        print(joint_report(ds), file=out)
     for warning in case_warnings(ds):
         print(f"warning: {warning}", file=out)
     for name in PLOTS:
@@ -348,7 +352,9 @@ def _with_unit(value: Any, units: str | None) -> str:
 
 
 def utilization_report(ds: xr.Dataset) -> str:
-    """Where the lining is most utilized (EN 1992-1-1, SPEC §1.3): η, θ, side, N_Ed and M_Ed there."""
+    """Where the lining is most utilized (EN 1992-1-1, SPEC §1.3): η, θ, side, N_Ed and M_Ed there
+    (a segmental lining's section away from its joints: :func:`workflows.joint_check.joint_report`
+    states the joints)."""
     from .case_plots import load_factor, station_name
 
     eta = ds["utilization"].values
@@ -362,10 +368,12 @@ def utilization_report(ds: xr.Dataset) -> str:
     verdict = "passes" if worst <= 1 else "fails" + (" at any load level" if math.isinf(worst) else "")
     fibre = "inner fibre compressed" if m_ed > 0 else "outer fibre compressed"
     failing = int(np.count_nonzero(eta > 1))
-    return (f"max utilization η = {worst:.3g} ({verdict}; EN 1992-1-1, γF = {gamma:g})\n"
+    checked = int(np.count_nonzero(~np.isnan(eta)))  # a segmental lining's joints are their strips'
+    where = " away from the joints" if has_joints(ds) else ""
+    return (f"max utilization η = {worst:.3g}{where} ({verdict}; EN 1992-1-1, γF = {gamma:g})\n"
             f"  at θ = {theta:.1f}° ({station_name(theta)} side): N_Ed = {n_ed / 1e3:.1f} kN/m, "
             f"M_Ed = {m_ed / 1e3:.1f} kN·m/m ({fibre})\n"
-            f"  stations with η > 1: {failing} of {eta.size}")
+            f"  stations with η > 1: {failing} of {checked}")
 
 
 def case_row(results: StoreLike, case_id: str) -> dict[str, Any]:
