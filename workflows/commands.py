@@ -49,10 +49,18 @@ TABLE_COLUMNS: tuple[tuple[str, str], ...] = (
     ("axis_settlement", "FE surface"),
 )
 
+#: Columns added to the comparison table when a case has a segmental lining (SPEC §1.6).
+JOINT_TABLE_COLUMNS: tuple[tuple[str, str], ...] = (
+    ("max_joint_opening", "joint gap"),
+    ("max_joint_rotation", "joint rot."),
+    ("max_joint_eccentricity", "joint |M|/(Na/2)"),
+)
+
 
 def column_unit(name: str) -> str:
-    """The unit row's label of result column ``name`` (the utilization: its limit, ``≤ 1``)."""
-    if name == "max_utilization":
+    """The unit row's label of result column ``name`` (the utilization and the joints'
+    eccentricity: their limit, ``≤ 1``)."""
+    if name in ("max_utilization", "max_joint_eccentricity"):
         return "≤ 1"
     return display_unit(SCALARS[name][0], name)[0]
 
@@ -410,23 +418,26 @@ def case_rows(results: StoreLike, case_ids: list[str]) -> list[dict[str, Any]]:
 
 def comparison_table(rows: Iterable[dict[str, Any]]) -> str:
     """Plain-text table: case id, the parameters that vary, the key results (two header lines:
-    names, then units).
+    names, then units); the joints' maxima too when a case has a segmental lining.
 
     ``rows`` are :func:`case_row` dicts; failed cases show their status instead of numbers;
     a missing or NaN value shows ``-``, an infinite one ``inf``.
     """
     rows = list(rows)
     varied = varying_parameters([r["params"] for r in rows if r["params"]])
-    header = ["case_id", *varied, *(h for _, h in TABLE_COLUMNS)]
+    columns = TABLE_COLUMNS
+    if any(r["params"].get("lining_joints_count", 0) for r in rows):  # a segmental lining among them
+        columns += JOINT_TABLE_COLUMNS
+    header = ["case_id", *varied, *(h for _, h in columns)]
     units = ["", *(_unit_label(parameter_attrs(n).get("units")) for n in varied),
-             *(column_unit(k) for k, _ in TABLE_COLUMNS)]
+             *(column_unit(k) for k, _ in columns)]
     lines = []
     for r in rows:
         cells = [r["case_id"], *(_fmt(r["params"].get(n, "")) for n in varied)]
         if r["status"] == "done":
-            cells += [shown_number(r["summary"].get(k), SCALARS[k][0], k) for k, _ in TABLE_COLUMNS]
+            cells += [shown_number(r["summary"].get(k), SCALARS[k][0], k) for k, _ in columns]
         else:
-            cells += [r["status"]] + [""] * (len(TABLE_COLUMNS) - 1)
+            cells += [r["status"]] + [""] * (len(columns) - 1)
         lines.append(cells)
     widths = [max(len(str(c)) for c in col) for col in zip(header, units, *lines)]
     fmt = "  ".join(f"{{:>{w}}}" for w in widths)
