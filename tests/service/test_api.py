@@ -462,7 +462,8 @@ def test_a_sweep_run_from_the_command_line_is_listed_by_the_service(client, app,
 
     root = app.state.jobs.root
     sweep = {"name": "from the command line", "base": COARSE, "mode": "zip",
-             "vary": {"lining.joints.count": [0, 6], "geometry.thickness": [0.25, 0.35]}}
+             "vary": {"solver.inner": ["active-set", "uzawa"], "solver.max_iterations": [100000, 1],
+                      "geometry.thickness": [0.25, 0.35]}}
     (tmp_path / "sweep.json").write_text(json.dumps(sweep))
     assert main(["sweep", str(tmp_path / "sweep.json"), "--results", str(root), "--no-progress"]) == 1  # one fails
     records = list((root / "sweeps" / "records").glob("*.json"))
@@ -478,7 +479,7 @@ def test_a_sweep_run_from_the_command_line_is_listed_by_the_service(client, app,
     assert status["total"] == 2 and status["counts"]["done"] == 1 and status["counts"]["failed"] == 1
     table = client.get(f"/sweeps/{sweep_id}/table").json()
     failed = next(r for r in table["rows"] if r["status"] == "failed")
-    assert "lining.joints" in failed["error"]
+    assert "solver.max_iterations" in failed["error"]
     done = next(r for r in table["rows"] if r["status"] == "done")
     assert app.state.jobs.store.get_case(done["case_id"]).submissions == 0  # read, not solved again
     assert client.portal.call(app.state.jobs.import_sweep_records) == []  # once
