@@ -5,6 +5,12 @@ the result. The quadratic triangles are written as their corner triangulation: e
 6-node triangle becomes four 3-node faces over the same nodes (vertices and edge
 nodes), so every node carries its exact displacement and each face its stress at the
 sub-triangle's centroid.
+
+A segmental lining (SPEC §1.6) adds its joints on dim ``joint`` (:data:`JOINT_VARIABLES`, with
+``joint_eccentricity`` = |M|/(N a/2) beside the contract's), their maxima as scalars (0 for a
+monolithic lining, so they stack across cases), and leaves ``utilization`` NaN at the joints'
+stations: the section there is the joint's contact strip, whose check is ``joint_eccentricity``
+≤ 1, so ``max_utilization`` is the section's away from the joints.
 """
 from __future__ import annotations
 
