@@ -155,7 +155,8 @@ async def case_page(case_id: CaseId, request: Request) -> HTMLResponse:
 def design_verdict(values: dict[str, float], spec: dict) -> Optional[dict]:
     """The case page's PASS/FAIL from a case's summary ``values``: the section's utilization
     (away from the joints of a segmental lining) and, for a segmental lining (``spec``), whether
-    every joint carries its thrust within its contact strip (``max_joint_eccentricity`` ≤ 1).
+    every joint carries its thrust within its contact strip (``max_joint_eccentricity`` ≤ 1) and the
+    strip holds it (``max_joint_utilization`` ≤ 1, EN 1992-1-1 (12.10) on the strip).
     None before the case is done."""
     eta = values.get("max_utilization")
     if eta is None:
@@ -164,8 +165,9 @@ def design_verdict(values: dict[str, float], spec: dict) -> Optional[dict]:
     joints = None
     if segments and "max_joint_eccentricity" in values:
         worst = values["max_joint_eccentricity"]
-        ok = bool(worst <= ECCENTRICITY_LIMIT)
-        joints = {"passes": ok, "text": statement(ok, worst)}
+        eta_j = values.get("max_joint_utilization")
+        ok = bool(worst <= ECCENTRICITY_LIMIT and (eta_j is None or eta_j <= 1.0))
+        joints = {"passes": ok, "text": statement(ok, worst, utilization=eta_j)}
     return {"passes": bool(eta <= 1.0) and (joints is None or joints["passes"]), "section_passes": bool(eta <= 1.0),
             "eta": f"{eta:.3g}", "joints": joints}
 

@@ -9,8 +9,10 @@ sub-triangle's centroid.
 A segmental lining (SPEC §1.6) adds its joints on dim ``joint`` (:data:`JOINT_VARIABLES`, with
 ``joint_eccentricity`` = |M|/(N a/2) beside the contract's), their maxima as scalars (0 for a
 monolithic lining, so they stack across cases), and leaves ``utilization`` NaN at the joints'
-stations: the section there is the joint's contact strip, whose check is ``joint_eccentricity``
-≤ 1, so ``max_utilization`` is the section's away from the joints.
+stations: the section there is the joint's contact strip, whose checks are ``joint_eccentricity``
+≤ 1 (the thrust inside the strip) and ``joint_utilization`` ≤ 1 (EN 1992-1-1 (12.10) on the strip,
+:func:`solver.design.joint_utilization`), so ``max_utilization`` is the section's away from the
+joints.
 """
 from __future__ import annotations
 
@@ -27,7 +29,7 @@ from .ground import in_situ_stress, moduli
 from .strata import moved_lines, strata
 from .water import hydrostatic
 from .settlement import TROUGH_WIDTH_FACTOR, gaussian_trough, ground_loss, surface_warnings
-from .design import design_utilization
+from .design import design_utilization, joint_utilization
 from .model import Solution, TunnelModel
 from .post import contact_extent, lining_forces, mean_convergence, surface_trough
 
@@ -64,6 +66,8 @@ SCALARS = {
     "max_joint_rotation": ("rad", "largest absolute rotation across a joint (0 for a monolithic lining)"),
     "max_joint_eccentricity": ("1", "largest |M|/(N a/2) at a joint: <= 1 when every joint carries its thrust "
                                "within its contact strip of height a (0 for a monolithic lining)"),
+    "max_joint_utilization": ("1", "largest EN 1992-1-1 (12.10) utilization of a joint's contact strip at its "
+                              "thrust (<= 1 passes; 0 for a monolithic lining)"),
 }
 
 #: Per-joint results on dim ``joint`` (SPEC §3): name -> (units, long name); ``joint_theta`` is
@@ -77,12 +81,15 @@ JOINT_VARIABLES = {
     "joint_open": ("1", "1 where the joint has opened (a gap over part of its contact strip)"),
     "joint_eccentricity": ("1", "|M|/(N a/2): eccentricity of the joint's thrust over the strip's half height "
                                 "(<= 1: within the contact strip)"),
+    "joint_utilization": ("1", "EN 1992-1-1 (12.10) utilization of the joint's contact strip as a plain section at "
+                               "the joint's design thrust: |M_Ed| / (N_Ed (a - x) / 2), x = N_Ed / (eta fcd,pl b) "
+                               "(<= 1 passes)"),
 }
 #: ``joint_eccentricity`` up to this is "within the strip" (round-off of a thrust at the strip's edge).
 ECCENTRICITY_LIMIT = 1.0 + 1e-6
 #: Long name of ``utilization`` in a segmental lining.
 JOINT_UTILIZATION = ("EN 1992-1-1 utilization of the lining section (<= 1 passes; NaN at the joints' stations, "
-                     "where the section is the joint's contact strip: see joint_eccentricity)")
+                     "where the section is the joint's contact strip: see joint_utilization)")
 
 
 def _var(dims, data, units, long_name, **attrs):
@@ -170,18 +177,21 @@ def _joint_results(sol: Solution) -> tuple[dict, dict, dict]:
     invert); no coordinates or variables and zero maxima for a monolithic lining."""
     joints = sol.joints
     if joints is None:
-        return {}, {}, {"max_joint_opening": 0.0, "max_joint_rotation": 0.0, "max_joint_eccentricity": 0.0}
+        return {}, {}, {"max_joint_opening": 0.0, "max_joint_rotation": 0.0, "max_joint_eccentricity": 0.0,
+                        "max_joint_utilization": 0.0}
     ratio = joints.eccentricity_ratio
+    eta = joint_utilization(joints.thrust, joints.moment, joints.contact_height, sol.spec.design)
     values = {"joint_thrust": joints.thrust, "joint_moment": joints.moment, "joint_opening": joints.opening,
               "joint_rotation": joints.rotation, "joint_open": joints.open.astype(np.int8),
-              "joint_eccentricity": ratio}
+              "joint_eccentricity": ratio, "joint_utilization": eta}
     data = {name: _var("joint", values[name], *JOINT_VARIABLES[name]) for name in JOINT_VARIABLES}
     data["joint_open"].attrs.update(flag_values=np.array([0, 1], np.int8), flag_meanings="closed open")
     data["joint_eccentricity"].attrs["contact_height_m"] = float(joints.contact_height)
     coords = {"joint_theta": _var("joint", joints.theta, "degree", "joint position at the tunnel axis from the crown")}
     scalars = {"max_joint_opening": float(np.max(joints.opening, initial=0.0)),
                "max_joint_rotation": float(np.max(np.abs(joints.rotation), initial=0.0)),
-               "max_joint_eccentricity": float(np.max(ratio, initial=0.0))}
+               "max_joint_eccentricity": float(np.max(ratio, initial=0.0)),
+               "max_joint_utilization": float(np.max(eta, initial=0.0))}
     return coords, data, scalars
 
 

@@ -274,9 +274,10 @@ def plot_interaction(ds: xr.Dataset) -> Figure:
             title += f"\nmax utilization η = {worst:.3g} ({'passes' if worst <= 1 else 'fails'})"
     check = joint_check(ds)
     if check is not None:
-        title += (f" away from the joints\njoints: |M|/(N·a/2) ≤ {check.worst:.3g} "
-                  f"({'passes' if check.passes else 'fails'}: the thrust "
-                  f"{'within' if check.passes else 'outside'} the strip), {check.open} of {check.count} open")
+        inside = check.worst <= 1 + 1e-6
+        title += (f" away from the joints\njoints: |M|/(N·a/2) ≤ {check.worst:.3g} (the thrust "
+                  f"{'within' if inside else 'outside'} the strip), strip η ≤ {check.utilization:.3g} "
+                  f"({'passes' if check.passes else 'fails'}), {check.open} of {check.count} open")
     design = spec.get("design", {})
     geometry = spec.get("geometry", {})
     if design:

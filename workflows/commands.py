@@ -54,13 +54,14 @@ JOINT_TABLE_COLUMNS: tuple[tuple[str, str], ...] = (
     ("max_joint_opening", "joint gap"),
     ("max_joint_rotation", "joint rot."),
     ("max_joint_eccentricity", "joint |M|/(Na/2)"),
+    ("max_joint_utilization", "joint η"),
 )
 
 
 def column_unit(name: str) -> str:
     """The unit row's label of result column ``name`` (the utilization and the joints'
     eccentricity: their limit, ``≤ 1``)."""
-    if name in ("max_utilization", "max_joint_eccentricity"):
+    if name in ("max_utilization", "max_joint_eccentricity", "max_joint_utilization"):
         return "≤ 1"
     return display_unit(SCALARS[name][0], name)[0]
 

@@ -133,8 +133,8 @@ def _inputs_page(ds: xr.Dataset, page: int, pages: int) -> Figure:
 #: Columns of the joints' table: (heading, variable, value format in display units).
 JOINT_COLUMNS = (("joint", None, ""), ("θ (°)", "joint_theta", ".1f"), ("N (kN/m)", "joint_thrust", ".1f"),
                  ("M (kN·m/m)", "joint_moment", ".2f"), ("|M|/(N·a/2)", "joint_eccentricity", ".3f"),
-                 ("opening (mm)", "joint_opening", ".3g"), ("rotation (mrad)", "joint_rotation", ".3g"),
-                 ("state", "joint_open", ""))
+                 ("η (12.10)", "joint_utilization", ".3f"), ("opening (mm)", "joint_opening", ".3g"),
+                 ("rotation (mrad)", "joint_rotation", ".3g"), ("state", "joint_open", ""))
 _JOINT_FACTORS = {"joint_thrust": 1e-3, "joint_moment": 1e-3, "joint_opening": 1e3, "joint_rotation": 1e3}
 
 
@@ -166,10 +166,11 @@ def _joints_page(ds: xr.Dataset, spec: dict, page: int, pages: int) -> Figure:
             f"of the {thickness:g} m lining, shear {joints.get('shear', 'bonded')}.")
     fig.text(0.06, 0.915, "\n".join(textwrap.wrap(what, 100)), fontsize=9, va="top", color="0.25")
     colour = _PASS if check.passes else _FAIL
-    verdict = ("PASS: " if check.passes else "FAIL: ") + statement(check.passes, check.worst, check.count)
+    verdict = ("PASS: " if check.passes else "FAIL: ") + statement(check.passes, check.worst, check.count,
+                                                                             check.utilization)
     fig.text(0.06, 0.875, "\n".join(textwrap.wrap(verdict, 85)), fontsize=9.5, weight="bold", color=colour,
              va="top", gid="joint-verdict")
-    x = (0.07, 0.13, 0.22, 0.34, 0.47, 0.60, 0.73, 0.87)
+    x = (0.06, 0.11, 0.18, 0.28, 0.40, 0.51, 0.62, 0.74, 0.895)
     y = 0.81
     for xi, (heading, _, _) in zip(x, JOINT_COLUMNS):
         fig.text(xi, y, heading, fontsize=8.5, weight="bold", va="top")
@@ -181,11 +182,13 @@ def _joints_page(ds: xr.Dataset, spec: dict, page: int, pages: int) -> Figure:
                      color=_FAIL if over else OPEN_STYLE[0] if cell == "open" else "k")
     notes = ("N thrust (compression +) and M moment (+ inner fibre compressed) of the contact force across the "
              "joint's strip, about the lining's mid-surface; |M|/(N·a/2) ≤ 1: the thrust acts within the strip. "
-             "A joint opens where |M|/N exceeds about a/6 (|M|/(N·a/2) > 1/3) and, at 1, turns as a hinge on the "
-             "strip's edge. Opening: the largest normal gap over the strip; rotation: of the faces relative to "
-             "each other, + opening at the extrados (1 mrad = 0.001 rad). The EN 1992 check of page 1 is the "
-             "section's away from the joints: at a joint's station the section is the strip, so utilization is "
-             "not computed there.")
+             "A full-height joint opens where |M|/N exceeds a/6 (|M|/(N·a/2) > 1/3; a narrower strip later) "
+             "and, at 1, turns as a hinge on the strip's edge. η (12.10): EN 1992-1-1 (12.10) on the strip as a "
+             "plain section (no bar crosses a joint) at the joint's design thrust, |M_Ed| / (N_Ed (a − x)/2) "
+             "with the stress block x = N_Ed / fcd,pl: a hinging joint passes only if its strip leaves room "
+             "for the block. Opening: the largest normal gap over the strip; rotation: of the faces relative "
+             "to each other, + opening at the extrados (1 mrad = 0.001 rad). The EN 1992 check of page 1 is "
+             "the section's away from the joints: at a joint's station the section is the strip.")
     fig.text(0.06, y - 0.04, "\n".join(textwrap.wrap(notes, 110)), fontsize=8, va="top", color="0.3")
     return fig
 

@@ -24,9 +24,10 @@ from workflows.joint_check import joint_check, joint_report
 
 MESH = {"mesh": {"interface_size": 0.2, "far_size": 8.0}}
 SEGMENTAL = {**MESH, "lining": {"joints": {"count": 6, "contact_height": 0.15}}}
-# five segments, joints at 36°, 108° and 180°: the first stays closed, the others open
-MIXED = {**MESH, "loads": {"lateral_ratio": 0.8}, "lining": {"joints": {"count": 5, "offset": 36.0,
-                                                                         "contact_height": 0.2}}}
+# five segments, joints at 36°, 108° and 180°: the first stays closed, the others open; a C45
+# strip holds them (EN 1992 (12.10) on the strip: η 1.03 in C30)
+MIXED = {**MESH, "loads": {"lateral_ratio": 0.8}, "design": {"concrete_strength": 4.5e7},
+         "lining": {"joints": {"count": 5, "offset": 36.0, "contact_height": 0.2}}}
 CHECKER = Path(sys.executable).with_name("ugrid-checker")
 
 
@@ -277,6 +278,21 @@ def test_joint_check_passes_and_fails_on_the_strip(mixed, monolithic):
     outside["joint_eccentricity"].values[1] = 1.2
     failed = joint_check(outside)
     assert not failed.passes and failed.theta == 108.0 and "fails" in joint_report(outside)
+    assert check.utilization == pytest.approx(float(mixed["max_joint_utilization"])) and check.utilization <= 1
+
+
+def test_a_hinging_joint_whose_strip_cannot_hold_the_stress_block_fails(segmental):
+    """Six segments, 0.15 m strips, C30 (the default case): every joint bears on its strip's edge
+    (|M|/(N·a/2) = 1, inside the strip), but the stress block the thrust needs there does not fit:
+    EN 1992 (12.10) on the strip gives η = a / (a - x) > 1, and the joints' check fails."""
+    ds = segmental[2]
+    check = joint_check(ds)
+    assert check.worst <= ECCENTRICITY_LIMIT and check.utilization > 1 and not check.passes
+    design = CaseSpec.model_validate_json(ds.attrs["case_spec"]).design
+    x = design.load_factor * ds["joint_thrust"].values / (0.8 * design.concrete_strength / 1.5)
+    edge = ds["joint_eccentricity"].values > 1 - 1e-6
+    np.testing.assert_allclose(ds["joint_utilization"].values[edge], (0.15 / (0.15 - x))[edge], rtol=1e-6)
+    assert "overloaded" in joint_report(ds)
 
 
 def test_show_and_the_table_state_the_joints(store, mixed, monolithic):
@@ -293,8 +309,9 @@ def test_show_and_the_table_state_the_joints(store, mixed, monolithic):
     assert all(heading in table[0] for _, heading in JOINT_TABLE_COLUMNS)
     assert "joint gap" not in comparison_table(rows[:1]).splitlines()[0]  # monolithic alone: no joint columns
     cells = table[3 + 1].split()
-    assert cells[-3] == f"{float(mixed['max_joint_opening']) * 1e3:.4g}"
-    assert cells[-1] == f"{float(mixed['max_joint_eccentricity']):.4g}"
+    assert cells[-4] == f"{float(mixed['max_joint_opening']) * 1e3:.4g}"
+    assert cells[-2] == f"{float(mixed['max_joint_eccentricity']):.4g}"
+    assert cells[-1] == f"{float(mixed['max_joint_utilization']):.4g}"
 
 
 def test_report_has_the_joints_page_and_the_joint_verdict(mixed, monolithic):
@@ -338,6 +355,9 @@ def test_case_page_verdict_states_the_joints():
     assert ok["passes"] and ok["joints"]["passes"] and "within the contact strip" in ok["joints"]["text"]
     out = design_verdict({"max_utilization": 0.5, "max_joint_eccentricity": 1.3}, segmental)
     assert not out["passes"] and out["section_passes"] and "1.3 > 1" in out["joints"]["text"]
+    crushed = design_verdict({"max_utilization": 0.5, "max_joint_eccentricity": 1.0, "max_joint_utilization": 1.4},
+                             segmental)
+    assert not crushed["passes"] and not crushed["joints"]["passes"] and "1.4 > 1" in crushed["joints"]["text"]
     plain = design_verdict({"max_utilization": 1.2, "max_joint_eccentricity": 0.0}, {})
     assert not plain["passes"] and plain["joints"] is None
     assert design_verdict({}, segmental) is None
