@@ -468,7 +468,8 @@ def test_a_sweep_run_from_the_command_line_is_listed_by_the_service(client, app,
 
     root = app.state.jobs.root
     sweep = {"name": "from the command line", "base": COARSE, "mode": "zip",
-             "vary": {"solver.max_iterations": [100_000, 2], "solver.inner": ["active-set", "uzawa"]}}
+             "vary": {"solver.max_iterations": [100_000, 2], "solver.inner": ["active-set", "uzawa"],
+                      "geometry.thickness": [0.25, 0.35]}}  # cases no other test solved
     (tmp_path / "sweep.json").write_text(json.dumps(sweep))
     assert main(["sweep", str(tmp_path / "sweep.json"), "--results", str(root), "--no-progress"]) == 1  # one fails
     records = list((root / "sweeps" / "records").glob("*.json"))
