@@ -13,9 +13,21 @@ geometry. The stop test is the equilibrium residual: the out-of-balance force
 floored at :data:`MIN_TOLERANCE`; the plastic consistency holds at every point by the return
 mapping (:mod:`solver.mohr_coulomb`).
 
+Where an increment stalls (:data:`STAGNATION`) it is split in halves, down to 1/64 of it,
+and the sub-increments grow again as they converge (:func:`_follow`; the automatic step
+control of commercial codes). Why: with flow far from associated (ψ = 0 against φ = 25°) a
+thin plastic zone can sit beyond the loss of stability of non-associated perfect plasticity.
+The consistent tangent stiffness then has a few eigenvalues of slightly negative real part
+(``K⁻¹J`` down to -0.013 in the stalling case of issue 25), carried by shear-band modes
+of the plastic zone: the iteration's map has a dozen eigenvalues at or just above 1, more than
+Anderson mixing can cancel, and a Newton step on that tangent (measured) moves a hundredth of
+the displacement along those modes, far outside where its linearization holds (hundreds of
+points change state). Shorter increments keep the iterates where the mixing still works.
+
 Stages (SPEC §1.1): stage 1 releases λd of the excavation load in ``solver.load_steps``
 equal increments on the unsupported ground (those below the first yield, :func:`first_yield`,
-in one elastic solve; each increment starts from the last one's displacement repeated); the lining is placed on the ground as it stands; stage 2
+in one elastic solve; each increment starts from the last one's displacement change, scaled
+to its length); the lining is placed on the ground as it stands; stage 2
 releases the rest (with the lining's weight, the water and a drained lining's seepage) in as
 many increments, each with its contact solve. The stress history lives at the quadrature
 points (degree 4, six per triangle); the stored face stresses are followed, with the same
@@ -24,6 +36,8 @@ set of points (:meth:`~solver.model.TunnelModel.gradient_operator`), whose trans
 integrates the plastic load.
 """
 from __future__ import annotations
+
+import logging
 
 import numpy as np
 
@@ -34,14 +48,22 @@ from .mohr_coulomb import Material, equivalent, return_stress
 from .post import mean_convergence
 from .strata import strata
 
+log = logging.getLogger(__name__)
+
 #: The plastic equilibrium tolerance: the out-of-balance force relative to the increment's
 #: load (``solver.tolerance`` if coarser). The constant-stiffness iteration converges linearly;
 #: with non-associated flow (ψ < φ) it stalls near 1e-4, where points cross the yield surface
-#: from one iterate to the next. 1e-3 is ten times tighter than the 1 % commercial codes
+#: from one iterate to the next (far from associated, sooner: then the increment is split). 1e-3 is ten times tighter than the 1 % commercial codes
 #: default to; Salençon's wall convergence is met to 0.4 % with it (tests).
 MIN_TOLERANCE = 1e-3
-#: Iterations allowed per load increment before the case fails.
+#: Iterations allowed per load (sub-)increment.
 MAX_STEP_ITERATIONS = 500
+#: An iteration has stalled when its least out-of-balance force has not fallen by a tenth in
+#: this many iterations: the increment is then split (:func:`_follow`); the smallest
+#: sub-increments have :data:`MAX_STEP_ITERATIONS`.
+STAGNATION = 20
+#: A stalled increment is halved at most this many times (sub-increments of 1/64 of it).
+MAX_SPLITS = 6
 #: Anderson mixing depth.
 DEPTH = 8
 
@@ -177,26 +199,88 @@ class _Anderson:
         return gx - dG @ gamma
 
 
-def _fixed_point(G, x0: np.ndarray, K, atol: float, where: str):
+class _Stalled(Exception):
+    """The iteration of one (sub-)increment stopped short of equilibrium: its last
+    out-of-balance force and the iterations it took."""
+
+    def __init__(self, force: float, atol: float, iterations: int):
+        super().__init__(force, atol, iterations)
+        self.force, self.atol, self.iterations = force, atol, iterations
+
+
+def _fixed_point(G, x0: np.ndarray, K, atol: float, patience: int | None = STAGNATION):
     """Solve ``x = G(x)`` by constant-stiffness iterations with Anderson mixing, until the
     out-of-balance force ``‖K (G(x) - x)‖`` of an iterate ``x`` is at most ``atol``. ``G``
     returns the new iterate, the plastic load and the yield state at ``x``; the answer is that
-    iterate with its plastic load and yield state (the state the stop test measured)."""
+    iterate with its plastic load, yield state (the state the stop test measured) and the
+    iterations taken. Raises :class:`_Stalled` when the least force so far has not fallen by a
+    tenth in ``patience`` iterations (if given), is not finite, or after
+    :data:`MAX_STEP_ITERATIONS`."""
     acc = _Anderson(DEPTH)
     x, force = x0, float("inf")
+    mark, since = float("inf"), 0
     for count in range(1, MAX_STEP_ITERATIONS + 1):
         check_time("plastic iteration", count)
         gx, p, state = G(x)
         force = float(np.linalg.norm(K @ (gx - x)))
         if force <= atol:
             return x, p, state, count
+        if not np.isfinite(force):
+            break
+        if force < 0.9 * mark:
+            mark, since = force, 0
+        else:
+            since += 1
+            if patience is not None and since >= patience:
+                break
         x = acc.step(x, gx)
-    raise NotConvergedError(
-        f"solver.load_steps: the yielding ground did not reach equilibrium in {where} (out-of-balance force "
-        f"{force:.3g} N/m > {atol:.3g} after {MAX_STEP_ITERATIONS} iterations): far above the tolerance the "
-        "ground is collapsing (raise its strength or the support: a lower excavation.deconfinement); just above "
-        "it the iteration has stalled where points cross the yield surface (more solver.load_steps, or a "
-        f"coarser solver.tolerance: the plastic iteration's is max(solver.tolerance, {MIN_TOLERANCE:g}))")
+    raise _Stalled(force, atol, count)
+
+
+def _follow(solve, commit, x: np.ndarray, x_prev: np.ndarray, h_prev: float, start: float, end: float, where: str,
+            size: int = 2**MAX_SPLITS):
+    """Take the load from the fraction ``start`` to ``end`` (one increment): in one step, or,
+    where the iteration stalls, in sub-increments halved until they converge (down to
+    1/2^:data:`MAX_SPLITS` of the increment) and doubled again after each success.
+
+    ``solve(frac, guess, patience)`` is :func:`_fixed_point` at the load fraction ``frac``
+    (the smallest sub-increments without a ``patience``); ``commit`` stores a converged state.
+    Each step starts from the last one's displacement change, scaled to its length (``x -
+    x_prev`` over ``h_prev``); the first tries ``size`` (in 1/2^MAX_SPLITS of the increment:
+    where the last increment left off). Returns the displacement, the plastic load, the
+    iterations spent (failed attempts included), the last step's start and length and the
+    size the next increment tries first; raises :class:`NotConvergedError` with the reason
+    when even the smallest sub-increment stalls."""
+    units = 2**MAX_SPLITS  # positions within the increment, in its smallest sub-increments
+    pos, iterations = 0, 0
+    p = None
+    while pos < units:
+        size = min(size, units - pos)
+        h = (end - start) * size / units
+        frac = end if pos + size == units else start + (end - start) * (pos + size) / units
+        try:
+            new, p, state, its = solve(frac, x + (h / h_prev) * (x - x_prev), STAGNATION if size > 1 else None)
+        except _Stalled as stall:
+            iterations += stall.iterations
+            if size == 1:
+                raise NotConvergedError(
+                    f"solver.load_steps: the yielding ground did not reach equilibrium in {where}, even in "
+                    f"sub-increments of 1/{units} of it (out-of-balance force {stall.force:.3g} N/m > "
+                    f"{stall.atol:.3g}): far above the tolerance the ground is collapsing (raise its strength or "
+                    "the support: a lower excavation.deconfinement); just above it the iteration has stalled where "
+                    "points cross the yield surface, as where flow without dilatancy localizes in shear bands (a "
+                    "dilatancy closer to the friction angle, or a coarser solver.tolerance: the plastic "
+                    f"iteration's is max(solver.tolerance, {MIN_TOLERANCE:g}))") from None
+            size //= 2
+            log.debug("%s: stalled at %.3g N/m > %.3g after %d iterations; sub-increments of %d/%d", where,
+                      stall.force, stall.atol, stall.iterations, size, units)
+            continue
+        iterations += its
+        commit(*state)
+        x_prev, x, h_prev = x, new, h
+        pos += size
+        size *= 2
+    return x, p, iterations, x_prev, h_prev, min(size, units)
 
 
 def solve_staged(model, spec, rows, t0: float):
@@ -239,9 +323,9 @@ def solve_staged(model, spec, rows, t0: float):
             commit(*stress_of(u1))
             reached = mean_convergence(body.expand(u1), iface)  # linear in the load up to here
             curve.extend((ld * k / steps, reached * k / elastic) for k in range(1, elastic + 1))
-        u1_last = u1 - ld / steps * u_r
-        for k in range(elastic + 1, steps + 1):
-            frac = ld * k / steps
+        u1_prev, h_prev = u1 - ld / steps * u_r, ld / steps
+
+        def solve1(frac, guess, patience):
             ref = frac * float(np.linalg.norm(loads.release))
             base = frac * y_r
 
@@ -250,44 +334,49 @@ def solve_staged(model, spec, rows, t0: float):
                 p = _plastic_load(gauss, state[-1])
                 return ground.backward(base + ground.forward(p, rows), rows), p, state
 
-            guess = 2 * u1 - u1_last  # the last increment's, repeated
-            u1_last = u1
-            u1, p, state, its = _fixed_point(G, guess, K, tol * ref, f"stage 1, increment {k} of {steps}")
+            return _fixed_point(G, guess, K, tol * ref, patience)
+
+        size = 2**MAX_SPLITS
+        for k in range(elastic + 1, steps + 1):
+            u1, p1, its, u1_prev, h_prev, size = _follow(solve1, commit, u1, u1_prev, h_prev, ld * (k - 1) / steps,
+                                                         ld * k / steps, f"stage 1, increment {k} of {steps}", size)
             iterations += its
-            p1 = p
-            commit(*state)
-            curve.append((frac, mean_convergence(body.expand(u1), iface)))
+            curve.append((ld * k / steps, mean_convergence(body.expand(u1), iface)))
     # stage 2: the rest, with the lining and contact
     full = StageLoads(loads.ground, loads.lining, None, loads.seepage)
     y_g = ground.forward(full.ground, rows)
     y_l = lining.forward(full.lining, rows)
     F2_full = float(model.rigid @ full.lining)
-    u2 = u2_last = np.zeros(body.n)
-    for k in range(1, steps + 1):
-        a = k / steps
-        ref = a * float(np.linalg.norm(full.ground)) + float(np.linalg.norm(p1)) + abs(a * F2_full)
+    u2 = u2_prev = np.zeros(body.n)
+    h_prev = 1.0 / steps
+    p = p1
 
-        def stage_of(p):
-            """The contact stage's loads, their forward halves and interface jumps."""
-            extra = p - p1
-            stage = Forward(ground=a * y_g + ground.forward(extra, rows), lining=a * y_l)
-            jumps = ground.jumps(stage.ground, rows) + lining.jumps(stage.lining, rows)
-            return StageLoads(a * full.ground + extra, a * full.lining, None), stage, jumps
+    def stage_of(p, a):
+        """The contact stage's loads at the fraction ``a``, their forward halves and interface jumps."""
+        extra = p - p1
+        stage = Forward(ground=a * y_g + ground.forward(extra, rows), lining=a * y_l)
+        jumps = ground.jumps(stage.ground, rows) + lining.jumps(stage.lining, rows)
+        return StageLoads(a * full.ground + extra, a * full.lining, None), stage, jumps
+
+    def solve2(a, guess, patience):
+        ref = a * float(np.linalg.norm(full.ground)) + float(np.linalg.norm(p1)) + abs(a * F2_full)
 
         def G(x):
             state = stress_of(u1 + x)
             p = _plastic_load(gauss, state[-1])
-            _, stage, d = stage_of(p)
+            _, stage, d = stage_of(p, a)
             _, t = model.contact_tractions(spec, d, a * F2_full)
             return ground.backward(stage.ground, rows, model.w * t), p, state
 
-        guess = 2 * u2 - u2_last
-        u2_last = u2
-        u2, p, state, its = _fixed_point(G, guess, K, tol * ref, f"stage 2, increment {k} of {steps}")
+        return _fixed_point(G, guess, K, tol * ref, patience)
+
+    size = 2**MAX_SPLITS
+    for k in range(1, steps + 1):
+        u2, p, its, u2_prev, h_prev, size = _follow(solve2, commit, u2, u2_prev, h_prev, (k - 1) / steps, k / steps,
+                                                    f"stage 2, increment {k} of {steps}", size)
         iterations += its
-        commit(*state)
     # the whole contact stage (both bodies, the checks) of the last increment's converged iterate
-    sol = model._finish(spec, rows, *stage_of(p), F2_full, t0, u1=u1)
+    sol = model._finish(spec, rows, *stage_of(p, 1.0), F2_full, t0, u1=u1)
     E = out.shape[0]
     sol.plastic = {
         "stress": out.sigma.reshape(4, -1),
