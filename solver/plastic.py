@@ -62,6 +62,9 @@ MAX_STEP_ITERATIONS = 500
 #: this many iterations: the increment is then split (:func:`_follow`); the smallest
 #: sub-increments have :data:`MAX_STEP_ITERATIONS`.
 STAGNATION = 20
+#: A sub-increment that converged in at most this many iterations is followed by one twice as
+#: long (else by one as long).
+GROW_BELOW = 15
 #: A stalled increment is halved at most this many times (sub-increments of 1/64 of it).
 MAX_SPLITS = 6
 #: Anderson mixing depth.
@@ -241,7 +244,8 @@ def _follow(solve, commit, x: np.ndarray, x_prev: np.ndarray, h_prev: float, sta
             size: int = 2**MAX_SPLITS):
     """Take the load from the fraction ``start`` to ``end`` (one increment): in one step, or,
     where the iteration stalls, in sub-increments halved until they converge (down to
-    1/2^:data:`MAX_SPLITS` of the increment) and doubled again after each success.
+    1/2^:data:`MAX_SPLITS` of the increment) and doubled again after each quick success
+    (:data:`GROW_BELOW`).
 
     ``solve(frac, guess, patience)`` is :func:`_fixed_point` at the load fraction ``frac``
     (the smallest sub-increments without a ``patience``); ``commit`` stores a converged state.
@@ -279,7 +283,7 @@ def _follow(solve, commit, x: np.ndarray, x_prev: np.ndarray, h_prev: float, sta
         commit(*state)
         x_prev, x, h_prev = x, new, h
         pos += size
-        size *= 2
+        size *= 2 if its <= GROW_BELOW else 1
     return x, p, iterations, x_prev, h_prev, min(size, units)
 
 
