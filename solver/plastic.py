@@ -56,11 +56,11 @@ log = logging.getLogger(__name__)
 #: from one iterate to the next (far from associated, sooner: then the increment is split). 1e-3 is ten times tighter than the 1 % commercial codes
 #: default to; Salençon's wall convergence is met to 0.4 % with it (tests).
 MIN_TOLERANCE = 1e-3
-#: Iterations allowed per load (sub-)increment.
-MAX_STEP_ITERATIONS = 500
+#: Iterations allowed per load increment: its sub-increments and their stalled attempts together.
+MAX_STEP_ITERATIONS = 1000
 #: An iteration has stalled when its least out-of-balance force has not fallen by a tenth in
 #: this many iterations: the increment is then split (:func:`_follow`); the smallest
-#: sub-increments have :data:`MAX_STEP_ITERATIONS`.
+#: sub-increments have what is left of :data:`MAX_STEP_ITERATIONS`.
 STAGNATION = 20
 #: A sub-increment that converged in at most this many iterations is followed by one twice as
 #: long (else by one as long).
@@ -211,18 +211,18 @@ class _Stalled(Exception):
         self.force, self.atol, self.iterations = force, atol, iterations
 
 
-def _fixed_point(G, x0: np.ndarray, K, atol: float, patience: int | None = STAGNATION):
+def _fixed_point(G, x0: np.ndarray, K, atol: float, patience: int | None = STAGNATION,
+                 limit: int = MAX_STEP_ITERATIONS):
     """Solve ``x = G(x)`` by constant-stiffness iterations with Anderson mixing, until the
     out-of-balance force ``‖K (G(x) - x)‖`` of an iterate ``x`` is at most ``atol``. ``G``
     returns the new iterate, the plastic load and the yield state at ``x``; the answer is that
     iterate with its plastic load, yield state (the state the stop test measured) and the
     iterations taken. Raises :class:`_Stalled` when the least force so far has not fallen by a
-    tenth in ``patience`` iterations (if given), is not finite, or after
-    :data:`MAX_STEP_ITERATIONS`."""
+    tenth in ``patience`` iterations (if given), is not finite, or after ``limit`` iterations."""
     acc = _Anderson(DEPTH)
     x, force = x0, float("inf")
     mark, since = float("inf"), 0
-    for count in range(1, MAX_STEP_ITERATIONS + 1):
+    for count in range(1, limit + 1):
         check_time("plastic iteration", count)
         gx, p, state = G(x)
         force = float(np.linalg.norm(K @ (gx - x)))
@@ -247,14 +247,15 @@ def _follow(solve, commit, x: np.ndarray, x_prev: np.ndarray, h_prev: float, sta
     1/2^:data:`MAX_SPLITS` of the increment) and doubled again after each quick success
     (:data:`GROW_BELOW`).
 
-    ``solve(frac, guess, patience)`` is :func:`_fixed_point` at the load fraction ``frac``
-    (the smallest sub-increments without a ``patience``); ``commit`` stores a converged state.
+    ``solve(frac, guess, patience, limit)`` is :func:`_fixed_point` at the load fraction ``frac``
+    (the smallest sub-increments without a ``patience``; all within the increment's
+    :data:`MAX_STEP_ITERATIONS`); ``commit`` stores a converged state.
     Each step starts from the last one's displacement change, scaled to its length (``x -
     x_prev`` over ``h_prev``); the first tries ``size`` (in 1/2^MAX_SPLITS of the increment:
     where the last increment left off). Returns the displacement, the plastic load, the
     iterations spent (failed attempts included), the last step's start and length and the
     size the next increment tries first; raises :class:`NotConvergedError` with the reason
-    when even the smallest sub-increment stalls."""
+    when even the smallest sub-increment stalls, or the increment's iterations run out."""
     units = 2**MAX_SPLITS  # positions within the increment, in its smallest sub-increments
     pos, iterations = 0, 0
     p = None
@@ -262,19 +263,22 @@ def _follow(solve, commit, x: np.ndarray, x_prev: np.ndarray, h_prev: float, sta
         size = min(size, units - pos)
         h = (end - start) * size / units
         frac = end if pos + size == units else start + (end - start) * (pos + size) / units
+        left = MAX_STEP_ITERATIONS - iterations
         try:
-            new, p, state, its = solve(frac, x + (h / h_prev) * (x - x_prev), STAGNATION if size > 1 else None)
+            new, p, state, its = solve(frac, x + (h / h_prev) * (x - x_prev),
+                                       STAGNATION if size > 1 else None, left)
         except _Stalled as stall:
             iterations += stall.iterations
-            if size == 1:
+            if size == 1 or iterations >= MAX_STEP_ITERATIONS:
                 raise NotConvergedError(
-                    f"solver.load_steps: the yielding ground did not reach equilibrium in {where}, even in "
-                    f"sub-increments of 1/{units} of it (out-of-balance force {stall.force:.3g} N/m > "
-                    f"{stall.atol:.3g}): far above the tolerance the ground is collapsing (raise its strength or "
-                    "the support: a lower excavation.deconfinement); just above it the iteration has stalled where "
-                    "points cross the yield surface, as where flow without dilatancy localizes in shear bands (a "
-                    "dilatancy closer to the friction angle, or a coarser solver.tolerance: the plastic "
-                    f"iteration's is max(solver.tolerance, {MIN_TOLERANCE:g}))") from None
+                    f"solver.load_steps: the yielding ground did not reach equilibrium in {where} (out-of-balance "
+                    f"force {stall.force:.3g} N/m > {stall.atol:.3g} after {iterations} iterations, in "
+                    f"sub-increments down to 1/{units // size} of it): far above the tolerance the ground is "
+                    "collapsing (raise its strength or the support: a lower excavation.deconfinement); just above "
+                    "it the iteration has stalled where points cross the yield surface, as where flow without "
+                    "dilatancy localizes in shear bands (a dilatancy closer to the friction angle, or a coarser "
+                    f"solver.tolerance: the plastic iteration's is max(solver.tolerance, {MIN_TOLERANCE:g}))"
+                ) from None
             size //= 2
             log.debug("%s: stalled at %.3g N/m > %.3g after %d iterations; sub-increments of %d/%d", where,
                       stall.force, stall.atol, stall.iterations, size, units)
@@ -329,7 +333,7 @@ def solve_staged(model, spec, rows, t0: float):
             curve.extend((ld * k / steps, reached * k / elastic) for k in range(1, elastic + 1))
         u1_prev, h_prev = u1 - ld / steps * u_r, ld / steps
 
-        def solve1(frac, guess, patience):
+        def solve1(frac, guess, patience, limit):
             ref = frac * float(np.linalg.norm(loads.release))
             base = frac * y_r
 
@@ -338,7 +342,7 @@ def solve_staged(model, spec, rows, t0: float):
                 p = _plastic_load(gauss, state[-1])
                 return ground.backward(base + ground.forward(p, rows), rows), p, state
 
-            return _fixed_point(G, guess, K, tol * ref, patience)
+            return _fixed_point(G, guess, K, tol * ref, patience, limit)
 
         size = 2**MAX_SPLITS
         for k in range(elastic + 1, steps + 1):
@@ -362,7 +366,7 @@ def solve_staged(model, spec, rows, t0: float):
         jumps = ground.jumps(stage.ground, rows) + lining.jumps(stage.lining, rows)
         return StageLoads(a * full.ground + extra, a * full.lining, None), stage, jumps
 
-    def solve2(a, guess, patience):
+    def solve2(a, guess, patience, limit):
         ref = a * float(np.linalg.norm(full.ground)) + float(np.linalg.norm(p1)) + abs(a * F2_full)
 
         def G(x):
@@ -372,7 +376,7 @@ def solve_staged(model, spec, rows, t0: float):
             _, t = model.contact_tractions(spec, d, a * F2_full)
             return ground.backward(stage.ground, rows, model.w * t), p, state
 
-        return _fixed_point(G, guess, K, tol * ref, patience)
+        return _fixed_point(G, guess, K, tol * ref, patience, limit)
 
     size = 2**MAX_SPLITS
     for k in range(1, steps + 1):
