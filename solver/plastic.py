@@ -105,6 +105,9 @@ class _Points:
         self.tau = np.zeros((4,) + y.shape)  # σ0′ + D ε - σ = D ε_p
         self.eqps = np.zeros(y.shape)
         self.at_yield = np.zeros(y.shape, bool)
+        #: the points that have had a plastic strain so far and their rows of ``G``, transposed
+        #: (:func:`_plastic_load`)
+        self.yielded = (np.zeros(y.size, bool), None)
         #: a point within this (relative) distance of the yield surface counts as at yield: the
         #: equilibrium iteration's tolerance leaves yielding points a hair inside it
         self.flag_tolerance = max(spec.solver.tolerance, MIN_TOLERANCE)
@@ -146,9 +149,23 @@ class _Points:
 
 def _plastic_load(points: _Points, tau: np.ndarray) -> np.ndarray:
     """``∫Bᵀ(σ0′ + D ε(u) - σ)`` on the ground's unknowns, at the quadrature points of
-    ``points``, from ``tau`` = the bracket (4, E, Q): non-zero only where the ground has yielded."""
-    w = points.weights
-    return points.G.T @ np.stack([tau[0] * w, tau[2] * w, tau[2] * w, tau[1] * w]).ravel()
+    ``points``, from ``tau`` = the bracket (4, E, Q): non-zero only where the ground has yielded,
+    so only the rows of the gradient operator at the points that yielded so far are used
+    (:attr:`_Points.yielded`, grown when others yield)."""
+    flat = tau.reshape(4, -1)
+    known, GT = points.yielded
+    now = (flat != 0).any(axis=0)
+    if (now & ~known).any():
+        known = known | now
+        at = np.flatnonzero(known)
+        rows = (np.arange(4)[:, None] * flat.shape[1] + at[None, :]).ravel()
+        points.yielded = known, GT = known, (at, points.G[rows].T.tocsr())
+    if GT is None:
+        return np.zeros(points.G.shape[1])
+    at, GT = GT
+    w = points.weights.reshape(-1)[at]
+    t = flat[:, at]
+    return GT @ np.concatenate([t[0] * w, t[2] * w, t[2] * w, t[1] * w])
 
 
 def first_yield(points: _Points, u_unit: np.ndarray, limit: float) -> float:
@@ -185,21 +202,27 @@ class _Anderson:
     cost of a small least-squares problem per iteration."""
 
     def __init__(self, m: int = 8):
-        self.m, self.xs, self.rs = m, [], []
+        self.m, self.count = m, 0
+        self.last = None  # the last G(x) and residual
+        self.dG = self.dR = None  # (m, n) their differences, the newest at row (count - 1) % m
 
     def step(self, x: np.ndarray, gx: np.ndarray) -> np.ndarray:
         r = gx - x
-        self.xs.append(gx)
-        self.rs.append(r)
-        if len(self.rs) > self.m + 1:
-            self.xs.pop(0)
-            self.rs.pop(0)
-        if len(self.rs) == 1 or self.m == 0:
+        last, self.last = self.last, (gx, r)
+        if last is None or self.m == 0:
             return gx
-        dR = np.column_stack([self.rs[i + 1] - self.rs[i] for i in range(len(self.rs) - 1)])
-        dG = np.column_stack([self.xs[i + 1] - self.xs[i] for i in range(len(self.xs) - 1)])
-        gamma = np.linalg.lstsq(dR, r, rcond=None)[0]
-        return gx - dG @ gamma
+        if self.dR is None:
+            self.dG, self.dR = np.empty((self.m, r.size)), np.empty((self.m, r.size))
+        row = self.count % self.m
+        np.subtract(gx, last[0], out=self.dG[row])
+        np.subtract(r, last[1], out=self.dR[row])
+        self.count += 1
+        k = min(self.count, self.m)
+        dR, dG = self.dR[:k], self.dG[:k]
+        # the least-squares mix from its normal equations (k ≤ m unknowns; lstsq: the least-norm
+        # solution if the differences are dependent)
+        gamma = np.linalg.lstsq(dR @ dR.T, dR @ r, rcond=None)[0]
+        return gx - gamma @ dG
 
 
 class _Stalled(Exception):

@@ -260,7 +260,8 @@ def test_a_stalling_increment_is_split_and_the_answer_holds_equilibrium_and_cons
     for stress, flags in ((gauss.sigma.reshape(4, -1), gauss.at_yield.reshape(-1)),
                           (sol.plastic["stress"], sol.plastic["at_yield"])):
         major, minor, _, zz = principal(stress)
-        f = yield_values(np.sort(np.stack([major, minor, zz]), axis=0)[::-1], 1.5e4, sp, cp, 0.0).max(axis=0)
-        level = np.maximum(np.abs(stress).max(axis=0), 1.5e4)
+        ordered = np.sort(np.stack([major, minor, zz]), axis=0)[::-1]
+        f = yield_values(ordered, 1.5e4, sp, cp, 0.0).max(axis=0)
+        level = np.maximum(np.abs(ordered).max(axis=0), 1.5e4)  # the return mapping's stress scale
         assert f.max() <= 1e-9 * level.max()
         assert flags.sum() > 100 and np.all(f[flags] >= -1e-3 * level[flags])
