@@ -53,8 +53,9 @@ log = logging.getLogger(__name__)
 #: The plastic equilibrium tolerance: the out-of-balance force relative to the increment's
 #: load (``solver.tolerance`` if coarser). The constant-stiffness iteration converges linearly;
 #: with non-associated flow (ψ < φ) it stalls near 1e-4, where points cross the yield surface
-#: from one iterate to the next (far from associated, sooner: then the increment is split). 1e-3 is ten times tighter than the 1 % commercial codes
-#: default to; Salençon's wall convergence is met to 0.4 % with it (tests).
+#: from one iterate to the next (far from associated, sooner: then the increment is split).
+#: 1e-3 is ten times tighter than the 1 % commercial codes default to; Salençon's wall
+#: convergence is met to 0.4 % with it (tests).
 MIN_TOLERANCE = 1e-3
 #: Iterations allowed per load increment: its sub-increments and their stalled attempts together.
 MAX_STEP_ITERATIONS = 1000
@@ -105,9 +106,9 @@ class _Points:
         self.tau = np.zeros((4,) + y.shape)  # σ0′ + D ε - σ = D ε_p
         self.eqps = np.zeros(y.shape)
         self.at_yield = np.zeros(y.shape, bool)
-        #: the points that have had a plastic strain so far and their rows of ``G``, transposed
-        #: (:func:`_plastic_load`)
-        self.yielded = (np.zeros(y.size, bool), None)
+        #: the elements that have had a plastic strain so far, their points and rows of ``G``,
+        #: transposed (:func:`_plastic_load`)
+        self.yielded = (np.zeros(y.shape[0], bool), None)
         #: a point within this (relative) distance of the yield surface counts as at yield: the
         #: equilibrium iteration's tolerance leaves yielding points a hair inside it
         self.flag_tolerance = max(spec.solver.tolerance, MIN_TOLERANCE)
@@ -150,21 +151,21 @@ class _Points:
 def _plastic_load(points: _Points, tau: np.ndarray) -> np.ndarray:
     """``∫Bᵀ(σ0′ + D ε(u) - σ)`` on the ground's unknowns, at the quadrature points of
     ``points``, from ``tau`` = the bracket (4, E, Q): non-zero only where the ground has yielded,
-    so only the rows of the gradient operator at the points that yielded so far are used
-    (:attr:`_Points.yielded`, grown when others yield)."""
-    flat = tau.reshape(4, -1)
+    so only the rows of the gradient operator at the points of the elements that have yielded
+    so far are used (:attr:`_Points.yielded`, grown when others yield)."""
     known, GT = points.yielded
-    now = (flat != 0).any(axis=0)
+    now = (tau.reshape(4, -1) != 0).any(axis=0).reshape(points.shape).any(axis=1)  # (E,) elements that yielded
     if (now & ~known).any():
         known = known | now
-        at = np.flatnonzero(known)
-        rows = (np.arange(4)[:, None] * flat.shape[1] + at[None, :]).ravel()
-        points.yielded = known, GT = known, (at, points.G[rows].T.tocsr())
+        E, Q = points.shape
+        at = (np.flatnonzero(known)[:, None] * Q + np.arange(Q)).ravel()  # their points
+        rows = (np.arange(4)[:, None] * (E * Q) + at[None, :]).ravel()
+        points.yielded = known, GT = known, (at, points.G[rows].T)
     if GT is None:
         return np.zeros(points.G.shape[1])
     at, GT = GT
     w = points.weights.reshape(-1)[at]
-    t = flat[:, at]
+    t = tau.reshape(4, -1)[:, at]
     return GT @ np.concatenate([t[0] * w, t[2] * w, t[2] * w, t[1] * w])
 
 
