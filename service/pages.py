@@ -22,7 +22,8 @@ from fastapi.responses import HTMLResponse
 from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 
-from solver.dataset import SCALARS
+from solver.dataset import ECCENTRICITY_LIMIT, SCALARS
+from workflows.joint_check import statement
 from workflows.plots import PLOTS, SWEEP_PLOT_NAMES
 from workflows.studies import MIN_SAMPLES, SENSITIVITY_MIN_SAMPLES
 from workflows.units import DIAGNOSTICS
@@ -146,10 +147,29 @@ async def case_page(case_id: CaseId, request: Request) -> HTMLResponse:
     names = ordered_scalars(values)
     columns = [scalar_column(n) for n in names if n not in DIAGNOSTICS]
     diagnostics = [scalar_column(n) for n in names if n in DIAGNOSTICS]
-    eta = values.get("max_utilization")
-    verdict = None if eta is None else {"passes": bool(eta <= 1.0), "eta": f"{eta:.3g}"}
+    verdict = design_verdict(values, case.spec)
     return await _render(request, "case.html", case=case, values=values, columns=columns, plots=list(PLOTS),
                          diagnostics=diagnostics, verdict=verdict)
+
+
+def design_verdict(values: dict[str, float], spec: dict) -> Optional[dict]:
+    """The case page's PASS/FAIL from a case's summary ``values``: the section's utilization
+    (away from the joints of a segmental lining) and, for a segmental lining (``spec``), whether
+    every joint carries its thrust within its contact strip (``max_joint_eccentricity`` ≤ 1) and the
+    strip holds it (``max_joint_utilization`` ≤ 1, EN 1992-1-1 (12.10) on the strip).
+    None before the case is done."""
+    eta = values.get("max_utilization")
+    if eta is None:
+        return None
+    segments = ((spec or {}).get("lining") or {}).get("joints", {}).get("count", 0)
+    joints = None
+    if segments and "max_joint_eccentricity" in values:
+        worst = values["max_joint_eccentricity"]
+        eta_j = values.get("max_joint_utilization")
+        ok = bool(worst <= ECCENTRICITY_LIMIT and (eta_j is None or eta_j <= 1.0))
+        joints = {"passes": ok, "text": statement(ok, worst, utilization=eta_j)}
+    return {"passes": bool(eta <= 1.0) and (joints is None or joints["passes"]), "section_passes": bool(eta <= 1.0),
+            "eta": f"{eta:.3g}", "joints": joints}
 
 
 @router.get("/ui/submit", response_class=HTMLResponse)

@@ -230,11 +230,15 @@ def ground_constraints(basis: Basis, *, width: float, height: float, side: str, 
     return fixed
 
 
-def lining_constraints(basis: Basis, *, scale: float) -> list[np.ndarray]:
-    """The lining's symmetry line; its vertical translation stays free (it floats)."""
+def lining_constraints(basis: Basis, *, scale: float, loose: np.ndarray | None = None) -> list[np.ndarray]:
+    """The lining's symmetry line; its vertical translation stays free (it floats). ``loose``:
+    nodes on the line that it does not hold (a joint's face there, held by contact instead)."""
     dofs = _dof_of_node(basis)
     x = basis.doflocs[0, dofs[0]]
-    return [dofs[0, _near(x, 0.0, scale)]]
+    on = _near(x, 0.0, scale)
+    if loose is not None:
+        on[np.asarray(loose, dtype=np.int64)] = False
+    return [dofs[0, on]]
 
 
 def gravity_load(basis: Basis, density: float, g: float, where: np.ndarray | None = None) -> np.ndarray:

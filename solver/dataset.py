@@ -5,6 +5,14 @@ the result. The quadratic triangles are written as their corner triangulation: e
 6-node triangle becomes four 3-node faces over the same nodes (vertices and edge
 nodes), so every node carries its exact displacement and each face its stress at the
 sub-triangle's centroid.
+
+A segmental lining (SPEC §1.6) adds its joints on dim ``joint`` (:data:`JOINT_VARIABLES`, with
+``joint_eccentricity`` = |M|/(N a/2) beside the contract's), their maxima as scalars (0 for a
+monolithic lining, so they stack across cases), and leaves ``utilization`` NaN at the joints'
+stations: the section there is the joint's contact strip, whose checks are ``joint_eccentricity``
+≤ 1 (the thrust inside the strip) and ``joint_utilization`` ≤ 1 (EN 1992-1-1 (12.10) on the strip,
+:func:`solver.design.joint_utilization`), so ``max_utilization`` is the section's away from the
+joints.
 """
 from __future__ import annotations
 
@@ -21,7 +29,7 @@ from .ground import in_situ_stress, moduli
 from .strata import moved_lines, strata
 from .water import hydrostatic
 from .settlement import TROUGH_WIDTH_FACTOR, gaussian_trough, ground_loss, surface_warnings
-from .design import design_utilization
+from .design import design_utilization, joint_utilization
 from .model import Solution, TunnelModel
 from .post import contact_extent, lining_forces, mean_convergence, surface_trough
 
@@ -54,7 +62,34 @@ SCALARS = {
     "plastic_area": ("m2", "area of yielded ground around the whole tunnel"),
     "max_plastic_extent": ("m", "largest distance of a yielded face from the tunnel axis (0 if none)"),
     "water_inflow": ("m3 s-1", "steady water inflow into the whole tunnel per metre (0 unless the lining drains)"),
+    "max_joint_opening": ("m", "largest opening of the segmental lining's joints (0 for a monolithic lining)"),
+    "max_joint_rotation": ("rad", "largest absolute rotation across a joint (0 for a monolithic lining)"),
+    "max_joint_eccentricity": ("1", "largest |M|/(N a/2) at a joint: <= 1 when every joint carries its thrust "
+                               "within its contact strip of height a (0 for a monolithic lining)"),
+    "max_joint_utilization": ("1", "largest EN 1992-1-1 (12.10) utilization of a joint's contact strip at its "
+                              "thrust (<= 1 passes; 0 for a monolithic lining)"),
 }
+
+#: Per-joint results on dim ``joint`` (SPEC §3): name -> (units, long name); ``joint_theta`` is
+#: the dim's coordinate, ``joint_open`` a 0/1 flag.
+JOINT_VARIABLES = {
+    "joint_thrust": ("N m-1", "thrust across the joint's contact strip (compression positive)"),
+    "joint_moment": ("N m m-1", "moment of the joint's contact force about the lining's mid-surface "
+                                "(positive: inner fibre in compression)"),
+    "joint_opening": ("m", "largest normal gap across the joint's contact strip"),
+    "joint_rotation": ("rad", "relative rotation of the joint's faces (positive: opening at the extrados)"),
+    "joint_open": ("1", "1 where the joint has opened (a gap over part of its contact strip)"),
+    "joint_eccentricity": ("1", "|M|/(N a/2): eccentricity of the joint's thrust over the strip's half height "
+                                "(<= 1: within the contact strip)"),
+    "joint_utilization": ("1", "EN 1992-1-1 (12.10) utilization of the joint's contact strip as a plain section at "
+                               "the joint's design thrust: |M_Ed| / (N_Ed (a - x) / 2), x = N_Ed / (eta fcd,pl b) "
+                               "(<= 1 passes)"),
+}
+#: ``joint_eccentricity`` up to this is "within the strip" (round-off of a thrust at the strip's edge).
+ECCENTRICITY_LIMIT = 1.0 + 1e-6
+#: Long name of ``utilization`` in a segmental lining.
+JOINT_UTILIZATION = ("EN 1992-1-1 utilization of the lining section (<= 1 passes; NaN at the joints' stations, "
+                     "where the section is the joint's contact strip: see joint_utilization)")
 
 
 def _var(dims, data, units, long_name, **attrs):
@@ -131,6 +166,44 @@ def volume_loss(x: np.ndarray, settlement: np.ndarray, hole_radius: float) -> fl
     return float(area / (0.5 * np.pi * hole_radius**2))
 
 
+def joint_stations(theta: np.ndarray, joint_theta: np.ndarray) -> np.ndarray:
+    """Indices of the interface stations at the joints (the station nearest each joint's θ,
+    deg; the mesh puts a station on every joint)."""
+    return np.abs(np.asarray(theta)[None, :] - np.asarray(joint_theta)[:, None]).argmin(axis=1)
+
+
+def _joint_results(sol: Solution) -> tuple[dict, dict, dict]:
+    """``(coords, data, scalars)`` of a segmental lining's joints (SPEC §3: dim ``joint``, crown to
+    invert); no coordinates or variables and zero maxima for a monolithic lining."""
+    joints = sol.joints
+    if joints is None:
+        return {}, {}, {"max_joint_opening": 0.0, "max_joint_rotation": 0.0, "max_joint_eccentricity": 0.0,
+                        "max_joint_utilization": 0.0}
+    ratio = joints.eccentricity_ratio
+    eta = joint_utilization(joints.thrust, joints.moment, joints.contact_height, sol.spec.design)
+    values = {"joint_thrust": joints.thrust, "joint_moment": joints.moment, "joint_opening": joints.opening,
+              "joint_rotation": joints.rotation, "joint_open": joints.open.astype(np.int8),
+              "joint_eccentricity": ratio, "joint_utilization": eta}
+    data = {name: _var("joint", values[name], *JOINT_VARIABLES[name]) for name in JOINT_VARIABLES}
+    data["joint_open"].attrs.update(flag_values=np.array([0, 1], np.int8), flag_meanings="closed open")
+    data["joint_eccentricity"].attrs["contact_height_m"] = float(joints.contact_height)
+    coords = {"joint_theta": _var("joint", joints.theta, "degree", "joint position at the tunnel axis from the crown")}
+    scalars = {"max_joint_opening": float(np.max(joints.opening, initial=0.0)),
+               "max_joint_rotation": float(np.max(np.abs(joints.rotation), initial=0.0)),
+               "max_joint_eccentricity": float(np.max(ratio, initial=0.0)),
+               "max_joint_utilization": float(np.max(eta, initial=0.0))}
+    return coords, data, scalars
+
+
+def _plain(value):
+    """``value`` with numpy scalars and arrays as Python numbers and lists (for JSON)."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [_plain(v) for v in value]
+    return value.item() if isinstance(value, np.generic) else value
+
+
 def _convergence(u: np.ndarray, iface, nodes: np.ndarray, theta: float) -> float:
     """Inward radial displacement (m) of the ground wall at the station nearest ``theta`` deg."""
     i = int(np.argmin(np.abs(iface.theta - theta)))
@@ -163,12 +236,16 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
         plastic, eqps = np.zeros(n_fg, np.int8), np.zeros(n_fg)
     forces = lining_forces(spec, model.lining.body, iface, mesh.center, sol.u_lining, sol.lam, sol.shear)
     eta, env_n, env_m = design_utilization(forces.thrust, forces.moment, g.thickness, spec.design)
+    joint_coords, joint_data, joint_scalars = _joint_results(sol)
+    if sol.joints is not None:  # the section at a joint is its contact strip: checked by joint_eccentricity
+        eta = eta.copy()
+        eta[joint_stations(iface.theta, sol.joints.theta)] = np.nan
     surf_x, settlement = surface_trough(mg.p, sol.u_ground, scale=max(g.width, g.height))
     loss = ground_loss(sol.u_ground, iface.ground_node, iface.normal, iface.weight, g.hole_radius)
     trough, trough_max = gaussian_trough(surf_x, loss, g.hole_radius, g.depth)
     gap, in_contact = sol.gap, sol.in_contact
     crown = iface.lining_node[0]
-    max_eta = float(np.max(eta))
+    max_eta = float(np.nanmax(eta))
     scalars = {
         "max_contact_pressure": float(sol.lam.max()),
         "contact_extent": contact_extent(iface.theta, in_contact),
@@ -192,6 +269,7 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
         "gaussian_max_settlement": trough_max,
         "axis_settlement": float(settlement[0]),
         "max_surface_heave": float(max(-settlement.min(), 0.0)),
+        **joint_scalars,
     }
     warnings = [f"the line between layers {i - 1} and {i} ({z:.4g} m deep) is drawn at {drawn:.4g} m: it met the "
                 "tunnel's crown or invert level, where the mesh cannot follow a line tangent to the excavation"
@@ -203,19 +281,24 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
             f"largest displacement {largest:.4g} m exceeds {SMALL_DISPLACEMENT_LIMIT:.0%} of the excavation "
             f"radius ({g.hole_radius:.4g} m): outside the small-displacement model")
     if not sol.admissible:
-        warnings.append(f"bolt at theta={iface.theta[sol.bolt]:.2f} deg has a negative reaction: not a contact solution")
+        where = f"bolt at theta={iface.theta[sol.bolt]:.2f} deg" if sol.bolt is not None else "the bolt set"
+        warnings.append(f"{where} has a negative reaction: not a contact solution")
     for w in warnings:
         log.warning("case %s: %s", spec.case_id, w)
     attrs = {
-        "bolt_search": [vars(t) for t in sol.trials],
+        "bolt_search": [_plain(vars(t)) for t in sol.trials],
         "timings_seconds": {**model.timings, **sol.timings},
-        "lining_translation_m": float(sol.a),
+        # a segmental lining: the amplitudes of its segments' rigid modes (``lining_modes``)
+        "lining_translation_m": float(sol.a) if np.ndim(sol.a) == 0 else _plain(sol.a),
         "interface_model": spec.interface.model,
         "excavation_method": spec.excavation.method,
         **({"plastic_iterations": int(sol.plastic["iterations"])} if sol.plastic is not None else {}),
         "water_uplift_N_per_m": float(sol.water_uplift),
         "warnings": warnings,
     }
+    if sol.joints is not None:
+        attrs["lining_modes"] = list(model.modes.label)
+        attrs["joint_contact_height_m"] = float(sol.joints.contact_height)
     if spec.excavation.method == "deconfinement":
         gn = iface.ground_node
         attrs["deconfinement"] = spec.excavation.deconfinement
@@ -243,6 +326,7 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
         "interface_x": _var("interface", node_xy[0, iface.ground_node], "m", "x of interface node"),
         "interface_y": _var("interface", node_xy[1, iface.ground_node], "m", "y of interface node"),
         "surface_x": _var("surface", surf_x, "m", "x of ground surface node"),
+        **joint_coords,
     }
     data = {
         "mesh": xr.Variable((), np.int32(0), {
@@ -285,7 +369,8 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
         "thrust": _var("interface", forces.thrust, "N m-1", "lining thrust (compression positive)"),
         "moment": _var("interface", forces.moment, "N m m-1", "lining bending moment (positive: inner fibre in compression)"),
         "shear": _var("interface", forces.shear, "N m-1", "lining shear force (outward force of the invert side on the crown side)"),
-        "utilization": _var("interface", eta, "1", "EN 1992-1-1 utilization of the lining section (<= 1 passes)"),
+        "utilization": _var("interface", eta, "1", JOINT_UTILIZATION if sol.joints is not None
+                            else "EN 1992-1-1 utilization of the lining section (<= 1 passes)"),
         "capacity_thrust": _var("envelope", env_n, "N m-1", "design N-M resistance envelope: thrust (compression positive)"),
         "capacity_moment": _var("envelope", env_m, "N m m-1", "design N-M resistance envelope: moment"),
         "surface_settlement": _var("surface", settlement, "m", f"FE ground surface settlement (downward positive, {since}; "
@@ -294,6 +379,7 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
                                     "(Peck; O'Reilly and New), downward positive",
                                     trough_width_factor=TROUGH_WIDTH_FACTOR,
                                     trough_width_m=TROUGH_WIDTH_FACTOR * g.depth),
+        **joint_data,
     }
     for name, (units, long_name) in SCALARS.items():
         data[name] = _var((), scalars[name], units, long_name)

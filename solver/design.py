@@ -41,7 +41,7 @@ import numpy as np
 
 __all__ = [
     "fcd", "fyd", "concrete_parameters", "section_forces", "interaction_envelope",
-    "utilization", "design_utilization", "section_errors",
+    "utilization", "design_utilization", "joint_utilization", "section_errors",
 ]
 
 GAMMA_C, GAMMA_S = 1.5, 1.15
@@ -348,6 +348,32 @@ def design_utilization(N, M, thickness: float, design) -> tuple[np.ndarray, np.n
                                     float(design.axis_distance))
     gamma = design.load_factor
     return utilization(gamma * np.asarray(N, float), gamma * np.asarray(M, float), env_N, env_M), env_N, env_M
+
+
+def joint_utilization(N, M, contact_height: float, design, *, width: float = 1.0) -> np.ndarray:
+    """EN 1992-1-1 §12.6.1 (12.10) on a segmental lining's joints: the contact strip, ``a`` high, as a
+    plain concrete section (no bar crosses a joint), at the joint's design thrust.
+
+    The strip carries N_Ed on a rectangular block of η fcd,pl at its compressed edge, x = N_Ed /
+    (η fcd,pl b) deep, so it holds the moment ``M_Rd = N_Ed (a - x) / 2`` (the (12.10) envelope at
+    that thrust). The utilization is ``|M_Ed| / M_Rd`` (the moment at the joint's thrust, the way a
+    joint is read: the thrust is what the ring carries, the moment what the joint's rotation leaves
+    on it); ``inf`` when the strip cannot take the thrust at all (x ≥ a) or carries a moment
+    without thrust. An open joint of the elastic contact solution bears on its strip's edge
+    (|M| → N a/2, :attr:`solver.joints.JointResults.eccentricity_ratio` → 1), so its
+    utilization is a / (a - x): the stress block the edge needs is what the strip must give.
+
+    Parameters: N, M (N/m, N·m/m) at the joints; design as :func:`design_utilization`.
+    """
+    gamma = design.load_factor
+    n_ed = gamma * np.asarray(N, float)
+    m_ed = gamma * np.abs(np.asarray(M, float))
+    _, _, _, eta = concrete_parameters(design.concrete_strength)
+    x = n_ed / (eta * fcd(design.concrete_strength, plain=True) * width)
+    m_rd = n_ed * (contact_height - x) / 2.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = np.where(m_rd > 0, m_ed / np.where(m_rd > 0, m_rd, 1.0), np.inf)
+    return np.where((n_ed == 0) & (m_ed == 0), 0.0, out)
 
 
 def section_errors(thickness: float, reinforcement_area: float, axis_distance: float, *,

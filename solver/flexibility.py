@@ -82,16 +82,22 @@ class FactoredBody:
     ----------
     body : the assembled body.
     B : its interface rows: m normal rows first, then tangential ones.
-    m : number of normal rows.
-    pin : generalized-inverse pin (lining only): that DOF is held at zero.
+    m : number of rows the ``"normal"`` factorization serves (the interface's normal rows,
+        and a segmental lining's joint rows after them).
+    pin : generalized-inverse pins (lining only): DOFs held at zero, one per rigid mode
+        (an int, or an array for a segmental lining's several modes).
     """
 
-    def __init__(self, body: Body, B: sp.csr_matrix, m: int, pin: int | None = None):
+    def __init__(self, body: Body, B: sp.csr_matrix, m: int, pin: int | np.ndarray | None = None):
         self.body, self.B, self.m = body, B, m
         #: per ``Rows``: the factorization and ``B``'s rows it serves, on its ``last`` unknowns
         self._factors: dict[str, tuple[InterfaceFactor, sp.csr_matrix]] = {}
         n = body.n
-        self._keep = np.flatnonzero(np.arange(n) != pin) if pin is not None else None
+        self._keep = None
+        if pin is not None:
+            keep = np.ones(n, bool)
+            keep[np.atleast_1d(pin)] = False
+            self._keep = np.flatnonzero(keep)
 
     def _restrict(self, A: sp.spmatrix) -> sp.spmatrix:
         return A if self._keep is None else A[self._keep][:, self._keep]

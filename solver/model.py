@@ -39,7 +39,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as la
 
-from . import friction, water
+import scipy.sparse as sp
+
+from . import floating, friction, joints, water
 from .assembly import (
     Basis,
     assemble_body,
@@ -105,6 +107,9 @@ def model_key(spec: CaseSpec) -> str:
         "strata": [[s.top, s.bottom, s.young / e0, s.poisson, s.young_gradient / e0] for s in layers],
         "lining": {"young": spec.lining.young, "poisson": spec.lining.poisson},
     }
+    j = spec.lining.joints
+    if j.count:  # the joints cut the mesh; their shear law is the contact problem's
+        shared["joints"] = [j.count, j.offset, j.contact_height]
     return json.dumps(shared, sort_keys=True, separators=(",", ":"))
 
 
@@ -155,7 +160,7 @@ class Solution:
     tangential_jump: np.ndarray
     in_contact: np.ndarray
     slipping: np.ndarray
-    a: float
+    a: float | np.ndarray
     bolt: int | None
     trials: list[BoltTrial]
     iterations: int
@@ -174,6 +179,8 @@ class Solution:
     #: yielding ground (:func:`solver.plastic.solve_staged`): effective stress, yield flags and
     #: equivalent plastic strain at the sub-triangle centroids, iterations, ground reaction curve
     plastic: dict | None = None
+    #: a segmental lining's joints (:class:`solver.joints.JointResults`) and its bolt set
+    joints: "joints.JointResults | None" = None
 
     @property
     def gap(self) -> np.ndarray:
@@ -212,20 +219,35 @@ class TunnelModel:
                                                   side=spec.boundaries.side, bottom=spec.boundaries.bottom), gb,
                                skew=(iface.ground_node, iface.normal))
         lb = vector_basis(self.mesh.lining)
+        cut = self.mesh.joints
+        skew_nodes, skew_dirs = iface.lining_node, iface.normal
+        if cut is not None:  # a joint's second corner on the extrados faces the same ground node
+            stations, corners = self._joint_corners()
+            skew_nodes, skew_dirs = np.r_[skew_nodes, corners], np.hstack([skew_dirs, iface.normal[:, stations]])
+        loose = joints.axis_faces(cut) if cut is not None else None
         lining = assemble_body(self.mesh.lining, spec.lining.young, spec.lining.poisson,
-                               lining_constraints(lb, scale=g.outer_radius), lb,
-                               skew=(iface.lining_node, iface.normal))
+                               lining_constraints(lb, scale=g.outer_radius, loose=loose), lb,
+                               skew=(skew_nodes, skew_dirs))
         t2 = time.perf_counter()
         nodes, directions, self.tangential = interface_rows(iface)
         Bg = interface_operator(ground, iface.ground_node[nodes], directions, +1.0)
         Bl = interface_operator(lining, iface.lining_node[nodes], directions, -1.0)
         m = iface.size
-        self.ground = FactoredBody(ground, Bg, m)
-        self.lining = FactoredBody(lining, Bl, m, lining_pin(lining, iface.lining_node))
         self._S: dict[str, np.ndarray] = {}
-        self.r = np.r_[iface.normal[1], iface.tangent[1, self.tangential]]
         self.w = np.r_[iface.weight, iface.weight[self.tangential]]
-        self.rigid = lining.rigid_vertical()
+        #: the lining's upward translation as a whole (its weight's and the water's resultant)
+        self.vertical = lining.rigid_vertical()
+        #: row indices of the interface's tangential rows (after a segmental lining's joint rows)
+        self.tangential_rows = m + np.arange(self.tangential.size)
+        self.joint_rows: joints.JointRows | None = None
+        if cut is None:
+            self.ground = FactoredBody(ground, Bg, m)
+            self.lining = FactoredBody(lining, Bl, m, lining_pin(lining, iface.lining_node))
+            self.r = np.r_[iface.normal[1], iface.tangent[1, self.tangential]]
+            #: the lining's rigid modes: its vertical translation (n,), or a segmental lining's (n, k)
+            self.rigid = self.vertical
+        else:
+            self._segmental(spec, ground, lining, Bg, Bl, nodes, directions)
         self.timings = {"mesh": t1 - t0, "assembly": t2 - t1, "factorization": 0.0}
         self._factorize(rows_of_model(spec.interface.model))
         self._units: dict[str, np.ndarray] = {}
@@ -237,6 +259,97 @@ class TunnelModel:
     @property
     def m(self) -> int:
         return self.mesh.interface.size
+
+    # -- a segmental lining (SPEC §1.6) ------------------------------------------------------
+    def _joint_corners(self) -> tuple[np.ndarray, np.ndarray]:
+        """The interface stations at the joints inside the half model, and each joint's second
+        extrados corner (the invert-side face's outermost node; the station's lining node is the
+        crown-side one)."""
+        cut, iface = self.mesh.joints, self.mesh.interface
+        inner = [j for j in range(cut.size) if not cut.on_axis(j)]
+        stations = np.array([int(np.flatnonzero(iface.lining_node == cut.before[j][-1])[0]) for j in inner], np.int64)
+        corners = np.array([cut.after[j][-1] for j in inner], np.int64)
+        return stations, corners
+
+    def _segmental(self, spec: CaseSpec, ground, lining, Bg, Bl, nodes, directions) -> None:
+        """Rows, bodies and rigid modes of a segmental lining: the interface rows of a joint's
+        station see the mean of its two corners; the joints' rows come after the interface's
+        normal rows (so the ``"normal"`` factorization serves them too); each segment's rigid
+        modes are pinned for ``K⁺`` and solved for (:mod:`solver.floating`)."""
+        iface, m, g = self.mesh.interface, self.m, spec.geometry
+        stations, corners = self._joint_corners()
+        other = iface.lining_node.copy()
+        other[stations] = corners
+        # each corner takes its own edge's Simpson share of the station's weight (L/6 of each edge)
+        theta = iface.theta
+        before = theta[stations] - theta[stations - 2]
+        share = np.ones(m)
+        share[stations] = before / (before + theta[stations + 2] - theta[stations])
+        Bl_other = interface_operator(lining, other[nodes], directions, -1.0)
+        Bl = sp.diags(share[nodes]) @ Bl + sp.diags(1.0 - share[nodes]) @ Bl_other
+        height = spec.lining.joints.contact_height or g.thickness
+        self.r_mid = g.inner_radius + 0.5 * g.thickness
+        rows = joints.joint_rows(lining, self.mesh.joints, self.mesh.center, r_mid=self.r_mid, height=height,
+                                 shear=True)
+        self.joint_rows, nj = rows, rows.size
+        Bl = sp.vstack([Bl[:m], rows.B, Bl[m:]]).tocsr()
+        Bg = sp.vstack([Bg[:m], sp.csr_matrix((nj, ground.n)), Bg[m:]]).tocsr()
+        modes = joints.rigid_modes(lining, self.mesh, avoid=np.unique(Bl.indices))
+        self.modes = modes
+        self.ground = FactoredBody(ground, Bg, m + nj)
+        self.lining = FactoredBody(lining, Bl, m + nj, modes.pins)
+        self.rigid = modes.vectors
+        #: jumps of each unit rigid mode (R, k), with the sign of ``r``: J = d - S W t - G a
+        self.G = -(Bl @ modes.vectors)
+        self.r = None
+        self.w = np.r_[iface.weight, rows.weight, iface.weight[self.tangential]]
+        self.tangential_rows = m + nj + np.arange(self.tangential.size)
+
+    def _rigid_motion(self, a) -> np.ndarray:
+        """The lining's rigid motion of amplitude(s) ``a`` on its free DOFs."""
+        return a * self.rigid if self.rigid.ndim == 1 else self.rigid @ a
+
+    def mode_loads(self, f_lining: np.ndarray):
+        """The lining's loads on its rigid modes: F2 (N/m, float) or a segmental lining's (k,)."""
+        F = f_lining @ self.rigid
+        return float(F) if np.ndim(F) == 0 else F
+
+    def _floating(self, spec: CaseSpec, d: np.ndarray, F: np.ndarray, rows: Rows):
+        """The segmental lining's contact problem (:mod:`solver.floating`) at ``rows``: its
+        solution and the tractions on every row (zero where ``rows`` has none)."""
+        iface, m, jr = self.mesh.interface, self.m, self.joint_rows
+        nj, R = jr.size, self.w.size
+        size = m + nj if rows == "normal" else R
+        model, shear = spec.interface.model, spec.lining.joints.shear
+        kind = np.full(size, floating.UNILATERAL, np.int8)
+        partner = np.full(size, -1)
+        mu = np.zeros(size)
+        if model == "bonded":
+            kind[:m] = floating.EQUALITY
+        jt = m + np.flatnonzero(~jr.normal)  # joint tangential rows: partner the normal row at the node
+        kind[jt] = floating.EQUALITY if shear == "bonded" else floating.FRICTION
+        partner[jt] = jt - np.array([np.sum(jr.normal[(jr.joint == jr.joint[i - m])]) for i in jt])
+        mu[jt] = spec.lining.joints.friction
+        if size == R:
+            tr = self.tangential_rows
+            kind[tr] = floating.EQUALITY if model == "bonded" else floating.FRICTION
+            partner[tr] = self.tangential
+            mu[tr] = spec.interface.friction
+        g0 = np.zeros(size)
+        g0[:m] = spec.geometry.gap
+        where = ([f"interface {th:.1f} deg" for th in iface.theta]
+                 + [f"joint {self.mesh.joints.theta[j]:.1f} deg r={r:.3f} m" for j, r in zip(jr.joint, jr.radius)]
+                 + [f"interface shear {th:.1f} deg" for th in iface.theta[self.tangential]])[:size]
+        fp = floating.FloatingProblem(
+            S=self._flexibility(rows), d=d, g0=g0, w=self.w[:size], G=self.G[:size], F=np.atleast_1d(F),
+            kind=kind, partner=partner, mu=mu, labels=self.modes.label,
+            p_scale=pressure_scale(float(np.linalg.norm(F)), iface.normal[1], iface.weight), where=tuple(where),
+            group=np.r_[-1 - np.arange(m), jr.joint, -1 - m - np.arange(R - m - nj)][:size])
+        sv = spec.solver
+        sol = floating.solve_floating(fp, tol=sv.tolerance, max_iterations=sv.max_iterations)
+        t = np.zeros(R)
+        t[:size] = sol.t
+        return sol, t
 
     def drop_factorizations(self) -> None:
         """Forget both bodies' factorizations and the flexibilities computed with them:
@@ -386,10 +499,6 @@ class TunnelModel:
         """Solve ``spec`` (which must share this model's :func:`model_key`)."""
         if not self.accepts(spec):
             raise ValueError("the case does not share this model's geometry, mesh, boundaries and materials")
-        if spec.lining.joints.count:
-            raise SolverError(
-                "lining.joints: a segmental lining is accepted and validated but this version does not solve its "
-                "joints yet; the case is not computed rather than answered as if the lining were monolithic")
         t0 = time.perf_counter()
         model = self.for_case(spec)
         with blas_threads():
@@ -415,6 +524,8 @@ class TunnelModel:
         ``F2``): its solution and the interface tractions ``t`` (normal, then tangential rows)."""
         iface, m, g0, sv = self.mesh.interface, self.m, spec.geometry.gap, spec.solver
         model = spec.interface.model
+        if self.joint_rows is not None:
+            return self._floating(spec, d, F2, rows_of_model(model))
         if model == "frictionless":
             sol = solve_contact(self._dual(d, F2, g0), iface.theta, inner=sv.inner, tol=sv.tolerance,
                                 max_iterations=sv.max_iterations, bolt=sv.bolt)
@@ -461,33 +572,48 @@ class TunnelModel:
         else:
             u_g = ground.backward(stage.ground, rows, Wt)
             u1 = np.zeros_like(u_g)
-        u_l = lining.backward(stage.lining, rows, Wt) + sol.a * self.rigid
+        u_l = lining.backward(stage.lining, rows, Wt) + self._rigid_motion(sol.a)
         J = ground.B @ u_g + lining.B @ u_l
         lam = t[:m]
         shear = np.zeros(m)
-        shear[self.tangential] = t[m:]
+        shear[self.tangential] = t[self.tangential_rows]
         jt = np.zeros(m)
-        jt[self.tangential] = J[m:]
+        jt[self.tangential] = J[self.tangential_rows]
         u_lining = lining.body.expand(u_l)
         # scales of the contact stage (the increment contact acts on)
         u_ref = max(float(np.max(np.abs(u_g))), float(np.max(np.abs(u_l))), g0, 1e-300)
-        p_ref = max(float(np.max(np.abs(t))), pressure_scale(F2, iface.normal[1], iface.weight))
+        F_vertical = F2 if self.joint_rows is None else float(self.vertical @ loads.lining)
+        p_ref = max(float(np.max(np.abs(t))), pressure_scale(F_vertical, iface.normal[1], iface.weight))
         closed = (g0 - J[:m] <= CONTACT_GAP_TOL * u_ref) | (model == "bonded")
         slipping = closed & (np.abs(jt) > CONTACT_GAP_TOL * u_ref)
         residuals = [(fb.stiffness() @ u + fb.B.T @ Wt - f, np.abs(f) + np.abs(fb.B.T @ Wt))
                      for fb, u, f in ((ground, u_g, loads.ground), (lining, u_l, loads.lining))]
-        balance = F2 + float(np.sum(self.r * Wt))
-        balance_scale = abs(F2) + float(np.sum(np.abs(self.r * Wt)))
+        if self.joint_rows is None:
+            balance = F2 + float(np.sum(self.r * Wt))
+            balance_scale = abs(F2) + float(np.sum(np.abs(self.r * Wt)))
+        else:  # every segment's modes: the worst relative to its own scale
+            wrench = F2 + self.G.T @ Wt
+            balance = float(np.max(np.abs(wrench) / np.maximum(np.abs(F2) + np.abs(self.G).T @ np.abs(Wt), 1e-300)))
+            balance_scale = 1.0
         kkt = kkt_residual(K_u_minus_f=residuals, balance=balance, balance_scale=balance_scale, lam=lam, normal_jump=J[:m], g0=g0,
                            p_ref=p_ref, u_ref=u_ref, model=model, shear=shear, tangential_jump=jt,
                            mu=spec.interface.friction)
+        joint_state = None
+        if self.joint_rows is not None:
+            jr, nj = self.joint_rows, self.joint_rows.size
+            tj, Jj = t[m:m + nj], J[m:m + nj]
+            kkt = max(kkt, joints.joint_kkt(jr, tj, Jj, spec.lining.joints, p_ref=p_ref, u_ref=u_ref))
+            joint_state = joints.joint_results(
+                self.mesh, jr, tj, Jj, u_lining, r_mid=self.r_mid,
+                height=spec.lining.joints.contact_height or spec.geometry.thickness, gap_tol=CONTACT_GAP_TOL * u_ref)
+        a = float(sol.a) if np.ndim(sol.a) == 0 else np.asarray(sol.a, float)
         return Solution(spec=spec, u_ground=ground.body.expand(u_g + u1), u_stage1=ground.body.expand(u1),
                         u_lining=u_lining, lam=lam, shear=shear, normal_jump=J[:m], tangential_jump=jt,
-                        in_contact=closed, slipping=slipping, a=float(sol.a), bolt=sol.bolt, trials=sol.trials,
-                        iterations=int(sol.iterations), admissible=bool(sol.admissible), F2=F2,
+                        in_contact=closed, slipping=slipping, a=a, bolt=sol.bolt, trials=sol.trials,
+                        iterations=int(sol.iterations), admissible=bool(sol.admissible), F2=F_vertical,
                         kkt_residual=kkt,
                         timings={"contact": t_solve - t0, "recovery": time.perf_counter() - t_solve},
-                        **self._water_state(spec, F2))
+                        joints=joint_state, **self._water_state(spec, F_vertical))
 
     def _water_state(self, spec: CaseSpec, F2: float) -> dict:
         """The lining's weight and water uplift (N/m), the ground's pore pressure after stage 2
@@ -498,7 +624,7 @@ class TunnelModel:
                "water_pressure": np.zeros(self.m), "water_inflow": 0.0}
         if w.table is not None and w.lining == "watertight":
             weight = -spec.lining.density * spec.loads.gravity * float(
-                self.rigid @ self.lining.body.restrict(self._lining_shape()))
+                self.vertical @ self.lining.body.restrict(self._lining_shape()))
             out.update(lining_weight=weight, water_uplift=F2 + weight,
                        water_pressure=water.hydrostatic(self.mesh.lining.p[1, self.mesh.interface.lining_node],
                                                         w.table, w.unit_weight))
@@ -528,7 +654,7 @@ class TunnelModel:
         else:
             stage = Forward(ground=ground.forward(loads.ground, rows), lining=y_l)
         d = ground.jumps(stage.ground, rows) + lining.jumps(y_l, rows)
-        return loads, stage, d, float(self.rigid @ loads.lining)
+        return loads, stage, d, self.mode_loads(loads.lining)
 
     def _dual(self, d: np.ndarray, F2: float, g0: float) -> DualProblem:
         m, iface = self.m, self.mesh.interface

@@ -378,7 +378,7 @@ def solve_staged(model, spec, rows, t0: float):
     full = StageLoads(loads.ground, loads.lining, None, loads.seepage)
     y_g = ground.forward(full.ground, rows)
     y_l = lining.forward(full.lining, rows)
-    F2_full = float(model.rigid @ full.lining)
+    F2_full = model.mode_loads(full.lining)
     u2 = u2_prev = np.zeros(body.n)
     h_prev = 1.0 / steps
     p = p1
@@ -391,7 +391,7 @@ def solve_staged(model, spec, rows, t0: float):
         return StageLoads(a * full.ground + extra, a * full.lining, None), stage, jumps
 
     def solve2(a, guess, patience, limit):
-        ref = a * float(np.linalg.norm(full.ground)) + float(np.linalg.norm(p1)) + abs(a * F2_full)
+        ref = a * float(np.linalg.norm(full.ground)) + float(np.linalg.norm(p1)) + float(np.sum(np.abs(a * F2_full)))
 
         def G(x):
             state = stress_of(u1 + x)

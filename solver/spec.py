@@ -495,6 +495,9 @@ class CaseSpec(_Frozen):
         if a is not None and a > self.geometry.thickness * (1 + 1e-12):
             raise ValueError(f"lining.joints.contact_height: {a:.6g} m exceeds the lining thickness "
                              f"({self.geometry.thickness:.6g} m)")
+        if self.lining.joints.count and self.solver.bolt != "auto":
+            raise ValueError("solver.bolt: a fixed bolt is the monolithic lining's; a segmental lining's segments are "
+                             "held by bolt sets the solver searches (leave solver.bolt 'auto')")
         errors = geostatic_errors(self, strata(self))
         if errors:
             field, reason = errors[0]

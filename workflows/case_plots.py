@@ -12,6 +12,9 @@ import numpy as np
 import xarray as xr
 from matplotlib.figure import Figure
 
+from . import joint_plots
+from .joint_check import joint_check
+
 _CONTACT_COLOR = "tab:red"
 _SLIP_COLOR = "tab:orange"
 #: Lining stations named on the figures (θ in degrees).
@@ -82,6 +85,7 @@ def plot_contact_pressure(ds: xr.Dataset) -> Figure:
         total = ds["contact_pressure"].values + water
         ax.plot(theta, total / 1e3, color=_WATER_COLOR, lw=1.2, ls=":", label="total λ + u")
         top = max(top, float(np.nanmax(total)))
+    joint_plots.draw_on_theta(ax, ds)
     ax.set_ylabel("pressure on the extrados (kPa)")
     ax.set_ylim(bottom=0.0, top=1.15 * max(top / 1e3, 1e-3))
     theta_axis(ax)
@@ -105,6 +109,7 @@ def plot_contact_pressure(ds: xr.Dataset) -> Figure:
         ax_s.plot(theta, cone, color="0.4", lw=0.8, ls="--", label=f"Coulomb bound ±μλ, μ = {friction:g}")
         ax_s.plot(theta, -cone, color="0.4", lw=0.8, ls="--")
     ax_s.axhline(0.0, color="0.5", lw=0.8)
+    joint_plots.draw_on_theta(ax_s, ds, labels=False)
     if model == "frictionless":
         ax_s.text(0.5, 0.5, "frictionless interface: no shear traction", transform=ax_s.transAxes,
                   ha="center", va="center", color="0.4", fontsize="small")
@@ -115,9 +120,11 @@ def plot_contact_pressure(ds: xr.Dataset) -> Figure:
     ax_s.set_ylim(-1.1 * reach, 1.9 * reach)  # room for the legend above the curves
     theta_axis(ax_s)
     ax_s.legend(loc="upper center", ncols=2, fontsize="x-small")
+    joints = joint_plots.summary(ds)
     ax.set_title(f"Interface tractions ({model}), {_title(ds)}: max λ "
                  f"{float(ds['max_contact_pressure']) / 1e3:.4g} kPa, contact over "
-                 f"{float(ds['contact_extent']):.4g}°", fontsize="medium")
+                 f"{float(ds['contact_extent']):.4g}°" + (f"\nsegmental lining: {joints} (vertical lines)"
+                                                         if joints else ""), fontsize="medium")
     return fig
 
 
@@ -131,8 +138,9 @@ def _mid_radius(ds: xr.Dataset) -> float:
 
 
 def _force_diagram(ax, theta_deg: np.ndarray, values: np.ndarray, radius: float, *, symbol: str, unit: str,
-                   title: str, outward: str) -> None:
-    """``values`` drawn as offsets from the half ring, scaled so the largest is 0.35 radius."""
+                   title: str, outward: str, joints: xr.Dataset | None = None) -> None:
+    """``values`` drawn as offsets from the half ring, scaled so the largest is 0.35 radius;
+    the joints of ``joints`` (a segmental lining's result) as radial ticks."""
     theta = np.radians(theta_deg)
     nx, ny = np.sin(theta), np.cos(theta)
     peak = float(np.max(np.abs(values))) if values.size else 0.0
@@ -146,6 +154,8 @@ def _force_diagram(ax, theta_deg: np.ndarray, values: np.ndarray, radius: float,
                 color=color, alpha=0.3, lw=0)
     curve = ring + (scale * values)[:, None] * np.column_stack([nx, ny])
     ax.plot(curve[:, 0], curve[:, 1], color="k", lw=1.2, gid="forces")
+    if joints is not None:
+        joint_plots.draw_on_ring(ax, joints, radius)
     ax.axvline(0.0, color="0.6", lw=0.8, ls="-.")
     for name, where in STATIONS.items():
         i = int(np.argmin(np.abs(theta_deg - where)))
@@ -178,7 +188,8 @@ def plot_lining_forces(ds: xr.Dataset) -> Figure:
 
     Each quantity is an offset from the lining's mid-surface, scaled so its largest
     magnitude is 35 % of the radius and filled between ring and curve (blue positive,
-    red negative), with its value at crown, springline and invert.
+    red negative), with its value at crown, springline and invert. A segmental lining's joints
+    are radial ticks through the diagrams (closed dashed, open orange; :mod:`workflows.joint_plots`).
     """
     radius = _mid_radius(ds)
     theta = ds["theta"].values
@@ -190,7 +201,12 @@ def plot_lining_forces(ds: xr.Dataset) -> Figure:
               ("shear", "V", "shear force V (kN/m)", "kN/m", "+ drawn outward"))
     for ax, (name, symbol, title, unit, outward) in zip(axes, panels):
         _force_diagram(ax, theta, ds[name].values / 1e3, radius, symbol=symbol, unit=unit, title=title,
-                       outward=outward)
+                       outward=outward, joints=ds)
+    joints = joint_plots.summary(ds)
+    if joints:
+        fig.legend(handles=joint_plots.ring_legend_handles(ds), loc="outside lower center", ncols=2,
+                   fontsize="small", title=f"segmental lining: {joints} (ticks across the ring)",
+                   title_fontsize="small")
     fig.suptitle(f"Lining forces, {_title(ds)} (half ring, symmetry axis dash-dotted; "
                  f"mid-surface radius {radius:.3g} m)", fontsize="medium")
     return fig
@@ -217,7 +233,9 @@ def plot_interaction(ds: xr.Dataset) -> Figure:
     """The N–M diagram of one case: design envelope and the design actions at every station.
 
     Stations are (γF·M, γF·N), coloured by θ; the most utilized one is starred with
-    the ray from the origin to the envelope that defines its utilization (SPEC §1.3).
+    the ray from the origin to the envelope that defines its utilization (SPEC §1.3). A
+    segmental lining's joints are diamonds between the rays |M| = N·a/2 of their contact strip
+    (:func:`workflows.joint_plots.draw_on_interaction`), not stations of the section check.
     """
     gamma = load_factor(ds)
     theta = ds["theta"].values
@@ -225,17 +243,22 @@ def plot_interaction(ds: xr.Dataset) -> Figure:
     fig = Figure(figsize=(7.5, 6.5), layout="constrained")
     ax = fig.add_subplot()
     draw_envelope(ax, ds, fill=True)
-    points = ax.scatter(m_ed, n_ed, c=theta, cmap="viridis", vmin=0, vmax=180, s=12, zorder=3,
-                        label=f"stations (γF = {gamma:g})")
+    eta = ds["utilization"].values
+    checked = ~np.isnan(eta)  # a segmental lining's joints: their strips, not the section
+    points = ax.scatter(m_ed[checked], n_ed[checked], c=theta[checked], cmap="viridis", vmin=0, vmax=180, s=12,
+                        zorder=3, label=f"stations (γF = {gamma:g})")
     bar = fig.colorbar(points, ax=ax, ticks=np.arange(0, 181, 30))
     bar.set_label("θ of the station (deg from crown)")
-    eta = ds["utilization"].values
+    if joint_plots.has_joints(ds):  # the strip's rays a little beyond the joints, within the envelope's height
+        top = min(float(np.max(ds["capacity_thrust"].values)) / 1e3,
+                  2.0 * gamma * float(np.max(ds["joint_thrust"].values)) / 1e3)
+        joint_plots.draw_on_interaction(ax, ds, gamma, top=top)
     spec = case_spec(ds)
     title = f"N–M interaction (EN 1992-1-1), {_title(ds)}"
     failing = eta > 1.0
     if failing.any():
         ax.scatter(m_ed[failing], n_ed[failing], s=40, facecolors="none", edgecolors="tab:red", lw=0.8, zorder=3,
-                   label=f"η > 1 ({int(failing.sum())} of {eta.size} stations)")
+                   label=f"η > 1 ({int(failing.sum())} of {int(checked.sum())} stations)")
     if not np.isnan(eta).all():
         k = int(np.nanargmax(eta))
         worst = float(eta[k])
@@ -249,6 +272,12 @@ def plot_interaction(ds: xr.Dataset) -> Figure:
             title += "\nmax utilization η = inf: fails at any load level (tension, or |M|/N ≥ h/2 in plain concrete)"
         else:
             title += f"\nmax utilization η = {worst:.3g} ({'passes' if worst <= 1 else 'fails'})"
+    check = joint_check(ds)
+    if check is not None:
+        inside = check.worst <= 1 + 1e-6
+        title += (f" away from the joints\njoints: |M|/(N·a/2) ≤ {check.worst:.3g} (the thrust "
+                  f"{'within' if inside else 'outside'} the strip), strip η ≤ {check.utilization:.3g} "
+                  f"({'passes' if check.passes else 'fails'}), {check.open} of {check.count} open")
     design = spec.get("design", {})
     geometry = spec.get("geometry", {})
     if design:

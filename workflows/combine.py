@@ -7,6 +7,15 @@ degree); the meshes stay in the per-case files. The reduced cases are stacked
 answers from the store's index (:mod:`workflows.index`), which keeps the reduced
 cases; :func:`combine_files` reads every case file instead and is what the index
 must reproduce exactly.
+
+Segmental linings (SPEC §1.6): the per-joint variables (dim ``joint``: ``joint_theta``,
+``joint_thrust``, ...) are not combined, as the meshes are not: cases with different numbers
+of segments or offsets have joints at different angles, so a joint's index names nothing common
+to the cases (padding them on one ``joint`` dim would line up unrelated joints). What compares
+across cases are the joint scalars, ``max_joint_opening``, ``max_joint_rotation`` and
+``max_joint_eccentricity`` (0 for a monolithic lining), which stack with the other scalars, and
+the interface quantities on the θ grid, where a segmental lining's ``utilization`` is NaN near
+its joints (:func:`on_theta_grid`); each case's joints stay in its file.
 """
 from __future__ import annotations
 
@@ -49,15 +58,37 @@ def interface_quantities(ds: xr.Dataset) -> tuple[list[str], list[str]]:
     return [n for n in names if n not in nearest], nearest
 
 
+def on_theta_grid(theta: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """``values`` at the stations ``theta`` (deg) interpolated linearly onto :data:`THETA`.
+
+    A NaN station is a value that does not apply there (a segmental lining's ``utilization`` at
+    a joint, where the section is the joint's contact strip): the grid points nearest to it are
+    NaN, and the others interpolate between the stations that have values, so a NaN spreads
+    over no more than the station spacing whatever the mesh.
+    """
+    missing = np.isnan(values)
+    if not missing.any():
+        return np.interp(THETA, theta, values)
+    out = np.interp(THETA, theta[~missing], values[~missing]) if not missing.all() else np.full(THETA.size, np.nan)
+    out[missing[_nearest_station(theta)]] = np.nan
+    return out
+
+
+def _nearest_station(theta: np.ndarray) -> np.ndarray:
+    """Index of the station of ``theta`` nearest each point of :data:`THETA`."""
+    return np.abs(THETA[:, None] - theta[None, :]).argmin(axis=1)
+
+
 def reduce_case(ds: xr.Dataset) -> xr.Dataset:
-    """One case's interface quantities on :data:`THETA` and its 0-d scalars, in memory."""
+    """One case's interface quantities on :data:`THETA` and its 0-d scalars, in memory (a
+    segmental lining's ``joint`` variables are left out: see the module docstring)."""
     var = ds.variables  # Variables, not DataArrays: building those costs more than the arithmetic
     theta = var["theta"].values
     interpolated, nearest = interface_quantities(ds)
-    data = {name: ("theta", np.interp(THETA, theta, var[name].values), dict(var[name].attrs))
+    data = {name: ("theta", on_theta_grid(theta, var[name].values), dict(var[name].attrs))
             for name in interpolated}
     if nearest:
-        station = np.abs(THETA[:, None] - theta[None, :]).argmin(axis=1)
+        station = _nearest_station(theta)
         data.update({name: ("theta", var[name].values[station], dict(var[name].attrs)) for name in nearest})
     data.update({name: ((), v.values, dict(v.attrs)) for name, v in ds.data_vars.items()
                  if v.ndim == 0 and name != "mesh"})
@@ -167,8 +198,10 @@ def open_results(root: StoreLike, case_ids: Sequence[str] | None = None) -> xr.D
         ``lining_thickness``, see :mod:`workflows.parameters`); every interface
         quantity of the cases (:func:`interface_quantities`: e.g. ``contact_pressure``,
         ``thrust``, ``moment`` interpolated linearly, ``in_contact`` from the nearest
-        station) on ``(case, theta)`` with ``theta`` = 0, 1, ..., 180 deg; every 0-d
-        scalar of the cases on ``case``; and ``case_spec`` (canonical JSON) on ``case``.
+        station; a segmental lining's ``utilization`` NaN at its joints) on ``(case, theta)``
+        with ``theta`` = 0, 1, ..., 180 deg; every 0-d scalar of the cases on ``case`` (the
+        joints' maxima among them; the per-joint variables stay in the case files); and
+        ``case_spec`` (canonical JSON) on ``case``.
 
     Raises
     ------

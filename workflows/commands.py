@@ -25,6 +25,8 @@ from solver.dataset import SCALARS
 from solver.errors import field_errors, format_errors
 from solver.spec import is_number
 
+from .joint_check import joint_report
+from .joint_plots import has_joints
 from .parameters import flat_parameters, parameter_attrs, varying_parameters
 from .result_store import ResultStore, StoreLike, as_store, case_warnings, check_case_id
 from .summary import summarize
@@ -47,10 +49,19 @@ TABLE_COLUMNS: tuple[tuple[str, str], ...] = (
     ("axis_settlement", "FE surface"),
 )
 
+#: Columns added to the comparison table when a case has a segmental lining (SPEC §1.6).
+JOINT_TABLE_COLUMNS: tuple[tuple[str, str], ...] = (
+    ("max_joint_opening", "joint gap"),
+    ("max_joint_rotation", "joint rot."),
+    ("max_joint_eccentricity", "joint |M|/(Na/2)"),
+    ("max_joint_utilization", "joint η"),
+)
+
 
 def column_unit(name: str) -> str:
-    """The unit row's label of result column ``name`` (the utilization: its limit, ``≤ 1``)."""
-    if name == "max_utilization":
+    """The unit row's label of result column ``name`` (the utilization and the joints'
+    eccentricity: their limit, ``≤ 1``)."""
+    if name in ("max_utilization", "max_joint_eccentricity", "max_joint_utilization"):
         return "≤ 1"
     return display_unit(SCALARS[name][0], name)[0]
 
@@ -283,6 +294,8 @@ def show_command(case_id: str, results: str, *, out: TextIO = sys.stdout) -> int
     print(format_summary(summarize(ds)), file=out)
     if "utilization" in ds:
         print(utilization_report(ds), file=out)
+    if has_joints(ds):
+        print(joint_report(ds), file=out)
     for warning in case_warnings(ds):
         print(f"warning: {warning}", file=out)
     for name in PLOTS:
@@ -348,7 +361,9 @@ def _with_unit(value: Any, units: str | None) -> str:
 
 
 def utilization_report(ds: xr.Dataset) -> str:
-    """Where the lining is most utilized (EN 1992-1-1, SPEC §1.3): η, θ, side, N_Ed and M_Ed there."""
+    """Where the lining is most utilized (EN 1992-1-1, SPEC §1.3): η, θ, side, N_Ed and M_Ed there
+    (a segmental lining's section away from its joints: :func:`workflows.joint_check.joint_report`
+    states the joints)."""
     from .case_plots import load_factor, station_name
 
     eta = ds["utilization"].values
@@ -362,10 +377,12 @@ def utilization_report(ds: xr.Dataset) -> str:
     verdict = "passes" if worst <= 1 else "fails" + (" at any load level" if math.isinf(worst) else "")
     fibre = "inner fibre compressed" if m_ed > 0 else "outer fibre compressed"
     failing = int(np.count_nonzero(eta > 1))
-    return (f"max utilization η = {worst:.3g} ({verdict}; EN 1992-1-1, γF = {gamma:g})\n"
+    checked = int(np.count_nonzero(~np.isnan(eta)))  # a segmental lining's joints are their strips'
+    where = " away from the joints" if has_joints(ds) else ""
+    return (f"max utilization η = {worst:.3g}{where} ({verdict}; EN 1992-1-1, γF = {gamma:g})\n"
             f"  at θ = {theta:.1f}° ({station_name(theta)} side): N_Ed = {n_ed / 1e3:.1f} kN/m, "
             f"M_Ed = {m_ed / 1e3:.1f} kN·m/m ({fibre})\n"
-            f"  stations with η > 1: {failing} of {eta.size}")
+            f"  stations with η > 1: {failing} of {checked}")
 
 
 def case_row(results: StoreLike, case_id: str) -> dict[str, Any]:
@@ -402,23 +419,26 @@ def case_rows(results: StoreLike, case_ids: list[str]) -> list[dict[str, Any]]:
 
 def comparison_table(rows: Iterable[dict[str, Any]]) -> str:
     """Plain-text table: case id, the parameters that vary, the key results (two header lines:
-    names, then units).
+    names, then units); the joints' maxima too when a case has a segmental lining.
 
     ``rows`` are :func:`case_row` dicts; failed cases show their status instead of numbers;
     a missing or NaN value shows ``-``, an infinite one ``inf``.
     """
     rows = list(rows)
     varied = varying_parameters([r["params"] for r in rows if r["params"]])
-    header = ["case_id", *varied, *(h for _, h in TABLE_COLUMNS)]
+    columns = TABLE_COLUMNS
+    if any(r["params"].get("lining_joints_count", 0) for r in rows):  # a segmental lining among them
+        columns += JOINT_TABLE_COLUMNS
+    header = ["case_id", *varied, *(h for _, h in columns)]
     units = ["", *(_unit_label(parameter_attrs(n).get("units")) for n in varied),
-             *(column_unit(k) for k, _ in TABLE_COLUMNS)]
+             *(column_unit(k) for k, _ in columns)]
     lines = []
     for r in rows:
         cells = [r["case_id"], *(_fmt(r["params"].get(n, "")) for n in varied)]
         if r["status"] == "done":
-            cells += [shown_number(r["summary"].get(k), SCALARS[k][0], k) for k, _ in TABLE_COLUMNS]
+            cells += [shown_number(r["summary"].get(k), SCALARS[k][0], k) for k, _ in columns]
         else:
-            cells += [r["status"]] + [""] * (len(TABLE_COLUMNS) - 1)
+            cells += [r["status"]] + [""] * (len(columns) - 1)
         lines.append(cells)
     widths = [max(len(str(c)) for c in col) for col in zip(header, units, *lines)]
     fmt = "  ".join(f"{{:>{w}}}" for w in widths)

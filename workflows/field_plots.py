@@ -13,6 +13,7 @@ from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.figure import Figure
 from matplotlib.tri import Triangulation
 
+from . import joint_plots
 from .case_plots import _CONTACT_COLOR, _ground_lines, _title
 
 #: Half width of the view around the tunnel, in excavation radii.
@@ -84,6 +85,7 @@ def _panel(fig, ax, ds, tri, near, values, *, label: str, cmap: str, faces: bool
     else:
         art = ax.tricontourf(Triangulation(x, y, tri[ground]), values, levels=levels, cmap=cmap, extend="both")
     _lining(ax, ds, tri, x, y)
+    joint_plots.draw_on_mesh(ax, ds)
     _yielded_outline(ax, ds, tri, x, y)
     _ground_lines(ax, ds)
     _window(ax, ds)
@@ -95,7 +97,8 @@ def _panel(fig, ax, ds, tri, near, values, *, label: str, cmap: str, faces: bool
 def plot_contours(ds: xr.Dataset) -> Figure:
     """Contours near the tunnel: displacement magnitude (mm), effective stresses σ'xx, σ'yy,
     τxy (kPa, compression negative), and where the case has them pore pressure (kPa) and
-    equivalent plastic strain, the yielded zone outlined in magenta on every panel."""
+    equivalent plastic strain, the yielded zone outlined in magenta on every panel, a segmental
+    lining's joints as lines across the lining."""
     tri = ds["face_nodes"].values.astype(np.int64)[:, :3]
     stress = "effective_stress" if "effective_stress_xx" in ds else "stress"
     panels = [("|u| displacement magnitude (mm)", "viridis", False, False,
@@ -123,7 +126,9 @@ def plot_contours(ds: xr.Dataset) -> Figure:
     for ax in axes[len(panels) - ncols:len(panels)]:
         ax.set_xlabel("x (m)", fontsize="x-small")
     yielded = "plastic" in ds and bool(np.any(ds["plastic"].values > 0))
+    joints = joint_plots.summary(ds)
     fig.suptitle(f"Fields near the tunnel, {_title(ds)} (lining grey"
+                 + (f"; {joints}: lines across the lining, orange open, dark closed" if joints else "")
                  + ("; yielded zone outlined in magenta" if yielded else "; the ground stays elastic")
                  + "; stresses: compression negative)", fontsize="medium")
     return fig
@@ -131,7 +136,9 @@ def plot_contours(ds: xr.Dataset) -> Figure:
 
 def plot_deformed_mesh(ds: xr.Dataset, *, scale: float | None = None) -> Figure:
     """The ground and lining near the tunnel deformed by scaled displacements, coloured by the
-    displacement magnitude (mm); the undeformed excavation boundary dashed, the contact zone red.
+    displacement magnitude (mm); the undeformed excavation boundary dashed, the contact zone red,
+    a segmental lining's joints as lines across the lining (each face deformed with its segment, so
+    an open joint gapes; :mod:`workflows.joint_plots`).
 
     The lining's own deformation (its ovalization, the displacement less the ring's mean
     translation) is what the eye should see, so by default the scale makes the largest of it
@@ -170,6 +177,7 @@ def plot_deformed_mesh(ds: xr.Dataset, *, scale: float | None = None) -> Figure:
     pts = np.column_stack([xd[ring], yd[ring]])
     segs = [pts[i:i + 2] for i in range(len(pts) - 1) if on[i] and on[i + 1]]
     ax.add_collection(LineCollection(segs, colors=_CONTACT_COLOR, linewidths=2.5, label="in contact"))
+    joint_plots.draw_on_mesh(ax, ds, scale=scale)
     _yielded_outline(ax, ds, tri, xd, yd)
     _ground_lines(ax, ds)
     ax.set_xlim(0.0, view)
@@ -180,6 +188,9 @@ def plot_deformed_mesh(ds: xr.Dataset, *, scale: float | None = None) -> Figure:
     bar = fig.colorbar(art, ax=ax, shrink=0.8)
     bar.set_label("displacement magnitude |u| (mm)", fontsize="small")
     ax.legend(loc="upper right", fontsize="x-small")
+    joints = joint_plots.summary(ds)
     ax.set_title(f"Deformed mesh ×{scale:.3g}, {_title(ds)}\nring translation {1e3 * shift[1]:+.3g} mm "
-                 f"(up +), ring deformation up to {1e3 * own:.3g} mm", fontsize="medium")
+                 f"(up +), ring deformation up to {1e3 * own:.3g} mm"
+                 + (f"\nsegmental lining: {joints}, largest opening {1e3 * float(ds['max_joint_opening']):.3g} mm"
+                    if joints else ""), fontsize="medium")
     return fig

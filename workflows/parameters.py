@@ -17,7 +17,7 @@ from typing import Any
 
 from pydantic import BaseModel
 
-from solver.spec import CaseSpec
+from solver.spec import ROUND3_DEFAULTS, CaseSpec
 
 #: Alternative dotted paths accepted in sweeps -> canonical path in :class:`CaseSpec`.
 PATH_ALIASES: dict[str, str] = {"lining.thickness": "geometry.thickness"}
@@ -157,18 +157,32 @@ def parameter_path(flat: str) -> str:
     return _paths_by_flat_name().get(flat, flat)
 
 
+def with_round3_defaults(data: dict[str, Any]) -> dict[str, Any]:
+    """A case dict with the round-3 fields its canonical JSON leaves out at their defaults
+    (:data:`solver.spec.ROUND3_DEFAULTS`) put back, so that a monolithic and a segmental case,
+    or a dry and a wet one, have the same parameters (``lining_joints_count`` 0 and 6). The
+    layers are not: a one-layer ground has none (``ground.layers.<i>`` are parameters of
+    layered cases alone)."""
+    filled = dict(data)
+    for section, fields in ROUND3_DEFAULTS.items():
+        missing = {name: default for name, default in fields.items()
+                   if name != "layers" and name not in filled.get(section, {})}
+        if missing:
+            filled[section] = {**filled.get(section, {}), **missing}
+    return filled
+
+
 def flat_parameters(spec: CaseSpec | dict[str, Any] | str) -> dict[str, Any]:
     """All parameters of a case as ``{flat name: value}``.
 
     ``spec`` may be a :class:`CaseSpec`, its ``model_dump(mode="json")`` or its
-    canonical JSON text (the ``case_spec`` attribute of a result).
+    canonical JSON text (the ``case_spec`` attribute of a result), whose round-3 fields at
+    their defaults are filled in (:func:`with_round3_defaults`).
     """
     if isinstance(spec, CaseSpec):
         data = spec.model_dump(mode="json")
-    elif isinstance(spec, str):
-        data = json.loads(spec)
     else:
-        data = spec
+        data = with_round3_defaults(json.loads(spec) if isinstance(spec, str) else spec)
     flat: dict[str, Any] = {}
 
     def walk(value, path):

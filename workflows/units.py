@@ -11,7 +11,7 @@ import math
 DISPLAY_UNITS: dict[str, tuple[str, float]] = {
     "Pa": ("kPa", 1e-3), "N m-1": ("kN/m", 1e-3), "N m m-1": ("kN·m/m", 1e-3),
     "m": ("mm", 1e3), "degree": ("°", 1.0), "s": ("s", 1.0), "1": ("", 1.0),
-    "m2": ("m²", 1.0), "m3 s-1": ("L/s per m", 1e3),
+    "m2": ("m²", 1.0), "m3 s-1": ("L/s per m", 1e3), "rad": ("mrad", 1e3),
 }
 #: Scalars that describe the solve rather than the tunnel (shown apart from the results).
 DIAGNOSTICS = ("bolt_theta", "bolt_trials", "iterations", "converged", "kkt_residual", "solve_seconds")

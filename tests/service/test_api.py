@@ -248,6 +248,12 @@ def test_unknown_or_malformed_ids_are_404(client, url):
     (coarse_case(solver={"inner": "magic"}), "solver.inner", "active-set"),
     ({"mesh": {"interface_size": 5.0, "far_size": 1.0}}, "mesh.far_size", "smaller"),
     ({"tunnel": {}}, "tunnel", "Extra inputs"),
+    (coarse_case(lining={"joints": {"count": 6, "offset": 10.0}}), "lining.joints.offset", "unsymmetric"),
+    (coarse_case(lining={"joints": {"count": 2}}), "lining.joints.count", "at least 3"),
+    (coarse_case(lining={"joints": {"count": 6, "contact_height": 0.5}}), "lining.joints.contact_height",
+     "exceeds the lining thickness"),
+    (coarse_case(lining={"joints": {"count": 6, "contact_height": -0.1}}), "lining.joints.contact_height",
+     "greater than 0"),
 ])
 def test_invalid_case_is_422_naming_the_field(client, body, field, words):
     response = client.post("/cases", json=body)
@@ -462,7 +468,8 @@ def test_a_sweep_run_from_the_command_line_is_listed_by_the_service(client, app,
 
     root = app.state.jobs.root
     sweep = {"name": "from the command line", "base": COARSE, "mode": "zip",
-             "vary": {"lining.joints.count": [0, 6], "geometry.thickness": [0.25, 0.35]}}
+             "vary": {"solver.max_iterations": [100_000, 2], "solver.inner": ["active-set", "uzawa"],
+                      "geometry.thickness": [0.25, 0.35]}}  # cases no other test solved
     (tmp_path / "sweep.json").write_text(json.dumps(sweep))
     assert main(["sweep", str(tmp_path / "sweep.json"), "--results", str(root), "--no-progress"]) == 1  # one fails
     records = list((root / "sweeps" / "records").glob("*.json"))
@@ -478,7 +485,7 @@ def test_a_sweep_run_from_the_command_line_is_listed_by_the_service(client, app,
     assert status["total"] == 2 and status["counts"]["done"] == 1 and status["counts"]["failed"] == 1
     table = client.get(f"/sweeps/{sweep_id}/table").json()
     failed = next(r for r in table["rows"] if r["status"] == "failed")
-    assert "lining.joints" in failed["error"]
+    assert "solver.inner='uzawa' did not converge" in failed["error"]
     done = next(r for r in table["rows"] if r["status"] == "done")
     assert app.state.jobs.store.get_case(done["case_id"]).submissions == 0  # read, not solved again
     assert client.portal.call(app.state.jobs.import_sweep_records) == []  # once

@@ -70,6 +70,7 @@ def test_layers_are_filled_and_a_stated_default_is_the_same_case():
     ({"lining": {"joints": {"count": 2}}}, "lining.joints.count"),
     ({"lining": {"joints": {"count": 6, "contact_height": 0.4}}}, "lining.joints.contact_height"),
     ({"lining": {"joints": {"count": 6, "contact_height": 0.0}}}, "lining.joints.contact_height"),
+    ({"lining": {"joints": {"count": 6}}, "solver": {"bolt": 90.0}}, "solver.bolt"),
 ])
 def test_mistakes_are_named_by_their_field(data, field):
     with pytest.raises(ValidationError) as err:

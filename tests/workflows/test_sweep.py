@@ -202,6 +202,10 @@ def test_examples_are_valid():
     assert len(expand_sweep(load_sweep(root / "sobol-study.json"))) == 1024  # the README's study
     search = Search.model_validate_json((root / "thinnest-lining.json").read_text())  # and search
     assert search.parameter == "geometry.thickness" and len(expand_sweep(search.trial_sweep(search.low))) == 3
+    assert load_case(root / "segmental.json").lining.joints.count == 6  # the README's segmental lining
+    patterns = expand_sweep(load_sweep(root / "segment-patterns.json"))
+    assert [(c.lining.joints.count, c.lining.joints.offset) for c in patterns] == [
+        (4, 0.0), (4, 45.0), (6, 0.0), (6, 30.0), (8, 0.0), (8, 22.5)]
 
 
 def test_dict_input_and_alias():
