@@ -90,7 +90,7 @@ class _Points:
         poisson = np.broadcast_to(poisson, y.shape)
         lam = young * poisson / ((1 + poisson) * (1 - 2 * poisson))
         mu = young / (2 * (1 + poisson))
-        self.lam, self.mu = lam, mu
+        self.lam, self.mu, self.mu2 = lam, mu, 2 * mu
         per = lambda name: np.broadcast_to(  # noqa: E731
             np.array([getattr(s, name) for s in layers])[band][:, None], y.shape).ravel()
         self.yielding = np.broadcast_to(np.array([s.model == "mohr-coulomb" for s in layers])[band][:, None],
@@ -113,11 +113,21 @@ class _Points:
         #: equilibrium iteration's tolerance leaves yielding points a hair inside it
         self.flag_tolerance = max(spec.solver.tolerance, MIN_TOLERANCE)
 
-    def hooke(self, grad: np.ndarray) -> np.ndarray:
-        """The elastic stress (4, E, Q) of a displacement gradient (2, 2, E, Q), plane strain."""
-        lt = self.lam * (grad[0, 0] + grad[1, 1])
-        return np.stack([lt + 2 * self.mu * grad[0, 0], lt + 2 * self.mu * grad[1, 1],
-                         self.mu * (grad[0, 1] + grad[1, 0]), lt])
+    def hooke(self, grad: np.ndarray, onto: np.ndarray | None = None) -> np.ndarray:
+        """The elastic stress (4, E, Q) of a displacement gradient (2, 2, E, Q), plane strain;
+        added to a copy of ``onto`` (4, E, Q) if given (in place: the trial of every iterate)."""
+        out = np.zeros((4,) + grad.shape[2:]) if onto is None else onto.copy()
+        lt = grad[0, 0] + grad[1, 1]
+        lt *= self.lam
+        out[3] += lt
+        out[0] += lt
+        out[1] += lt
+        out[0] += self.mu2 * grad[0, 0]
+        out[1] += self.mu2 * grad[1, 1]
+        shear = grad[0, 1] + grad[1, 0]
+        shear *= self.mu
+        out[2] += shear
+        return out
 
     def gradient(self, u_free: np.ndarray) -> np.ndarray:
         """The displacement gradient (2, 2, E, Q) of the ground's unknowns ``u_free``."""
@@ -126,7 +136,7 @@ class _Points:
     def trial(self, grad: np.ndarray):
         """Stress, plastic strain increment, yield flags and ``D ε_p`` of a displacement
         gradient since excavation, from the last converged increment."""
-        trial = self.sigma + self.hooke(grad - self.grad)
+        trial = self.hooke(grad - self.grad, onto=self.sigma)
         flat = trial.reshape(4, -1)
         dep = np.zeros((3, flat.shape[1]))
         flags = np.zeros(flat.shape[1], bool)
