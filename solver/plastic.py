@@ -106,9 +106,9 @@ class _Points:
         self.tau = np.zeros((4,) + y.shape)  # σ0′ + D ε - σ = D ε_p
         self.eqps = np.zeros(y.shape)
         self.at_yield = np.zeros(y.shape, bool)
-        #: the elements that have had a plastic strain so far, their points and rows of ``G``,
-        #: transposed (:func:`_plastic_load`)
-        self.yielded = (np.zeros(y.shape[0], bool), None)
+        #: the elements that have had a plastic strain so far, their points and those points'
+        #: rows of ``G``, transposed (:func:`_plastic_load`)
+        self.yielded = (np.zeros(y.shape[0], bool), None, None)
         #: a point within this (relative) distance of the yield surface counts as at yield: the
         #: equilibrium iteration's tolerance leaves yielding points a hair inside it
         self.flag_tolerance = max(spec.solver.tolerance, MIN_TOLERANCE)
@@ -163,17 +163,16 @@ def _plastic_load(points: _Points, tau: np.ndarray) -> np.ndarray:
     ``points``, from ``tau`` = the bracket (4, E, Q): non-zero only where the ground has yielded,
     so only the rows of the gradient operator at the points of the elements that have yielded
     so far are used (:attr:`_Points.yielded`, grown when others yield)."""
-    known, GT = points.yielded
-    now = (tau.reshape(4, -1) != 0).any(axis=0).reshape(points.shape).any(axis=1)  # (E,) elements that yielded
-    if (now & ~known).any():
-        known = known | now
+    elements, at, GT = points.yielded
+    now = (tau.reshape(4, -1) != 0).any(axis=0).reshape(points.shape).any(axis=1)  # (E,)
+    if (now & ~elements).any():
+        elements = elements | now
         E, Q = points.shape
-        at = (np.flatnonzero(known)[:, None] * Q + np.arange(Q)).ravel()  # their points
-        rows = (np.arange(4)[:, None] * (E * Q) + at[None, :]).ravel()
-        points.yielded = known, GT = known, (at, points.G[rows].T)
+        at = (np.flatnonzero(elements)[:, None] * Q + np.arange(Q)).ravel()  # their points
+        GT = points.G[(np.arange(4)[:, None] * (E * Q) + at[None, :]).ravel()].T
+        points.yielded = elements, at, GT
     if GT is None:
         return np.zeros(points.G.shape[1])
-    at, GT = GT
     w = points.weights.reshape(-1)[at]
     t = tau.reshape(4, -1)[:, at]
     return GT @ np.concatenate([t[0] * w, t[2] * w, t[2] * w, t[1] * w])
