@@ -8,9 +8,11 @@ meshing, assembly or factorization, only loads, forward / backward solves and th
 solve; a drained case also solves its head problem, factorized once per table). The
 Mohr–Coulomb case reports its plastic iterations (all increments of both stages). Each
 timing is the least of ``--repeat`` runs, alternating the cases so that a busy machine slows
-them alike.
+them alike; ``paired`` is the median over the rounds of each case's time over the default's
+in the same round. ``--weak`` also solves, once on its built model, issue 25's weak ground
+(c 15 kPa, φ 25°, ψ 0: increments that stall and are split) and reports its iterations.
 
-    python -m bench.ground [--repeat N] [--json]
+    python -m bench.ground [--repeat N] [--json] [--weak]
 """
 from __future__ import annotations
 
@@ -21,9 +23,11 @@ if __name__ == "__main__":
 
 import argparse  # noqa: E402
 import json  # noqa: E402
+import statistics  # noqa: E402
 import time  # noqa: E402
 
 from solver import CaseSpec, run_case  # noqa: E402
+from solver.errors import SolverError  # noqa: E402
 from solver.model import TunnelModel  # noqa: E402
 
 LAYERS = [{"thickness": 6.0, "young": 2.0e7, "density": 1900.0, "lateral_ratio": 0.6},
@@ -35,6 +39,9 @@ CASES = {
     "mohr-coulomb": {"ground": {"model": "mohr-coulomb", "cohesion": 3.0e4, "friction_angle": 28.0,
                                 "tensile_strength": 1.0e4}},
 }
+#: issue 25's weak ground under a thin stiff lining (the plastic iteration splits its stalled increments)
+WEAK = {"ground": {"model": "mohr-coulomb", "cohesion": 1.5e4, "friction_angle": 25.0},
+        "geometry": {"thickness": 0.2}, "lining": {"young": 1.0e10}}
 
 
 def _least(fn, repeat: int) -> float:
@@ -50,14 +57,19 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--json", action="store_true")
+    ap.add_argument("--weak", action="store_true", help="also solve issue 25's weak ground once")
     args = ap.parse_args(argv)
     specs = {name: CaseSpec.model_validate(d) for name, d in CASES.items()}
     whole = {name: float("inf") for name in specs}
+    rounds = []
     for _ in range(args.repeat):
+        times = {}
         for name, spec in specs.items():
             t0 = time.perf_counter()
             run_case(spec)
-            whole[name] = min(whole[name], time.perf_counter() - t0)
+            times[name] = time.perf_counter() - t0
+            whole[name] = min(whole[name], times[name])
+        rounds.append(times)
     on_model, iterations = {}, {}
     for name, spec in specs.items():
         model = TunnelModel(spec)
@@ -72,17 +84,31 @@ def main(argv=None) -> None:
         model.solve(other)  # a drained case factorizes the new table's head problem once
         on_model[name] = _least(lambda: model.solve(other), args.repeat)
     rows = {name: {"run_case_s": whole[name], "ratio_to_default": whole[name] / whole["default"],
+                   "paired_ratio": statistics.median(r[name] / r["default"] for r in rounds),
                    "next_case_on_model_s": on_model[name],
                    "next_ratio": on_model[name] / on_model["default"],
                    "plastic_iterations": iterations.get(name)} for name in specs}
+    weak = None
+    if args.weak:
+        spec = CaseSpec.model_validate(WEAK)
+        model = TunnelModel(spec)
+        t0 = time.perf_counter()
+        try:
+            weak = {"iterations": model.solve(spec).plastic["iterations"]}
+        except SolverError as e:
+            weak = {"failed": str(e)}
+        weak["solve_s"] = time.perf_counter() - t0
     if args.json:
-        print(json.dumps(rows, indent=2))
+        print(json.dumps({"cases": rows, "weak": weak} if args.weak else rows, indent=2))
         return
-    print(f"{'case':22s} {'run_case s':>11s} {'/ default':>10s} {'next case on model s':>21s} {'/ default':>10s}"
-          f" {'plastic iterations':>19s}")
+    print(f"{'case':22s} {'run_case s':>11s} {'/ default':>10s} {'paired':>7s} {'next case on model s':>21s}"
+          f" {'/ default':>10s} {'plastic iterations':>19s}")
     for name, r in rows.items():
-        print(f"{name:22s} {r['run_case_s']:11.3f} {r['ratio_to_default']:10.2f} {r['next_case_on_model_s']:21.4f}"
-              f" {r['next_ratio']:10.1f} {r['plastic_iterations'] or '':>19}")
+        print(f"{name:22s} {r['run_case_s']:11.3f} {r['ratio_to_default']:10.2f} {r['paired_ratio']:7.2f}"
+              f" {r['next_case_on_model_s']:21.4f} {r['next_ratio']:10.1f} {r['plastic_iterations'] or '':>19}")
+    if weak is not None:
+        print(f"weak ground (issue 25), solve on its built model: {weak['solve_s']:.2f} s, "
+              + (f"{weak['iterations']} plastic iterations" if "iterations" in weak else weak["failed"]))
 
 
 if __name__ == "__main__":

@@ -13,9 +13,21 @@ geometry. The stop test is the equilibrium residual: the out-of-balance force
 floored at :data:`MIN_TOLERANCE`; the plastic consistency holds at every point by the return
 mapping (:mod:`solver.mohr_coulomb`).
 
+Where an increment stalls (:data:`STAGNATION`) it is split in halves, down to 1/64 of it,
+and the sub-increments grow again as they converge (:func:`_follow`; the automatic step
+control of commercial codes). Why: with flow far from associated (ψ = 0 against φ = 25°) a
+thin plastic zone can sit beyond the loss of stability of non-associated perfect plasticity.
+The consistent tangent stiffness then has a few eigenvalues of slightly negative real part
+(``K⁻¹J`` down to -0.013 in the stalling case of issue 25), carried by shear-band modes
+of the plastic zone: the iteration's map has a dozen eigenvalues at or just above 1, more than
+Anderson mixing can cancel, and a Newton step on that tangent (measured) moves a hundredth of
+the displacement along those modes, far outside where its linearization holds (hundreds of
+points change state). Shorter increments keep the iterates where the mixing still works.
+
 Stages (SPEC §1.1): stage 1 releases λd of the excavation load in ``solver.load_steps``
 equal increments on the unsupported ground (those below the first yield, :func:`first_yield`,
-in one elastic solve; each increment starts from the last one's displacement repeated); the lining is placed on the ground as it stands; stage 2
+in one elastic solve; each increment starts from the last one's displacement change, scaled
+to its length); the lining is placed on the ground as it stands; stage 2
 releases the rest (with the lining's weight, the water and a drained lining's seepage) in as
 many increments, each with its contact solve. The stress history lives at the quadrature
 points (degree 4, six per triangle); the stored face stresses are followed, with the same
@@ -24,6 +36,8 @@ set of points (:meth:`~solver.model.TunnelModel.gradient_operator`), whose trans
 integrates the plastic load.
 """
 from __future__ import annotations
+
+import logging
 
 import numpy as np
 
@@ -34,14 +48,26 @@ from .mohr_coulomb import Material, equivalent, return_stress
 from .post import mean_convergence
 from .strata import strata
 
+log = logging.getLogger(__name__)
+
 #: The plastic equilibrium tolerance: the out-of-balance force relative to the increment's
 #: load (``solver.tolerance`` if coarser). The constant-stiffness iteration converges linearly;
 #: with non-associated flow (ψ < φ) it stalls near 1e-4, where points cross the yield surface
-#: from one iterate to the next. 1e-3 is ten times tighter than the 1 % commercial codes
-#: default to; Salençon's wall convergence is met to 0.4 % with it (tests).
+#: from one iterate to the next (far from associated, sooner: then the increment is split).
+#: 1e-3 is ten times tighter than the 1 % commercial codes default to; Salençon's wall
+#: convergence is met to 0.4 % with it (tests).
 MIN_TOLERANCE = 1e-3
-#: Iterations allowed per load increment before the case fails.
-MAX_STEP_ITERATIONS = 500
+#: Iterations allowed per load increment: its sub-increments and their stalled attempts together.
+MAX_STEP_ITERATIONS = 1000
+#: An iteration has stalled when its least out-of-balance force has not fallen by a tenth in
+#: this many iterations: the increment is then split (:func:`_follow`); the smallest
+#: sub-increments have what is left of :data:`MAX_STEP_ITERATIONS`.
+STAGNATION = 20
+#: A sub-increment that converged in at most this many iterations is followed by one twice as
+#: long (else by one as long).
+GROW_BELOW = 15
+#: A stalled increment is halved at most this many times (sub-increments of 1/64 of it).
+MAX_SPLITS = 6
 #: Anderson mixing depth.
 DEPTH = 8
 
@@ -64,7 +90,7 @@ class _Points:
         poisson = np.broadcast_to(poisson, y.shape)
         lam = young * poisson / ((1 + poisson) * (1 - 2 * poisson))
         mu = young / (2 * (1 + poisson))
-        self.lam, self.mu = lam, mu
+        self.lam, self.mu, self.mu2 = lam, mu, 2 * mu
         per = lambda name: np.broadcast_to(  # noqa: E731
             np.array([getattr(s, name) for s in layers])[band][:, None], y.shape).ravel()
         self.yielding = np.broadcast_to(np.array([s.model == "mohr-coulomb" for s in layers])[band][:, None],
@@ -80,15 +106,28 @@ class _Points:
         self.tau = np.zeros((4,) + y.shape)  # σ0′ + D ε - σ = D ε_p
         self.eqps = np.zeros(y.shape)
         self.at_yield = np.zeros(y.shape, bool)
+        #: the elements that have had a plastic strain so far, their points and those points'
+        #: rows of ``G``, transposed (:func:`_plastic_load`)
+        self.yielded = (np.zeros(y.shape[0], bool), None, None)
         #: a point within this (relative) distance of the yield surface counts as at yield: the
         #: equilibrium iteration's tolerance leaves yielding points a hair inside it
         self.flag_tolerance = max(spec.solver.tolerance, MIN_TOLERANCE)
 
-    def hooke(self, grad: np.ndarray) -> np.ndarray:
-        """The elastic stress (4, E, Q) of a displacement gradient (2, 2, E, Q), plane strain."""
-        lt = self.lam * (grad[0, 0] + grad[1, 1])
-        return np.stack([lt + 2 * self.mu * grad[0, 0], lt + 2 * self.mu * grad[1, 1],
-                         self.mu * (grad[0, 1] + grad[1, 0]), lt])
+    def hooke(self, grad: np.ndarray, onto: np.ndarray | None = None) -> np.ndarray:
+        """The elastic stress (4, E, Q) of a displacement gradient (2, 2, E, Q), plane strain;
+        added to a copy of ``onto`` (4, E, Q) if given (in place: the trial of every iterate)."""
+        out = np.zeros((4,) + grad.shape[2:]) if onto is None else onto.copy()
+        lt = grad[0, 0] + grad[1, 1]
+        lt *= self.lam
+        out[3] += lt
+        out[0] += lt
+        out[1] += lt
+        out[0] += self.mu2 * grad[0, 0]
+        out[1] += self.mu2 * grad[1, 1]
+        shear = grad[0, 1] + grad[1, 0]
+        shear *= self.mu
+        out[2] += shear
+        return out
 
     def gradient(self, u_free: np.ndarray) -> np.ndarray:
         """The displacement gradient (2, 2, E, Q) of the ground's unknowns ``u_free``."""
@@ -97,7 +136,7 @@ class _Points:
     def trial(self, grad: np.ndarray):
         """Stress, plastic strain increment, yield flags and ``D ε_p`` of a displacement
         gradient since excavation, from the last converged increment."""
-        trial = self.sigma + self.hooke(grad - self.grad)
+        trial = self.hooke(grad - self.grad, onto=self.sigma)
         flat = trial.reshape(4, -1)
         dep = np.zeros((3, flat.shape[1]))
         flags = np.zeros(flat.shape[1], bool)
@@ -121,9 +160,22 @@ class _Points:
 
 def _plastic_load(points: _Points, tau: np.ndarray) -> np.ndarray:
     """``∫Bᵀ(σ0′ + D ε(u) - σ)`` on the ground's unknowns, at the quadrature points of
-    ``points``, from ``tau`` = the bracket (4, E, Q): non-zero only where the ground has yielded."""
-    w = points.weights
-    return points.G.T @ np.stack([tau[0] * w, tau[2] * w, tau[2] * w, tau[1] * w]).ravel()
+    ``points``, from ``tau`` = the bracket (4, E, Q): non-zero only where the ground has yielded,
+    so only the rows of the gradient operator at the points of the elements that have yielded
+    so far are used (:attr:`_Points.yielded`, grown when others yield)."""
+    elements, at, GT = points.yielded
+    now = (tau.reshape(4, -1) != 0).any(axis=0).reshape(points.shape).any(axis=1)  # (E,)
+    if (now & ~elements).any():
+        elements = elements | now
+        E, Q = points.shape
+        at = (np.flatnonzero(elements)[:, None] * Q + np.arange(Q)).ravel()  # their points
+        GT = points.G[(np.arange(4)[:, None] * (E * Q) + at[None, :]).ravel()].T
+        points.yielded = elements, at, GT
+    if GT is None:
+        return np.zeros(points.G.shape[1])
+    w = points.weights.reshape(-1)[at]
+    t = tau.reshape(4, -1)[:, at]
+    return GT @ np.concatenate([t[0] * w, t[2] * w, t[2] * w, t[1] * w])
 
 
 def first_yield(points: _Points, u_unit: np.ndarray, limit: float) -> float:
@@ -160,43 +212,116 @@ class _Anderson:
     cost of a small least-squares problem per iteration."""
 
     def __init__(self, m: int = 8):
-        self.m, self.xs, self.rs = m, [], []
+        self.m, self.count = m, 0
+        self.last = None  # the last G(x) and residual
+        self.dG = self.dR = None  # (m, n) their differences, the newest at row (count - 1) % m
 
     def step(self, x: np.ndarray, gx: np.ndarray) -> np.ndarray:
         r = gx - x
-        self.xs.append(gx)
-        self.rs.append(r)
-        if len(self.rs) > self.m + 1:
-            self.xs.pop(0)
-            self.rs.pop(0)
-        if len(self.rs) == 1 or self.m == 0:
+        last, self.last = self.last, (gx, r)
+        if last is None or self.m == 0:
             return gx
-        dR = np.column_stack([self.rs[i + 1] - self.rs[i] for i in range(len(self.rs) - 1)])
-        dG = np.column_stack([self.xs[i + 1] - self.xs[i] for i in range(len(self.xs) - 1)])
-        gamma = np.linalg.lstsq(dR, r, rcond=None)[0]
-        return gx - dG @ gamma
+        if self.dR is None:
+            self.dG, self.dR = np.empty((self.m, r.size)), np.empty((self.m, r.size))
+        row = self.count % self.m
+        np.subtract(gx, last[0], out=self.dG[row])
+        np.subtract(r, last[1], out=self.dR[row])
+        self.count += 1
+        k = min(self.count, self.m)
+        dR, dG = self.dR[:k], self.dG[:k]
+        # the least-squares mix from its normal equations (k ≤ m unknowns; lstsq: the least-norm
+        # solution if the differences are dependent)
+        gamma = np.linalg.lstsq(dR @ dR.T, dR @ r, rcond=None)[0]
+        return gx - gamma @ dG
 
 
-def _fixed_point(G, x0: np.ndarray, K, atol: float, where: str):
+class _Stalled(Exception):
+    """The iteration of one (sub-)increment stopped short of equilibrium: its last
+    out-of-balance force and the iterations it took."""
+
+    def __init__(self, force: float, atol: float, iterations: int):
+        super().__init__(force, atol, iterations)
+        self.force, self.atol, self.iterations = force, atol, iterations
+
+
+def _fixed_point(G, x0: np.ndarray, K, atol: float, patience: int | None = STAGNATION,
+                 limit: int = MAX_STEP_ITERATIONS):
     """Solve ``x = G(x)`` by constant-stiffness iterations with Anderson mixing, until the
     out-of-balance force ``‖K (G(x) - x)‖`` of an iterate ``x`` is at most ``atol``. ``G``
     returns the new iterate, the plastic load and the yield state at ``x``; the answer is that
-    iterate with its plastic load and yield state (the state the stop test measured)."""
+    iterate with its plastic load, yield state (the state the stop test measured) and the
+    iterations taken. Raises :class:`_Stalled` when the least force so far has not fallen by a
+    tenth in ``patience`` iterations (if given), is not finite, or after ``limit`` iterations."""
     acc = _Anderson(DEPTH)
     x, force = x0, float("inf")
-    for count in range(1, MAX_STEP_ITERATIONS + 1):
+    mark, since = float("inf"), 0
+    for count in range(1, limit + 1):
         check_time("plastic iteration", count)
         gx, p, state = G(x)
         force = float(np.linalg.norm(K @ (gx - x)))
         if force <= atol:
             return x, p, state, count
+        if not np.isfinite(force):
+            break
+        if force < 0.9 * mark:
+            mark, since = force, 0
+        else:
+            since += 1
+            if patience is not None and since >= patience:
+                break
         x = acc.step(x, gx)
-    raise NotConvergedError(
-        f"solver.load_steps: the yielding ground did not reach equilibrium in {where} (out-of-balance force "
-        f"{force:.3g} N/m > {atol:.3g} after {MAX_STEP_ITERATIONS} iterations): far above the tolerance the "
-        "ground is collapsing (raise its strength or the support: a lower excavation.deconfinement); just above "
-        "it the iteration has stalled where points cross the yield surface (more solver.load_steps, or a "
-        f"coarser solver.tolerance: the plastic iteration's is max(solver.tolerance, {MIN_TOLERANCE:g}))")
+    raise _Stalled(force, atol, count)
+
+
+def _follow(solve, commit, x: np.ndarray, x_prev: np.ndarray, h_prev: float, start: float, end: float, where: str,
+            size: int = 2**MAX_SPLITS):
+    """Take the load from the fraction ``start`` to ``end`` (one increment): in one step, or,
+    where the iteration stalls, in sub-increments halved until they converge (down to
+    1/2^:data:`MAX_SPLITS` of the increment) and doubled again after each quick success
+    (:data:`GROW_BELOW`).
+
+    ``solve(frac, guess, patience, limit)`` is :func:`_fixed_point` at the load fraction ``frac``
+    (the smallest sub-increments without a ``patience``; all within the increment's
+    :data:`MAX_STEP_ITERATIONS`); ``commit`` stores a converged state.
+    Each step starts from the last one's displacement change, scaled to its length (``x -
+    x_prev`` over ``h_prev``); the first tries ``size`` (in 1/2^MAX_SPLITS of the increment:
+    where the last increment left off). Returns the displacement, the plastic load, the
+    iterations spent (failed attempts included), the last step's start and length and the
+    size the next increment tries first; raises :class:`NotConvergedError` with the reason
+    when even the smallest sub-increment stalls, or the increment's iterations run out."""
+    units = 2**MAX_SPLITS  # positions within the increment, in its smallest sub-increments
+    pos, iterations = 0, 0
+    p = None
+    while pos < units:
+        size = min(size, units - pos)
+        h = (end - start) * size / units
+        frac = end if pos + size == units else start + (end - start) * (pos + size) / units
+        left = MAX_STEP_ITERATIONS - iterations
+        try:
+            new, p, state, its = solve(frac, x + (h / h_prev) * (x - x_prev),
+                                       STAGNATION if size > 1 else None, left)
+        except _Stalled as stall:
+            iterations += stall.iterations
+            if size == 1 or iterations >= MAX_STEP_ITERATIONS:
+                raise NotConvergedError(
+                    f"solver.load_steps: the yielding ground did not reach equilibrium in {where} (out-of-balance "
+                    f"force {stall.force:.3g} N/m > {stall.atol:.3g} after {iterations} iterations, in "
+                    f"sub-increments down to 1/{units // size} of it): far above the tolerance the ground is "
+                    "collapsing (raise its strength or the support: a lower excavation.deconfinement); just above "
+                    "it the iteration has stalled where points cross the yield surface, as where flow without "
+                    "dilatancy localizes in shear bands (a dilatancy closer to the friction angle, or a coarser "
+                    f"solver.tolerance: the plastic iteration's is max(solver.tolerance, {MIN_TOLERANCE:g}))"
+                ) from None
+            size //= 2
+            log.debug("%s: stalled at %.3g N/m > %.3g after %d iterations; sub-increments of %d/%d", where,
+                      stall.force, stall.atol, stall.iterations, size, units)
+            continue
+        iterations += its
+        commit(*state)
+        x_prev, x, h_prev = x, new, h
+        pos += size
+        size *= 2 if its <= GROW_BELOW else 1
+    return x, p, iterations, x_prev, h_prev, min(size, units)
 
 
 def solve_staged(model, spec, rows, t0: float):
@@ -239,9 +364,9 @@ def solve_staged(model, spec, rows, t0: float):
             commit(*stress_of(u1))
             reached = mean_convergence(body.expand(u1), iface)  # linear in the load up to here
             curve.extend((ld * k / steps, reached * k / elastic) for k in range(1, elastic + 1))
-        u1_last = u1 - ld / steps * u_r
-        for k in range(elastic + 1, steps + 1):
-            frac = ld * k / steps
+        u1_prev, h_prev = u1 - ld / steps * u_r, ld / steps
+
+        def solve1(frac, guess, patience, limit):
             ref = frac * float(np.linalg.norm(loads.release))
             base = frac * y_r
 
@@ -250,44 +375,49 @@ def solve_staged(model, spec, rows, t0: float):
                 p = _plastic_load(gauss, state[-1])
                 return ground.backward(base + ground.forward(p, rows), rows), p, state
 
-            guess = 2 * u1 - u1_last  # the last increment's, repeated
-            u1_last = u1
-            u1, p, state, its = _fixed_point(G, guess, K, tol * ref, f"stage 1, increment {k} of {steps}")
+            return _fixed_point(G, guess, K, tol * ref, patience, limit)
+
+        size = 2**MAX_SPLITS
+        for k in range(elastic + 1, steps + 1):
+            u1, p1, its, u1_prev, h_prev, size = _follow(solve1, commit, u1, u1_prev, h_prev, ld * (k - 1) / steps,
+                                                         ld * k / steps, f"stage 1, increment {k} of {steps}", size)
             iterations += its
-            p1 = p
-            commit(*state)
-            curve.append((frac, mean_convergence(body.expand(u1), iface)))
+            curve.append((ld * k / steps, mean_convergence(body.expand(u1), iface)))
     # stage 2: the rest, with the lining and contact
     full = StageLoads(loads.ground, loads.lining, None, loads.seepage)
     y_g = ground.forward(full.ground, rows)
     y_l = lining.forward(full.lining, rows)
     F2_full = model.mode_loads(full.lining)
-    u2 = u2_last = np.zeros(body.n)
-    for k in range(1, steps + 1):
-        a = k / steps
-        ref = a * float(np.linalg.norm(full.ground)) + float(np.linalg.norm(p1)) + float(np.sum(np.abs(a * F2_full)))
+    u2 = u2_prev = np.zeros(body.n)
+    h_prev = 1.0 / steps
+    p = p1
 
-        def stage_of(p):
-            """The contact stage's loads, their forward halves and interface jumps."""
-            extra = p - p1
-            stage = Forward(ground=a * y_g + ground.forward(extra, rows), lining=a * y_l)
-            jumps = ground.jumps(stage.ground, rows) + lining.jumps(stage.lining, rows)
-            return StageLoads(a * full.ground + extra, a * full.lining, None), stage, jumps
+    def stage_of(p, a):
+        """The contact stage's loads at the fraction ``a``, their forward halves and interface jumps."""
+        extra = p - p1
+        stage = Forward(ground=a * y_g + ground.forward(extra, rows), lining=a * y_l)
+        jumps = ground.jumps(stage.ground, rows) + lining.jumps(stage.lining, rows)
+        return StageLoads(a * full.ground + extra, a * full.lining, None), stage, jumps
+
+    def solve2(a, guess, patience, limit):
+        ref = a * float(np.linalg.norm(full.ground)) + float(np.linalg.norm(p1)) + float(np.sum(np.abs(a * F2_full)))
 
         def G(x):
             state = stress_of(u1 + x)
             p = _plastic_load(gauss, state[-1])
-            _, stage, d = stage_of(p)
+            _, stage, d = stage_of(p, a)
             _, t = model.contact_tractions(spec, d, a * F2_full)
             return ground.backward(stage.ground, rows, model.w * t), p, state
 
-        guess = 2 * u2 - u2_last
-        u2_last = u2
-        u2, p, state, its = _fixed_point(G, guess, K, tol * ref, f"stage 2, increment {k} of {steps}")
+        return _fixed_point(G, guess, K, tol * ref, patience, limit)
+
+    size = 2**MAX_SPLITS
+    for k in range(1, steps + 1):
+        u2, p, its, u2_prev, h_prev, size = _follow(solve2, commit, u2, u2_prev, h_prev, (k - 1) / steps, k / steps,
+                                                    f"stage 2, increment {k} of {steps}", size)
         iterations += its
-        commit(*state)
     # the whole contact stage (both bodies, the checks) of the last increment's converged iterate
-    sol = model._finish(spec, rows, *stage_of(p), F2_full, t0, u1=u1)
+    sol = model._finish(spec, rows, *stage_of(p, 1.0), F2_full, t0, u1=u1)
     E = out.shape[0]
     sol.plastic = {
         "stress": out.sigma.reshape(4, -1),
