@@ -337,21 +337,38 @@ def gradient_operator(body: Body, basis: Basis) -> sp.csr_matrix:
     """The displacement gradient at the quadrature points of ``basis`` as a sparse operator on
     ``body``'s unknowns: ``(G @ x).reshape(2, 2, E, Q)`` is ``du_i/dx_j`` of the free-DOF vector
     ``x`` (in the unknowns' basis). Its transpose integrates: ``Gᵀ w`` with ``w`` a gradient-shaped
-    field times the points' weights is ``∫ w : ∇v`` for every test function ``v``."""
+    field times the points' weights is ``∫ w : ∇v`` for every test function ``v``.
+
+    Built as one COO in the unknowns' numbering: each vector basis function moves one component,
+    so its gradient fills the two rows ``du_c/dx_j`` of that component; a skew node's x and y
+    columns are turned into its pair of unknowns entry by entry (``G T`` without a product)."""
     dofs = basis.element_dofs  # (Nbfun, E)
-    rows, cols, vals = [], [], []
-    shape = (2, 2) + basis.dx.shape
-    index = np.arange(np.prod(shape)).reshape(shape)
-    for i in range(basis.Nbfun):
-        g = basis.basis[i][0].grad  # (2, 2, E, Q)
-        nz = g != 0.0
-        rows.append(index[nz])
-        cols.append(np.broadcast_to(dofs[i][None, None, :, None], shape)[nz])
-        vals.append(g[nz])
-    full = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                         shape=(index.size, basis.N))
-    G = full[:, body.free]
-    return (G @ body.skew.matrix()).tocsr() if body.skew is not None else G.tocsr()
+    E, Q = basis.dx.shape
+    index = np.arange(4 * E * Q).reshape(2, 2, E, Q)
+    unknown = np.full(basis.N, -1, np.int64)
+    unknown[body.free] = np.arange(body.free.size)
+    grads = [basis.basis[i][0].grad for i in range(basis.Nbfun)]  # (2, 2, E, Q): one component non-zero
+    comp = [0 if np.any(g[0]) else 1 for g in grads]
+    vals = np.stack([g[c] for g, c in zip(grads, comp)])           # (Nbfun, 2, E, Q)
+    rows = index[comp]                                               # (Nbfun, 2, E, Q)
+    cols = np.broadcast_to(unknown[dofs][:, None, :, None], rows.shape)
+    keep = cols >= 0
+    rows, cols, vals = rows[keep], cols[keep], vals[keep]
+    if body.skew is not None:  # (G T)[:, a] = c G[:, a] + s G[:, b], (G T)[:, b] = -s G[:, a] + c G[:, b]
+        t = body.skew
+        pair = np.full(body.free.size, -1, np.int64)
+        pair[t.a] = pair[t.b] = np.arange(t.a.size)
+        on = pair[cols] >= 0
+        k = pair[cols[on]]
+        is_a = cols[on] == t.a[k]
+        v = vals[on]
+        to_a = np.where(is_a, t.c[k], t.s[k]) * v
+        to_b = np.where(is_a, -t.s[k], t.c[k]) * v
+        r = rows[on]
+        rows = np.r_[rows[~on], r, r]
+        cols = np.r_[cols[~on], t.a[k], t.b[k]]
+        vals = np.r_[vals[~on], to_a, to_b]
+    return sp.csr_matrix((vals, (rows, cols)), shape=(index.size, body.free.size))
 
 
 def stress_at(body: Body, young: float, poisson: float, u_nodes: np.ndarray,
