@@ -662,7 +662,11 @@ class TunnelModel:
                            nu2=iface.normal[1].copy(), F2=F2)
 
     def dual_problem(self, spec: CaseSpec) -> DualProblem:
-        """The frictionless contact stage of ``spec`` in interface form (:class:`DualProblem`)."""
+        """The frictionless contact stage of ``spec`` in interface form (:class:`DualProblem`; a
+        monolithic lining's: a segmental one's is :mod:`solver.floating`'s)."""
+        if self.joint_rows is not None:
+            raise ValueError("dual_problem: a segmental lining's contact problem has the joints' rows and every "
+                             "segment's modes (solver.floating.FloatingProblem), not the one-mode dual")
         model = self.for_case(spec)
         d, F2 = model._contact_stage(spec, "normal")[2:]
         return model._dual(d, F2, spec.geometry.gap)
