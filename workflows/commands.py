@@ -119,12 +119,13 @@ def _one_line(exc: ValidationError) -> str:
 
 
 def run_command(case_file: str | None, results: str, *, force: bool = False, retry_failed: bool = False,
-                out: TextIO = sys.stdout) -> int:
+                out: TextIO | None = None) -> int:
     """Solve one case into the store and print its summary; 1 if the solver fails.
 
     As in the service, a case that failed before is reported, not recomputed, unless
     ``retry_failed``; a stored result that cannot be read is recomputed.
     """
+    out = out or sys.stdout
     spec = load_case(case_file)
     store = ResultStore(results)
     if not force and not retry_failed and not store.is_stored(spec.case_id):
@@ -143,12 +144,13 @@ def run_command(case_file: str | None, results: str, *, force: bool = False, ret
 
 
 def sweep_command(sweep_file: str, results: str, *, scheduler: str | None = None,
-                  progress: bool = True, retry_failed: bool = False, out: TextIO = sys.stdout) -> int:
+                  progress: bool = True, retry_failed: bool = False, out: TextIO | None = None) -> int:
     """Run a sweep on dask (``scheduler`` address or an embedded cluster); print a table.
 
     Cases that failed before keep their recorded failure unless ``retry_failed`` (as
     ``run``). Returns 1 if any case failed, else 0.
     """
+    out = out or sys.stdout
     sweep = load_sweep(sweep_file)
     client = _scheduler_client(scheduler)
     try:
@@ -264,8 +266,9 @@ def resolve_case_id(store: ResultStore, text: str) -> str:
     return matches[0]
 
 
-def list_command(results: str, *, out: TextIO = sys.stdout) -> int:
+def list_command(results: str, *, out: TextIO | None = None) -> int:
     """Print every case of the store (done and failed) as the comparison table."""
+    out = out or sys.stdout
     store = ResultStore(results)
     ids = known_case_ids(store)
     if not ids:
@@ -276,9 +279,10 @@ def list_command(results: str, *, out: TextIO = sys.stdout) -> int:
     return 0
 
 
-def show_command(case_id: str, results: str, *, out: TextIO = sys.stdout) -> int:
+def show_command(case_id: str, results: str, *, out: TextIO | None = None) -> int:
     """Print a stored case's summary and write its plots to ``<results>/plots/<case_id>/``;
     ``case_id`` may be a unique prefix of the id."""
+    out = out or sys.stdout
     from .artifacts import render_plot
     from .plots import PLOTS
 
@@ -318,9 +322,10 @@ def _open_stored(store: ResultStore, case_id: str, results: str, out: TextIO) ->
                          "tunnel-contact run (or sweep) with its case recomputes it") from None
 
 
-def report_command(case_id: str, results: str, *, output: str | None = None, out: TextIO = sys.stdout) -> int:
+def report_command(case_id: str, results: str, *, output: str | None = None, out: TextIO | None = None) -> int:
     """Write the PDF report of a stored case (``case_id`` may be a unique prefix) to ``output``
     (default ``<case_id>.pdf``); 1 if the case failed."""
+    out = out or sys.stdout
     from .artifacts import render_report
 
     store = ResultStore(results)

@@ -302,10 +302,11 @@ def local_client(n_workers: int = 2) -> Iterator:
 
     from .workers import worker_config
 
-    # silence_logs=ERROR: the embedded cluster's teardown warnings (a worker's heartbeat meeting
-    # the closed scheduler, with a traceback) are not the user's business; errors still show
+    # silence_logs=CRITICAL: the embedded cluster's teardown noise (a worker's heartbeat meeting
+    # the closed scheduler is logged by distributed at ERROR, with a traceback) is not the user's
+    # business; what the user needs, each case's failure and its reason, the sweep reports itself
     with worker_config(), LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                                       dashboard_address=None, silence_logs=logging.ERROR) as cluster, \
+                                       dashboard_address=None, silence_logs=logging.CRITICAL) as cluster, \
             Client(cluster) as client:
         yield client
 
