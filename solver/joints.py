@@ -53,6 +53,13 @@ class JointRows:
     def size(self) -> int:
         return self.joint.size
 
+    @property
+    def partner(self) -> np.ndarray:
+        """(Rj,) each tangential row's normal row (same joint, same node; a joint's normal rows
+        come first, its tangential rows after them in the same order); -1 on normal rows."""
+        per_joint = np.bincount(self.joint[self.normal], minlength=int(self.joint.max()) + 1)
+        return np.where(self.normal, -1, np.arange(self.size) - per_joint[self.joint])
+
 
 def hoop(theta_deg: float) -> tuple[np.ndarray, np.ndarray]:
     """Unit hoop (towards increasing θ) and outward radial directions at ``theta_deg``."""
@@ -189,8 +196,7 @@ def joint_kkt(rows: JointRows, t: np.ndarray, jump: np.ndarray, law, *, p_ref: f
         if law.shear == "bonded":
             parts.append(float(np.max(np.abs(jump[s]))) / u_ref)
         else:
-            partner = np.flatnonzero(s) - np.array([np.sum(n[rows.joint == j]) for j in rows.joint[s]])
-            bound = law.friction * np.maximum(t[partner], 0.0)
+            bound = law.friction * np.maximum(t[rows.partner[s]], 0.0)
             nat = t[s] - np.clip(t[s] + (p_ref / u_ref) * jump[s], -bound, bound)
             parts.append(float(np.max(np.abs(nat))) / p_ref)
     return max(parts)

@@ -328,7 +328,7 @@ class TunnelModel:
             kind[:m] = floating.EQUALITY
         jt = m + np.flatnonzero(~jr.normal)  # joint tangential rows: partner the normal row at the node
         kind[jt] = floating.EQUALITY if shear == "bonded" else floating.FRICTION
-        partner[jt] = jt - np.array([np.sum(jr.normal[(jr.joint == jr.joint[i - m])]) for i in jt])
+        partner[jt] = m + jr.partner[jt - m]
         mu[jt] = spec.lining.joints.friction
         if size == R:
             tr = self.tangential_rows
