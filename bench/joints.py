@@ -30,7 +30,7 @@ import numpy as np  # noqa: E402
 from solver import CaseSpec, run_case  # noqa: E402
 from solver.analytic import einstein_schwartz_slip_excavation  # noqa: E402
 from solver.model import TunnelModel  # noqa: E402
-from solver.post import lining_forces  # noqa: E402
+from solver.lining.forces import lining_forces  # noqa: E402
 
 SIX = {"count": 6, "contact_height": 0.15}
 CASES = {

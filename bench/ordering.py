@@ -5,7 +5,7 @@ of the ground with nothing ordered last (the floor's) and with the interface nor
 (the contact solve's), and the entries of each factor. Orderings:
 
 - ``vertex-nd``: METIS nested dissection of the P2 mesh's vertex graph, edge nodes placed
-  with their earlier vertex (:func:`solver.linalg.nested_dissection`, what the solver uses);
+  with their earlier vertex (:func:`solver.fe.linalg.nested_dissection`, what the solver uses);
 - ``node-nd``: METIS nested dissection of the whole node graph (what the solver used with
   SuperLU);
 - ``amd``: approximate minimum degree of the node graph (cvxopt's AMD).
@@ -69,8 +69,8 @@ def node_amd(K, nodes):
 
 def main(argv=None) -> None:
     from solver import CaseSpec
-    from solver.flexibility import in_row_order
-    from solver.linalg import Cholesky, interface_last, nested_dissection
+    from solver.fe.flexibility import in_row_order
+    from solver.fe.linalg import Cholesky, interface_last, nested_dissection
     from solver.model import TunnelModel
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -28,8 +28,9 @@ import numpy as np  # noqa: E402
 
 from bench import print_rows  # noqa: E402
 from solver import CaseSpec, run_case  # noqa: E402
-from solver.linalg import InterfaceFactor  # noqa: E402
+from solver.fe.linalg import InterfaceFactor  # noqa: E402
 from solver.model import TunnelModel  # noqa: E402
+import solver.stages.loads as stage_fns
 
 SIZES = [(0.1, 4.0), (0.05, 2.0), (0.025, 1.0)]
 
@@ -70,7 +71,7 @@ def bench_size(h: float, far: float, repeat: int) -> dict:
     row = {"interface_size": h, "far_size": far, "dof": model.ground.body.n + model.lining.body.n,
            "interface_nodes": model.m, "mesh_s": model.timings["mesh"], "assembly_s": model.timings["assembly"]}
     t0 = time.perf_counter()
-    model.stage_loads(spec)  # load shapes: assembled once per model, as in a sweep
+    stage_fns.stage_loads(model, spec)  # load shapes: assembled once per model, as in a sweep
     row["stage_loads_s"] = time.perf_counter() - t0
     uzawa = spec.model_copy(update={"solver": spec.solver.model_copy(update={"inner": "uzawa"})})
     best: dict[str, float] = {}

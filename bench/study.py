@@ -7,7 +7,7 @@ of the utilization and the probability that the section fails.
 
 Every case has its own ground stiffness; they still share one model per worker: the ground's
 stiffness is linear in its modulus, so a case solves on the model's factorization with K⁺
-scaled (:class:`solver.flexibility.ScaledBody`). 2026-11-25, two cores: 227 s before that
+scaled (:class:`solver.fe.flexibility.ScaledBody`). 2026-11-25, two cores: 227 s before that
 reuse (every case built its own model), 61 s with it.
 """
 from __future__ import annotations

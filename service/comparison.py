@@ -34,7 +34,7 @@ from typing import Literal, Optional, Union
 
 from pydantic import BaseModel, Field
 
-from solver.dataset import SCALARS
+from solver.results.dataset import SCALARS
 from workflows.parameters import flat_parameters, parameter_attrs, varying_parameters
 from workflows.units import display_unit
 
@@ -42,7 +42,7 @@ from .results import non_finite_text
 from .job_records import JobStore, SweepRecord
 
 #: Scalars of SPEC §3 in the contract's order; units and long names are the solver's
-#: (:data:`solver.dataset.SCALARS`).
+#: (:data:`solver.results.dataset.SCALARS`).
 SCALAR_ORDER: tuple[str, ...] = (
     "max_contact_pressure", "contact_extent", "crown_settlement", "max_thrust", "max_abs_moment",
     "max_utilization", "ground_loss", "gaussian_max_settlement", "axis_settlement", "max_surface_heave",

@@ -22,7 +22,7 @@ from fastapi.responses import HTMLResponse
 from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 
-from solver.dataset import ECCENTRICITY_LIMIT, SCALARS
+from solver.results.dataset import ECCENTRICITY_LIMIT, SCALARS
 from workflows.joint_check import statement
 from workflows.plots import PLOTS, SWEEP_PLOT_NAMES
 from workflows.studies import MIN_SAMPLES, SENSITIVITY_MIN_SAMPLES

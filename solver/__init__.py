@@ -5,7 +5,7 @@ frictionless, Coulomb or bonded interfaces, EN 1992-1-1 section check. Pure nume
 ``CaseSpec -> TunnelModel -> solve -> to_dataset -> xarray.Dataset`` (``run_case``). No files,
 no network.
 """
-from .contact import NoAdmissibleBoltError, NotConvergedError, SolverError
+from .errors import NoAdmissibleBoltError, NotConvergedError, SolverError
 from .run import run_case
 from .spec import CaseSpec
 

@@ -233,6 +233,58 @@ class RingSolution:
             u_t=-(b / G) * (b2["gut"] @ u2) * s)
 
 
+def _ring_mode0(alpha, nu, nu_l, G, G_l, B0, keep):
+    """The axisymmetric (n = 0) Michell coefficients of ring and ground, unknowns [L, Q, gL]:
+    the ring's (2,), the ground's and the ground's displacement's (2,) each."""
+    ra, rb, gb = _n0(alpha, nu_l), _n0(1.0, nu_l), _n0(1.0, nu)
+    x0 = _solve_rows(
+        [[*ra["srr"], 0.0],                                      # σrr(a) = 0
+         [*rb["srr"], -gb["srr"][0]],                            # σrr continuous at b
+         [*(rb["gur"] / G_l), -gb["gur"][0] / G]],               # u_r continuous at b
+        [0.0, gb["srr"][1] * B0, keep * gb["gur"][1] * B0 / G])
+    return x0[:2], np.array([x0[2], B0]), np.array([x0[2], keep * B0])
+
+
+def _ring_mode2(alpha, nu, nu_l, G, G_l, A_inf, keep, interface):
+    """The cos 2φ (n = 2) Michell coefficients, unknowns [A, B, C, D, gC, gD]: the ring's (4,),
+    the ground's and the ground's displacement's (4,) each."""
+    ra, rb, gb = _n2(alpha, nu_l), _n2(1.0, nu_l), _n2(1.0, nu)
+    z2 = [0.0, 0.0]
+    rows = [[*ra["srr"], *z2],                                   # σrr(a) = 0
+            [*ra["srt"], *z2],                                   # σrφ(a) = 0
+            [*rb["srr"], *(-gb["srr"][2:])],                     # σrr continuous
+            [*(rb["gur"] / G_l), *(-gb["gur"][2:] / G)]]         # u_r continuous
+    rhs = [0.0, 0.0, gb["srr"][0] * A_inf, keep * gb["gur"][0] * A_inf / G]
+    if interface == "slip":
+        rows += [[*rb["srt"], *z2], [0.0] * 4 + [*gb["srt"][2:]]]  # no shear on either side
+        rhs += [0.0, -gb["srt"][0] * A_inf]
+    else:
+        rows += [[*rb["srt"], *(-gb["srt"][2:])],                  # σrφ continuous
+                 [*(rb["gut"] / G_l), *(-gb["gut"][2:] / G)]]      # u_φ continuous
+        rhs += [gb["srt"][0] * A_inf, keep * gb["gut"][0] * A_inf / G]
+    x2 = _solve_rows(rows, rhs)
+    return x2[:4], np.array([A_inf, 0.0, *x2[4:]]), np.array([keep * A_inf, 0.0, *x2[4:]])
+
+
+def _ring_section_forces(ring0, ring2, alpha, nu_l, a, b):
+    """N0, N2, M0, M2, V2 of the ring in φ (from the horizontal), by section integrals of
+    Φ = b² ψ(ρ): ∫σφφ dr = [Φ_r] = b[ψ'], ∫σφφ r dr = [rΦ_r − Φ] = b²[ρψ' − ψ],
+    ∫σrφ dr = −[Φ_φ / r] = 2b[ψ/ρ] (n = 2), each from ρ = a/b to 1."""
+    r_mid = 0.5 * (a + b)
+
+    def jump(basis, f):
+        return f(basis(1.0, nu_l), 1.0) - f(basis(alpha, nu_l), alpha)
+
+    d_dpsi0, d_dpsi2 = (jump(bas, lambda t, x: t["dpsi"]) for bas in (_n0, _n2))
+    d_rdpsi0, d_rdpsi2 = (jump(bas, lambda t, x: x * t["dpsi"] - t["psi"]) for bas in (_n0, _n2))
+    N0 = -b * d_dpsi0 @ ring0
+    N2_phi = -b * d_dpsi2 @ ring2
+    M0 = b**2 * d_rdpsi0 @ ring0 + r_mid * N0
+    M2_phi = b**2 * d_rdpsi2 @ ring2 + r_mid * N2_phi
+    V2_phi = 2 * b * jump(_n2, lambda t, x: t["psi"] / x) @ ring2  # ∫σrφ dr (sin 2φ)
+    return N0, N2_phi, M0, M2_phi, V2_phi
+
+
 def exact_ring(P: float, K: float, E: float, nu: float, E_l: float, nu_l: float,
                a: float, b: float, *, loading: Literal["external", "excavation"],
                interface: Literal["slip", "bonded"]) -> RingSolution:
@@ -289,50 +341,10 @@ def exact_ring(P: float, K: float, E: float, nu: float, E_l: float, nu_l: float,
     B0, A_inf = -P * (1 + K) / 4, -P * (1 - K) / 4  # uniform field: Φ = B0 r² + A_inf r² cos 2φ
     keep = 1.0 if loading == "external" else 0.0    # does the ground displacement include it?
 
-    # n = 0, unknowns [L, Q, gL]
-    ra, rb, gb = _n0(alpha, nu_l), _n0(1.0, nu_l), _n0(1.0, nu)
-    x0 = _solve_rows(
-        [[*ra["srr"], 0.0],                                      # σrr(a) = 0
-         [*rb["srr"], -gb["srr"][0]],                            # σrr continuous at b
-         [*(rb["gur"] / G_l), -gb["gur"][0] / G]],               # u_r continuous at b
-        [0.0, gb["srr"][1] * B0, keep * gb["gur"][1] * B0 / G])
-    ring0, g0 = x0[:2], np.array([x0[2], B0])
-    g0u = np.array([x0[2], keep * B0])
-
-    # n = 2, unknowns [A, B, C, D, gC, gD]
-    ra, rb, gb = _n2(alpha, nu_l), _n2(1.0, nu_l), _n2(1.0, nu)
-    z2 = [0.0, 0.0]
-    rows = [[*ra["srr"], *z2],                                   # σrr(a) = 0
-            [*ra["srt"], *z2],                                   # σrφ(a) = 0
-            [*rb["srr"], *(-gb["srr"][2:])],                     # σrr continuous
-            [*(rb["gur"] / G_l), *(-gb["gur"][2:] / G)]]         # u_r continuous
-    rhs = [0.0, 0.0, gb["srr"][0] * A_inf, keep * gb["gur"][0] * A_inf / G]
-    if interface == "slip":
-        rows += [[*rb["srt"], *z2], [0.0] * 4 + [*gb["srt"][2:]]]  # no shear on either side
-        rhs += [0.0, -gb["srt"][0] * A_inf]
-    else:
-        rows += [[*rb["srt"], *(-gb["srt"][2:])],                  # σrφ continuous
-                 [*(rb["gut"] / G_l), *(-gb["gut"][2:] / G)]]      # u_φ continuous
-        rhs += [gb["srt"][0] * A_inf, keep * gb["gut"][0] * A_inf / G]
-    x2 = _solve_rows(rows, rhs)
-    ring2 = x2[:4]
-    g2 = np.array([A_inf, 0.0, *x2[4:]])
-    g2u = np.array([keep * A_inf, 0.0, *x2[4:]])
-
-    # section integrals from Φ = b² ψ(ρ): ∫σφφ dr = [Φ_r] = b[ψ'], ∫σφφ r dr = [rΦ_r − Φ]
-    # = b²[ρψ' − ψ], ∫σrφ dr = −[Φ_φ / r] = 2b[ψ/ρ] (n = 2), each from ρ = a/b to 1
-    r_mid = 0.5 * (a + b)
-
-    def jump(basis, f):
-        return f(basis(1.0, nu_l), 1.0) - f(basis(alpha, nu_l), alpha)
-
-    d_dpsi0, d_dpsi2 = (jump(bas, lambda t, x: t["dpsi"]) for bas in (_n0, _n2))
-    d_rdpsi0, d_rdpsi2 = (jump(bas, lambda t, x: x * t["dpsi"] - t["psi"]) for bas in (_n0, _n2))
-    N0 = -b * d_dpsi0 @ ring0
-    N2_phi = -b * d_dpsi2 @ ring2
-    M0 = b**2 * d_rdpsi0 @ ring0 + r_mid * N0
-    M2_phi = b**2 * d_rdpsi2 @ ring2 + r_mid * N2_phi
-    V2_phi = 2 * b * jump(_n2, lambda t, x: t["psi"] / x) @ ring2  # ∫σrφ dr (sin 2φ)
+    ring0, g0, g0u = _ring_mode0(alpha, nu, nu_l, G, G_l, B0, keep)
+    ring2, g2, g2u = _ring_mode2(alpha, nu, nu_l, G, G_l, A_inf, keep, interface)
+    N0, N2_phi, M0, M2_phi, V2_phi = _ring_section_forces(ring0, ring2, alpha, nu_l, a, b)
+    gb = _n2(1.0, nu)
 
     ga0, ga2 = _n0(alpha, nu_l), _n2(alpha, nu_l)
     rb0, rb2, gb0 = _n0(1.0, nu_l), _n2(1.0, nu_l), _n0(1.0, nu)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import re
 from typing import Any, Iterable, Sequence
 
-__all__ = ["SolverError", "field_errors", "field_path", "format_errors"]
+__all__ = ["SolverError", "NotConvergedError", "NoAdmissibleBoltError", "field_errors", "field_path", "format_errors"]
 
 
 class SolverError(RuntimeError):
@@ -24,6 +24,14 @@ class SolverError(RuntimeError):
 _NAMED = re.compile(r"^([A-Za-z_]\w*(?:\.(?:[A-Za-z_]\w*|\d+))*): (.*)$", re.DOTALL)
 #: Location prefixes FastAPI adds to pydantic's (where in the request the value was).
 _REQUEST_PARTS = frozenset({"body", "query", "path", "header", "cookie"})
+
+
+class NotConvergedError(SolverError):
+    """The inner solver did not reach the tolerance within ``max_iterations``."""
+
+
+class NoAdmissibleBoltError(SolverError):
+    """No bolt node gave a non-negative bolt reaction (contradicts Theorem 3.3)."""
 
 
 def field_path(loc: Sequence[Any], message: str, *, kind: str = "value_error") -> tuple[str, str]:

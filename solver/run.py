@@ -7,7 +7,7 @@ from importlib.metadata import PackageNotFoundError, version
 
 import xarray as xr
 
-from .dataset import to_dataset
+from .results.dataset import to_dataset
 from .limits import time_limit
 from .model import TunnelModel
 from .spec import CaseSpec

@@ -352,7 +352,7 @@ def ground_reaction(ds: xr.Dataset) -> dict:
     Kirsch's for elastic ground) for one homogeneous layer, None otherwise."""
     from solver.analytic import interface_mean, salencon
     from solver.spec import CaseSpec
-    from solver.strata import geostatic_state, strata
+    from solver.ground.strata import geostatic_state, strata
 
     spec = CaseSpec.model_validate(case_spec(ds))
     layers = strata(spec)

@@ -21,7 +21,7 @@ import xarray as xr
 from pydantic import ValidationError
 
 from solver import CaseSpec, SolverError
-from solver.dataset import SCALARS
+from solver.results.dataset import SCALARS
 from solver.errors import field_errors, format_errors
 from solver.spec import is_number
 

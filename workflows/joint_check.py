@@ -5,7 +5,7 @@ the full section (``utilization``) is made away from the joints, and at each joi
 are asked. Does the strip carry the thrust within its height, |M| ≤ N·a/2
 (``joint_eccentricity`` ≤ 1; the contact solution keeps it so, and an open joint bears on its
 strip's edge, at 1)? And does the strip hold, EN 1992-1-1 (12.10) on it as a plain section at the
-joint's design thrust (``joint_utilization`` ≤ 1, :func:`solver.design.joint_utilization`): a
+joint's design thrust (``joint_utilization`` ≤ 1, :func:`solver.lining.design.joint_utilization`): a
 hinging joint needs a stress block at its edge, so it passes only if the strip leaves room for it.
 A joint opens where |M|/N exceeds about a/6 (``joint_eccentricity`` > 1/3).
 """
@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-from solver.dataset import ECCENTRICITY_LIMIT
+from solver.results.dataset import ECCENTRICITY_LIMIT
 
 from .joint_plots import contact_height, has_joints
 

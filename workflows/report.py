@@ -20,7 +20,7 @@ from matplotlib.backends.backend_pdf import PdfPages
 from matplotlib.figure import Figure
 from matplotlib.patches import FancyBboxPatch
 
-from solver.dataset import SCALARS
+from solver.results.dataset import SCALARS
 
 from .joint_check import joint_check, joint_report, statement
 from .joint_plots import OPEN_STYLE, has_joints

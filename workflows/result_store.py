@@ -44,7 +44,7 @@ import xarray as xr
 import solver
 from solver.limits import CaseCancelled
 from solver.model import shared_model
-from solver.sizing import estimated_elements
+from solver.geometry.sizing import estimated_elements
 from solver.spec import CaseSpec
 
 from .files import remove_checksum, remove_stale_temporaries, verify, write_atomically

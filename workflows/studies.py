@@ -34,7 +34,7 @@ import numpy as np
 import xarray as xr
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from solver.dataset import SCALARS
+from solver.results.dataset import SCALARS
 
 from .parameters import (canonical_path, flat_name, flat_parameters, is_parameter, parameter_path, set_parameter,
                          varying_parameters)

@@ -102,7 +102,7 @@ def test_the_solver_runs_on_one_blas_thread_in_any_process(monkeypatch):
     and contact run with one BLAS thread (threadpoolctl), so no case is many times slower."""
     from threadpoolctl import threadpool_info, threadpool_limits
 
-    import solver.model as model_module
+    import solver.stages.recovery as model_module
     from solver.run import run_case
     from solver.spec import CaseSpec
 

@@ -9,7 +9,7 @@ def assert_kkt(ds, *, tol: float = 1e-7) -> None:
     """Check balance, λ >= 0, gap >= 0, λ·gap = 0 from the stored arrays (not from kkt_residual).
 
     For ``interface.model = "coulomb"`` also the friction law through its natural map
-    (post.kkt_residual's) and the stored tangential jump; the balance includes the shear.
+    (kkt.kkt_residual's) and the stored tangential jump; the balance includes the shear.
     """
     lam = ds.contact_pressure.values
     shear = ds.shear_traction.values  # zero when frictionless

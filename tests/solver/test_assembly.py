@@ -8,8 +8,8 @@ from skfem import asm
 from skfem.models.elasticity import lame_parameters, linear_elasticity
 
 from solver import CaseSpec
-from solver.assembly import PairRotation, assemble_body, elasticity_form, lining_constraints, vector_basis
-from solver.mesh import build_mesh
+from solver.fe.assembly import PairRotation, assemble_body, elasticity_form, lining_constraints, vector_basis
+from solver.geometry.mesh import build_mesh
 
 
 def test_stiffness_form_is_scikit_fems_linear_elasticity():

@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 
 from solver import CaseSpec, NotConvergedError, SolverError, run_case
-from solver.contact import solve_contact
+from solver.contact.bolt import solve_contact
 from solver.model import TunnelModel
+import solver.stages.contact as contact_stage
 
 COARSE = dict(interface_size=0.2, far_size=6.0)
 
@@ -87,7 +88,7 @@ def test_uzawa_that_cannot_converge_raises():
 
 def _dual(spec):
     model = TunnelModel(spec)
-    return model.dual_problem(spec), model.mesh.interface.theta
+    return contact_stage.dual_problem(model, spec), model.mesh.interface.theta
 
 
 @pytest.mark.parametrize("inner", ["active-set", "uzawa"])
@@ -110,9 +111,9 @@ def test_fixed_bolt_with_negative_reaction_is_reported_not_hidden(monkeypatch):
     solve itself says so (converged 0, residual > 1e-3) when asked past that guard."""
     with pytest.raises(SolverError, match="KKT residual"):
         run_case(unloaded(bolt=0.0))
-    import solver.model as model_module
+    import solver.stages.solve as solve_module
 
-    monkeypatch.setattr(model_module, "accepted_residual", lambda tolerance: float("inf"))
+    monkeypatch.setattr(solve_module, "accepted_residual", lambda tolerance: float("inf"))
     ds = run_case(unloaded(bolt=0.0))
     assert float(ds.bolt_theta) == 0.0
     assert float(ds.contact_pressure[0]) < 0
@@ -132,7 +133,7 @@ def test_fixed_bolt_in_the_contact_zone_gives_the_solution(kkt):
 def test_search_that_finds_no_admissible_bolt_raises_after_trying_every_candidate(monkeypatch):
     """Theorem 3.3 guarantees an admissible bolt; if the inner solver ever contradicts it
     (here: forced), the search tries each candidate once and raises, never returning."""
-    import solver.contact as contact
+    import solver.contact.bolt as contact
     from solver import NoAdmissibleBoltError
 
     dual, theta = _dual(unloaded())
@@ -155,7 +156,7 @@ def test_search_that_finds_no_admissible_bolt_raises_after_trying_every_candidat
 def test_nnls_fallback_solves_the_same_bolted_problem(gap):
     """The active-set method's cycle guard (Lawson-Hanson on the reduced dual) gives
     the same pressures as the active-set iteration, balance included."""
-    import solver.contact as contact
+    import solver.contact.bolt as contact
 
     dual, theta = _dual(unloaded(gap=gap))
     bolt = int(np.argmax(theta))

@@ -1,10 +1,10 @@
-"""The equality-constrained system of one active set (``solver.contact.solve_on_set``)."""
+"""The equality-constrained system of one active set (``solver.contact.bolt.solve_on_set``)."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from solver.contact import DualProblem, solve_on_set
+from solver.contact.bolt import DualProblem, solve_on_set
 
 
 def _bordered(dual: DualProblem, active: np.ndarray) -> np.ndarray:

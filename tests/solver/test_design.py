@@ -6,7 +6,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from solver.design import (
+from solver.lining.design import (
     concrete_parameters, design_utilization, fcd, fyd, interaction_envelope, section_errors,
     section_forces, utilization,
 )

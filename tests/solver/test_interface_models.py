@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from solver import CaseSpec, friction, run_case
+from solver import CaseSpec, run_case
+from solver.contact import friction
 from solver.analytic import (
     cos2_amplitude,
     exact_ring,
@@ -14,6 +15,7 @@ from solver.analytic import (
 )
 from solver.errors import field_errors
 from solver.model import TunnelModel
+import solver.stages.contact as contact_stage
 
 P, K, E, NU, E_L, NU_L, A, B = 1.0e5, 0.5, 5.0e7, 0.3, 3e10, 0.2, 2.5, 2.8
 RADII = 30
@@ -146,7 +148,7 @@ def test_cycle_guard_reaches_the_same_solution(cycles, default_model, monkeypatc
     """Forcing the guard against cycling sets gives the active-set answer: once (Tresca steps,
     then the sets again) or always (the Tresca fixed point alone reaches the tolerance)."""
     spec = with_interface(CaseSpec(), model="coulomb", friction=0.3)
-    d, F2 = default_model._contact_stage(spec)[2:]
+    d, F2 = contact_stage.forward_stage(default_model, spec)[2:]
     fp = friction.FrictionProblem(S=default_model.S, d=d, g0=0.0, w=default_model.w, r=default_model.r,
                                   F2=F2, m=default_model.m, mu=0.3)
     theta = default_model.mesh.interface.theta

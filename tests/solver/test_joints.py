@@ -13,11 +13,12 @@ import numpy as np
 import pytest
 
 from solver import CaseSpec
-from solver.contact import solve_contact
-from solver.design import interaction_envelope, joint_utilization
-from solver.floating import EQUALITY, UNILATERAL, DriftError, FloatingProblem, kkt, solve_floating
+from solver.contact.bolt import solve_contact
+from solver.lining.design import interaction_envelope, joint_utilization
+from solver.contact.floating import EQUALITY, UNILATERAL, DriftError, FloatingProblem, kkt, solve_floating
 from solver.model import TunnelModel
-from solver.post import lining_forces
+from solver.lining.forces import lining_forces
+import solver.stages.contact as contact_stage
 
 MESH = {"interface_size": 0.2, "far_size": 8.0}
 
@@ -128,8 +129,8 @@ def test_every_segment_floats_and_is_balanced():
     mode's balance F + Gᵀ W t holds to round-off, and the segments moved rigidly."""
     model, sol = _solve(lining={"joints": {"count": 6, "offset": 30.0, "contact_height": 0.15}})
     spec = sol.spec
-    loads, _, d, F = model._contact_stage(spec)
-    _, t = model.contact_tractions(spec, d, F)
+    loads, _, d, F = contact_stage.forward_stage(model, spec)
+    _, t = contact_stage.contact_tractions(model, spec, d, F)
     wrench = F + model.G.T @ (model.w * t)
     scale = np.abs(F) + np.abs(model.G).T @ np.abs(model.w * t)
     assert np.max(np.abs(wrench) / scale) < 1e-10
@@ -141,10 +142,10 @@ def test_every_segment_floats_and_is_balanced():
 
 def test_the_generalized_bolt_method_is_the_paper_s_on_a_monolithic_lining():
     """With one mode (a monolithic lining's vertical translation) the bolt-set search and its
-    active sets give the paper's bolt-point answer (solver.contact.solve_contact)."""
+    active sets give the paper's bolt-point answer (solver.contact.bolt.solve_contact)."""
     spec = CaseSpec.model_validate({"mesh": MESH, "geometry": {"gap": 0.02}})
     model = TunnelModel(spec)
-    dual = model.dual_problem(spec)
+    dual = contact_stage.dual_problem(model, spec)
     paper = solve_contact(dual, model.mesh.interface.theta, inner="active-set", tol=1e-10, max_iterations=1000)
     m = dual.m
     fp = FloatingProblem(S=dual.S, d=dual.d, g0=dual.g0, w=dual.w, G=dual.nu2[:, None], F=np.array([dual.F2]),

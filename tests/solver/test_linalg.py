@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from solver.linalg import InterfaceFactor
+from solver.fe.linalg import InterfaceFactor
 
 
 def laplacian_2d(n: int) -> sp.csr_matrix:
@@ -60,7 +60,7 @@ def test_interface_split_over_several_supernodes():
 
 def test_not_positive_definite_is_a_clear_error():
     from solver import SolverError
-    from solver.linalg import FactorizationError
+    from solver.fe.linalg import FactorizationError
 
     K = laplacian_2d(6) - 5.0 * sp.identity(36)
     with pytest.raises(FactorizationError, match="not positive definite") as caught:
@@ -93,7 +93,7 @@ def test_nested_dissection_of_a_p2_body():
     together; the node of edge f is ``nv + f`` (on its edge, up to the curved interface's
     sagitta), ordered before both of its vertices."""
     from solver import CaseSpec
-    from solver.linalg import nested_dissection
+    from solver.fe.linalg import nested_dissection
     from solver.model import TunnelModel
 
     model = TunnelModel(CaseSpec(mesh=dict(interface_size=0.2, far_size=6.0)))
@@ -127,7 +127,7 @@ def test_nested_dissection_of_a_p2_body():
 
 def _factor_entries(K: sp.spmatrix, order: np.ndarray) -> int:
     """Entries of CHOLMOD's factor of K in ``order``."""
-    from solver.linalg import Cholesky
+    from solver.fe.linalg import Cholesky
 
     return Cholesky(K, order).entries
 
@@ -140,7 +140,7 @@ def test_factorization_releases_the_gil():
     import threading
     import time
 
-    from solver.linalg import Cholesky
+    from solver.fe.linalg import Cholesky
 
     K = laplacian_2d(320)  # 102 400 unknowns
     perm = _grid_dissection(320)
@@ -177,7 +177,7 @@ def _grid_dissection(n: int) -> np.ndarray:
 
 def test_an_invalid_permutation_is_an_error_not_a_crash():
     """CHOLMOD checks the permutation it is given; its refusal surfaces as an error."""
-    from solver.linalg import Cholesky
+    from solver.fe.linalg import Cholesky
 
     K = laplacian_2d(5)
     perm = np.arange(K.shape[0])

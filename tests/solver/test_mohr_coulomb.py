@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from solver.mohr_coulomb import from_principal, principal, return_map, yield_values
+from solver.ground.mohr_coulomb import from_principal, principal, return_map, yield_values
 
 E, NU = 5.0e7, 0.3
 LAM, MU = E * NU / ((1 + NU) * (1 - 2 * NU)), E / (2 * (1 + NU))

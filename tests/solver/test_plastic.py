@@ -8,12 +8,13 @@ import json
 import numpy as np
 import pytest
 
-import solver.plastic as plastic
+import solver.stages.plastic as plastic
 from solver import CaseSpec
 from solver.analytic import salencon
-from solver.contact import NotConvergedError
-from solver.mohr_coulomb import principal, yield_values
+from solver.errors import NotConvergedError
+from solver.ground.mohr_coulomb import principal, yield_values
 from solver.run import run_case
+import solver.stages.loads as stage_fns
 
 P0, C, PHI, E, NU = 1.0e6, 1.0e5, 30.0, 5.0e7, 0.3
 A = 2.8
@@ -100,10 +101,10 @@ def test_stage_1_is_elastic_up_to_the_first_yield_of_kirsch():
     spec = CaseSpec.model_validate(_hole(0.0, steps=10))
     model = TunnelModel(spec)
     ground = model.ground
-    from solver.flexibility import rows_of_model
+    from solver.fe.flexibility import rows_of_model
 
     rows = rows_of_model(spec.interface.model)
-    u_r = ground.backward(ground.forward(model.stage_loads(spec).release, rows), rows)
+    u_r = ground.backward(ground.forward(stage_fns.stage_loads(model, spec).release, rows), rows)
     f = plastic.first_yield(plastic._Points(model, spec, "gauss"), u_r, 1.0)
     exact = np.sin(np.radians(PHI)) + C / P0 * np.cos(np.radians(PHI))
     assert f == pytest.approx(exact, rel=0.03)  # the first points sit a little inside the wall
@@ -246,13 +247,13 @@ def test_a_stalling_increment_is_split_and_the_answer_holds_equilibrium_and_cons
     monkeypatch.setattr(plastic, "_Points", Held)
     spec = CaseSpec.model_validate(WEAK)
     model = TunnelModel(spec)
-    with caplog.at_level(logging.DEBUG, logger="solver.plastic"):
+    with caplog.at_level(logging.DEBUG, logger="solver.stages.plastic"):
         sol = model.solve(spec)
     assert any("sub-increments of" in r.getMessage() for r in caplog.records)
     gauss = held[0]
     s, w = gauss.sigma - gauss.sigma0, gauss.weights
     internal = gauss.G.T @ np.stack([s[0] * w, s[2] * w, s[2] * w, s[1] * w]).ravel()
-    release = model.stage_loads(spec).release
+    release = stage_fns.stage_loads(model, spec).release
     contact = model.ground.B.T @ (model.w * np.r_[sol.lam, sol.shear[model.tangential]])
     assert np.linalg.norm(contact) > 0.3 * np.linalg.norm(release)  # the lining carries a real share
     assert np.linalg.norm(internal - (release - contact)) <= 2e-3 * np.linalg.norm(release)

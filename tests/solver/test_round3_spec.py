@@ -8,7 +8,7 @@ from pydantic import ValidationError
 
 from solver import CaseSpec
 from solver.errors import field_errors
-from solver.strata import geostatic_state, layer_at, strata
+from solver.ground.strata import geostatic_state, layer_at, strata
 
 #: Ids of cases computed before the third round (main at a9d4fa0): they must not change.
 OLD_IDS = {

@@ -10,7 +10,7 @@ import pytest
 from solver import CaseSpec
 from solver.model import TunnelModel
 from solver.run import run_case
-from solver.settlement import gaussian_trough, ground_loss, with_trough_width
+from solver.results.settlement import gaussian_trough, ground_loss, with_trough_width
 
 COARSE = {"interface_size": 0.1, "far_size": 4.0}
 

@@ -9,8 +9,8 @@ from pydantic import ValidationError
 
 from solver import CaseSpec, SolverError
 from solver.errors import field_errors
-from solver.mesh import build_mesh
-from solver.sizing import (MAX_ELEMENTS, MESHER_FACTOR, check_mesh_size, estimated_elements,
+from solver.geometry.mesh import build_mesh
+from solver.geometry.sizing import (MAX_ELEMENTS, MESHER_FACTOR, check_mesh_size, estimated_elements,
                            ground_density_integral, size_field_distances)
 
 #: The body of issue 10 that the old sampled estimate let through (1.14 M triangles).

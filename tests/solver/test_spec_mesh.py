@@ -10,8 +10,8 @@ from pydantic import BaseModel, ValidationError
 
 from solver import CaseSpec
 from solver.errors import field_errors
-from solver.mesh import build_mesh
-from solver.sizing import MAX_ELEMENTS, estimated_elements
+from solver.geometry.mesh import build_mesh
+from solver.geometry.sizing import MAX_ELEMENTS, estimated_elements
 
 
 def test_default_case_and_stable_id():

@@ -15,6 +15,7 @@ from solver.analytic import (
     ring_in_medium_case,
 )
 from solver.model import TunnelModel
+import solver.stages.loads as stage_fns
 
 P, E, NU, E_L, NU_L = 1.0e5, 5.0e7, 0.3, 3.0e10, 0.2
 A, T = 2.5, 0.3
@@ -90,7 +91,7 @@ def test_release_forces_are_the_discrete_excavation_load():
     weight of the excavated ground, ρ g times the area of the mesh's (curved) hole."""
     spec = CaseSpec(mesh=dict(interface_size=0.2, far_size=6.0))
     model = TunnelModel(spec)
-    r = model.excavation_load(spec)
+    r = stage_fns.excavation_load(model, spec)
     ground = model.ground.body
     hole = model.mesh.interface.ground_node
     off = np.ones(ground.mesh.p.shape[1], bool)
@@ -128,7 +129,7 @@ def test_default_case_does_not_depend_on_the_model_walls(kkt):
 
 def test_stages_reuse_the_factorization(monkeypatch):
     """Stage 1 is a triangular solve with the ground factor, not a second factorization."""
-    import solver.flexibility as flexibility
+    import solver.fe.flexibility as flexibility
 
     spec = CaseSpec(mesh=dict(interface_size=0.2, far_size=6.0))
     model = TunnelModel(spec)
@@ -142,7 +143,7 @@ def test_stages_reuse_the_factorization(monkeypatch):
     # stage 1 (the second column of the ground's backward solve) is K u1 = λd r on the ground alone
     body = model.ground.body
     u1 = body.restrict(body.full(sol.u_stage1))  # in the body's (skew) basis, as K
-    load = 0.5 * model.stage_loads(case).release
+    load = 0.5 * stage_fns.stage_loads(model, case).release
     np.testing.assert_allclose(body.K @ u1, load, rtol=0, atol=1e-9 * np.abs(load).max())
     assert np.abs(u1).max() > 0
 
@@ -177,7 +178,7 @@ def test_split_solves_and_load_shapes():
     interface jumps, backward with tractions) answers ``B K⁺f`` and ``K u = f - BᵀWt`` for
     both bodies and both factorizations; a model that forgot its factorizations gives the
     same solution bit for bit after rebuilding them."""
-    from solver.assembly import gravity_load, initial_stress_forces, side_pressure_load, surface_load
+    from solver.fe.assembly import gravity_load, initial_stress_forces, side_pressure_load, surface_load
 
     spec = CaseSpec(mesh=dict(interface_size=0.2, far_size=6.0), boundaries=dict(side="pressure"),
                     loads=dict(lateral_ratio=0.6, surface_load=5.0e4))
@@ -188,11 +189,11 @@ def test_split_solves_and_load_shapes():
     direct = (gravity_load(basis, spec.ground.density, spec.loads.gravity) + surface_load(basis, q, scale=scale)
               + side_pressure_load(basis, q=q, rho_g=rho_g, k0=k0, width=g.width, scale=scale)
               - initial_stress_forces(basis, q=q, rho_g=rho_g, k0=k0))
-    np.testing.assert_allclose(model.excavation_load(spec), direct, rtol=0, atol=1e-9 * np.abs(direct).max())
+    np.testing.assert_allclose(stage_fns.excavation_load(model, spec), direct, rtol=0, atol=1e-9 * np.abs(direct).max())
     rng = np.random.default_rng(3)
     m, R = model.m, model.ground.B.shape[0]
-    for fb, f in ((model.ground, model.stage_loads(spec).release),
-                  (model.lining, model.lining.body.restrict(model._lining_shape()))):
+    for fb, f in ((model.ground, stage_fns.stage_loads(model, spec).release),
+                  (model.lining, model.lining.body.restrict(model.lining_shape()))):
         for rows in ("normal", "all"):
             Wt = rng.standard_normal(R) * np.abs(f).max()
             if rows == "normal":
@@ -218,7 +219,7 @@ def test_split_solves_and_load_shapes():
 
 
 def test_volume_loss_integrates_the_settling_part_of_the_trough():
-    from solver.dataset import volume_loss
+    from solver.results.dataset import volume_loss
 
     x = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
     s = np.array([2.0, 2.0, 0.0, -1.0, -1.0])  # settles over [0, 2], heaves beyond

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from solver import CaseSpec
-from solver.dataset import to_dataset
+from solver.results.dataset import to_dataset
 from solver.model import TunnelModel, model_key
 
 COARSE = {"mesh": {"interface_size": 0.15, "far_size": 6.0}}

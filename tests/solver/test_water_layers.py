@@ -16,7 +16,8 @@ import pytest
 from solver import CaseSpec
 from solver.model import TunnelModel, model_key, shared_model
 from solver.run import run_case
-from solver.strata import geostatic_state, strata
+from solver.ground.strata import geostatic_state, strata
+import solver.stages.loads as stage_fns
 
 COARSE = {"interface_size": 0.1, "far_size": 4.0}
 TWO_LAYERS = [{"thickness": 6.0, "young": 2.0e7, "density": 1900.0, "lateral_ratio": 0.6},
@@ -54,7 +55,7 @@ def test_layered_in_situ_state_is_in_exact_discrete_equilibrium(watertight):
     model, _, _ = watertight
     spec = model_spec = _spec(ground={"layers": TWO_LAYERS}, water={"table": 3.0})
     body = model.ground.body
-    r = body.restrict(model.excavation_load(model_spec))
+    r = body.restrict(stage_fns.excavation_load(model, model_spec))
     node = body.node_of_dof()
     on_hole = np.isin(node, model.mesh.interface.ground_node)
     assert np.abs(r[~on_hole]).max() <= 1e-9 * np.abs(r).max()
@@ -114,7 +115,7 @@ def test_ring_equilibrium_with_water_on_the_extrados(watertight):
     spec = CaseSpec.model_validate(json.loads(ds.attrs["case_spec"]))
     iface = model.mesh.interface
     contact = float(np.sum(iface.weight * sol.lam * -iface.normal[0]))
-    water_x = model._water_on_lining(spec)[model.lining.body.dof_of_node[0]].sum()
+    water_x = stage_fns.water_on_lining(model, spec.water.table, spec.water.unit_weight)[model.lining.body.dof_of_node[0]].sum()
     thrust = ds["thrust"].values
     assert thrust[0] + thrust[-1] == pytest.approx(contact - water_x, rel=2e-3)
     assert -water_x > 0.3 * contact  # the water is a large part of the load
@@ -134,14 +135,14 @@ def test_drained_inflow_matches_the_deep_tunnel_closed_form():
                                     "water": {"table": 0.0, "lining": "drained"},
                                     "mesh": {"interface_size": 0.1, "far_size": 10.0}})
     model = TunnelModel(spec)
-    seep = model.seepage(spec)
+    seep = stage_fns.seepage(model, spec)
     r, k = spec.geometry.hole_radius, 1e-6
     closed = 2 * np.pi * k * depth / np.arccosh(depth / r)
     # 1.8 %: the closed form holds the tunnel wall at one head, a drained wall is at zero pressure
     assert seep.inflow == pytest.approx(closed, rel=0.03)
     # twice the permeability, twice the flow
     spec2 = spec.model_copy(update={"ground": spec.ground.model_copy(update={"permeability": 2e-6})})
-    assert model.seepage(spec2).inflow == pytest.approx(2 * seep.inflow, rel=1e-9)
+    assert stage_fns.seepage(model, spec2).inflow == pytest.approx(2 * seep.inflow, rel=1e-9)
     u0 = 9810.0 * np.maximum(-model.mesh.ground.p[1], 0.0)
     assert seep.pore.min() >= 0 and np.all(seep.pore <= u0 + 1e-6)
     assert np.all(seep.pore[model.mesh.interface.ground_node] == 0)

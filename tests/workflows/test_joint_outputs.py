@@ -15,9 +15,9 @@ import pytest
 import xarray as xr
 
 from solver import CaseSpec
-from solver.dataset import ECCENTRICITY_LIMIT, JOINT_VARIABLES, SCALARS, joint_stations, to_dataset
+from solver.results.dataset import ECCENTRICITY_LIMIT, JOINT_VARIABLES, SCALARS, joint_stations, to_dataset
 from solver.model import TunnelModel
-from solver.post import lining_forces
+from solver.lining.forces import lining_forces
 from workflows import ResultStore
 from workflows.combine import THETA, combine_files, on_theta_grid
 from workflows.joint_check import joint_check, joint_report

@@ -1,7 +1,7 @@
 """The ground's stiffness and in-situ loads, layer by layer (SPEC §1.1, §1.4), as plain functions.
 
-The mesh conforms to the layer lines (:func:`solver.mesh.build_mesh` gives each ground
-triangle its band, the index of its :class:`~solver.strata.Stratum`), so within a triangle the
+The mesh conforms to the layer lines (:func:`solver.geometry.mesh.build_mesh` gives each ground
+triangle its band, the index of its :class:`~solver.ground.strata.Stratum`), so within a triangle the
 ground is one layer: E may grow linearly with depth (``young_gradient``), ν is constant, and
 the geostatic stress is linear in depth. Each layer's in-situ stress is linear in four terms
 (:data:`LOAD_TERMS` per layer): ρg of the layer, the vertical stress at its top σv(top), and
@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .assembly import (
+from ..fe.assembly import (
     gravity_load,
     initial_stress_forces,
     side_pressure_load,

@@ -18,7 +18,6 @@ scalar DOF ``j`` of its P2 basis.
 """
 from __future__ import annotations
 
-import math
 import threading
 from dataclasses import dataclass
 
@@ -27,11 +26,11 @@ import numpy as np
 from .sizing import (
     check_mesh_size,
     interface_segments,
-    lining_layers,
     size_field_distances,
 )
-from .spec import CaseSpec
-from .strata import layer_lines
+from ..spec import CaseSpec
+from ..ground.strata import layer_lines
+from .joints import Joints, cut_along, joint_angles, joint_faces, joint_layers, polar_angle as _theta
 
 # gmsh keeps global state: one meshing at a time per process.
 _GMSH_LOCK = threading.Lock()
@@ -93,36 +92,6 @@ class Interface:
 
 
 @dataclass(frozen=True)
-class Joints:
-    """The longitudinal joints of a segmental lining (SPEC §1.6), ordered crown to invert.
-
-    theta : (J,) deg at the tunnel axis.
-    before, after : per joint, the lining nodes of the face on the crown side (θ < θj) and on
-        the invert side, ordered from the intrados out (vertices and edge nodes). A joint on the
-        symmetry line has one face in the half model: ``after`` at the crown, ``before`` at the
-        invert, the other empty (the mirror segment's face moves symmetrically).
-    segment : (N,) the segment of each lining node, numbered crown to invert.
-    """
-
-    theta: np.ndarray
-    before: tuple[np.ndarray, ...]
-    after: tuple[np.ndarray, ...]
-    segment: np.ndarray
-
-    @property
-    def size(self) -> int:
-        return self.theta.size
-
-    @property
-    def segments(self) -> int:
-        return int(self.segment.max()) + 1
-
-    def on_axis(self, j: int) -> bool:
-        """Whether joint ``j`` lies on the symmetry line (crown or invert)."""
-        return self.before[j].size == 0 or self.after[j].size == 0
-
-
-@dataclass(frozen=True)
 class TunnelMesh:
     ground: BodyMesh
     lining: BodyMesh
@@ -156,47 +125,9 @@ def build_mesh(spec: CaseSpec) -> TunnelMesh:
         finally:
             gmsh.finalize()
     check_mesh_size(ground.t.shape[1] + lining.t.shape[1])
-    joints = _joints(lining, joint_angles(spec), center) if spec.lining.joints.count else None
+    joints = joint_faces(lining, joint_angles(spec), center) if spec.lining.joints.count else None
     return TunnelMesh(ground, lining, _interface(ground, lining, ground_ring, lining_ring, center),
                       center, joint_layers(spec), band, joints)
-
-
-def joint_angles(spec: CaseSpec) -> list[float]:
-    """Angles (deg from the crown) of the lining's joints in the half model [0°, 180°]
-    (SPEC §1.6: ``offset + k·360°/n``); empty for a monolithic ring."""
-    j = spec.lining.joints
-    if not j.count:
-        return []
-    step = 360.0 / j.count
-    angles = (j.offset + step * np.arange(j.count)) % 360.0
-    return sorted(round(float(t), 9) for t in angles if t <= 180.0 + 1e-9)
-
-
-#: Node spacings across a joint's contact strip, at least: an open joint carries its thrust on a
-#: zone near the strip's edge that the strip's nodes must resolve (with 2, the default mesh put the
-#: whole thrust of every open joint on the edge node).
-STRIP_SPACINGS = 8
-#: Element layers through a segmental lining, at most.
-MAX_JOINT_LAYERS = 24
-
-
-def joint_layers(spec: CaseSpec) -> int:
-    """Element layers through the lining: :func:`~solver.sizing.lining_layers`; for a segmental
-    lining at least enough for :data:`STRIP_SPACINGS` node spacings across the joints' strip
-    (the radial lines carry 2L + 1 equally spaced nodes), and the least such count for which the
-    strip ends at nodes (``L a / t`` whole) if one is below :data:`MAX_JOINT_LAYERS`; else the
-    strip is the nodes within ``a`` (:func:`solver.joints.joint_rows`)."""
-    layers = lining_layers(spec)
-    j, t = spec.lining.joints, spec.geometry.thickness
-    if not j.count:
-        return layers
-    a = j.contact_height or t
-    least = max(layers, math.ceil(STRIP_SPACINGS * t / (2.0 * a) - 1e-9))
-    for n in range(least, MAX_JOINT_LAYERS + 1):
-        ratio = n * a / t
-        if abs(ratio - round(ratio)) <= 1e-6:
-            return n
-    return min(least, MAX_JOINT_LAYERS)
 
 
 def sector_angles(spec: CaseSpec) -> list[float]:
@@ -381,7 +312,7 @@ def _body_mesh(surfaces, arcs: list, center, model_nodes: tuple[np.ndarray, np.n
     cw = e1[0] * e2[1] - e1[1] * e2[0] < 0
     t[1, cw], t[2, cw] = t[2, cw].copy(), t[1, cw].copy()  # counter-clockwise
     n_tagged = p.shape[1]
-    p, t, origin = _cut(p, t, cuts, center)
+    p, t, origin = cut_along(p, t, cuts, center)
     # scikit-fem's P2 DOF order: vertices, then one node per facet in MeshTri2's facet order
     # (MeshTri2 keeps t as given, hence sort_t=False)
     facets = MeshTri1(p, t, sort_t=False, validate=False)
@@ -406,62 +337,6 @@ def _body_mesh(surfaces, arcs: list, center, model_nodes: tuple[np.ndarray, np.n
     return mesh, rings, np.concatenate(owner)
 
 
-def _cut(p: np.ndarray, t: np.ndarray, angles, center) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Cut linear triangles ``t`` along the radial lines at ``angles`` (deg): the vertices on a
-    line get copies (appended to ``p``) that the triangles on its invert side use instead.
-    Returns the new ``p``, ``t`` and, per copy, the vertex it copies."""
-    c = np.asarray(center, dtype=float)
-    origin = np.zeros(0, np.int64)
-    for a in angles:
-        ang = _theta(p, c)
-        centroid = _theta(p[:, t].mean(axis=1), c)
-        on = np.flatnonzero(np.abs(ang - a) <= 1e-6)
-        if on.size < 2:
-            raise RuntimeError(f"no radial line of lining nodes at the joint at {a:g} deg")
-        remap = np.arange(p.shape[1])
-        remap[on] = p.shape[1] + np.arange(on.size)
-        t = np.where(centroid[None, :] > a, remap[t], t)
-        p = np.hstack([p, p[:, on]])
-        origin = np.r_[origin, on]
-    return p, t, origin
-
-
-def _joints(lining: BodyMesh, angles: list[float], center) -> Joints:
-    """The faces of the lining's joints at ``angles`` (deg) and the segment of each node."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    c = np.asarray(center, dtype=float)
-    n = lining.p.shape[1]
-    e = lining.t.shape[1]
-    incidence = coo_matrix((np.ones(6 * e), (lining.t.ravel(), np.tile(np.arange(e), 6))), shape=(n, e)).tocsr()
-    count, label = connected_components(incidence @ incidence.T, directed=False)
-    ang = _theta(lining.p, c)
-    mean = np.array([ang[label == k].mean() for k in range(count)])
-    segment = np.argsort(np.argsort(mean))[label]
-    radius = np.hypot(*(lining.p - c[:, None]))
-    centroid = _theta(lining.p[:, lining.t[:3]].mean(axis=1), c)
-    before, after = [], []
-    for a in angles:
-        on = np.flatnonzero(np.abs(ang - a) <= 1e-6)
-        if a == 0.0:
-            sides = (np.zeros(0, np.int64), on)
-        elif a == 180.0:
-            sides = (on, np.zeros(0, np.int64))
-        else:
-            early = np.zeros(n, bool)
-            early[lining.t[:, centroid < a].ravel()] = True
-            sides = (on[early[on]], on[~early[on]])
-        for group, side in zip((before, after), sides):
-            group.append(side[np.argsort(radius[side])])
-        if a not in (0.0, 180.0) and before[-1].size != after[-1].size:
-            raise RuntimeError(f"the joint at {a:g} deg has faces of {before[-1].size} and {after[-1].size} nodes")
-    inner = len([a for a in angles if 0.0 < a < 180.0])
-    if count != inner + 1:
-        raise RuntimeError(f"the lining's {inner} joints inside the half model make {count} segments, not {inner + 1}")
-    return Joints(theta=np.array(angles, dtype=float), before=tuple(before), after=tuple(after), segment=segment)
-
-
 def _arc_vertices(arcs, tags: np.ndarray) -> np.ndarray:
     """Vertex indices (into the sorted ``tags`` of a body) of the nodes on gmsh ``arcs``."""
     import gmsh
@@ -472,11 +347,6 @@ def _arc_vertices(arcs, tags: np.ndarray) -> np.ndarray:
     if np.any(at >= tags.size) or not np.array_equal(tags[np.minimum(at, tags.size - 1)], arc_tags):
         raise RuntimeError("an arc node is not a vertex of the body's triangles")
     return at
-
-
-def _theta(p: np.ndarray, center) -> np.ndarray:
-    """Angle at the tunnel axis in degrees, 0 at the crown, 180 at the invert (x >= 0)."""
-    return np.degrees(np.arctan2(p[0] - center[0], p[1] - center[1]))
 
 
 def _interface(ground: BodyMesh, lining: BodyMesh, g_nodes, l_nodes, center) -> Interface:

@@ -11,7 +11,7 @@ A segmental lining (SPEC §1.6) adds its joints on dim ``joint`` (:data:`JOINT_V
 monolithic lining, so they stack across cases), and leaves ``utilization`` NaN at the joints'
 stations: the section there is the joint's contact strip, whose checks are ``joint_eccentricity``
 ≤ 1 (the thrust inside the strip) and ``joint_utilization`` ≤ 1 (EN 1992-1-1 (12.10) on the strip,
-:func:`solver.design.joint_utilization`), so ``max_utilization`` is the section's away from the
+:func:`solver.lining.design.joint_utilization`), so ``max_utilization`` is the section's away from the
 joints.
 """
 from __future__ import annotations
@@ -24,14 +24,15 @@ from datetime import datetime, timezone
 import numpy as np
 import xarray as xr
 
-from .assembly import SUBTRIANGLES, stress_at
-from .ground import in_situ_stress, moduli
-from .strata import moved_lines, strata
-from .water import hydrostatic
+from ..fe.assembly import SUBTRIANGLES, stress_at
+from ..ground.loads import in_situ_stress, moduli
+from ..ground.strata import moved_lines, strata
+from ..ground.water import hydrostatic
 from .settlement import TROUGH_WIDTH_FACTOR, gaussian_trough, ground_loss, surface_warnings
-from .design import design_utilization, joint_utilization
-from .model import Solution, TunnelModel
-from .post import contact_extent, lining_forces, mean_convergence, surface_trough
+from ..lining.design import design_utilization, joint_utilization
+from ..model import Solution, TunnelModel
+from ..lining.forces import lining_forces
+from .post import contact_extent, mean_convergence, surface_trough
 
 log = logging.getLogger(__name__)
 
@@ -210,123 +211,36 @@ def _convergence(u: np.ndarray, iface, nodes: np.ndarray, theta: float) -> float
     return float(np.sum(u[:, nodes[i]] * iface.normal[:, i]))
 
 
-def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, started: float | None = None) -> xr.Dataset:
-    """Build the SPEC §3 dataset of a solved case; interface nodes appear once per body in ``node``."""
+def _mesh_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict, dict]:
+    """``(coords, data, geometry)`` on the UGRID mesh of both bodies: displacements, stresses,
+    pore pressure, layers and yield on nodes and sub-triangle faces; ``geometry`` holds the node
+    coordinates, the ground's faces and the displacement for the scalars and warnings."""
     spec = sol.spec
-    mesh, iface = model.mesh, model.mesh.interface
-    mg, ml = mesh.ground, mesh.lining
+    mg, ml = model.mesh.ground, model.mesh.lining
     ng = mg.p.shape[1]
-    g = spec.geometry
     node_xy = np.concatenate([mg.p, ml.p], axis=1)
     faces = np.concatenate([_faces(mg.t), _faces(ml.t) + ng]).astype(np.int32)
     n_fg = 4 * mg.t.shape[1]
-    body = np.r_[np.zeros(n_fg, np.int8), np.ones(faces.shape[0] - n_fg, np.int8)]
+    n_fl = faces.shape[0] - n_fg
+    body = np.r_[np.zeros(n_fg, np.int8), np.ones(n_fl, np.int8)]
     u = np.concatenate([sol.u_ground, sol.u_lining], axis=1)
     u1 = np.concatenate([sol.u_stage1, np.zeros_like(sol.u_lining)], axis=1)
     state = _ground_state(model, sol)
     lining_stress = _lining_stress(model, spec, sol.u_lining)
     stress = np.concatenate([state["total"], lining_stress], axis=1)
     effective = np.concatenate([state["effective"], lining_stress], axis=1)
-    n_fl = faces.shape[0] - n_fg
     pore = np.r_[state["pore"], np.zeros(n_fl)]
     layer = np.r_[np.repeat(model.band, 4), np.full(n_fl, -1)].astype(np.int16)
     if sol.plastic is not None:
         plastic, eqps = sol.plastic["at_yield"].astype(np.int8), sol.plastic["eqps"]
     else:
         plastic, eqps = np.zeros(n_fg, np.int8), np.zeros(n_fg)
-    forces = lining_forces(spec, model.lining.body, iface, mesh.center, sol.u_lining, sol.lam, sol.shear)
-    eta, env_n, env_m = design_utilization(forces.thrust, forces.moment, g.thickness, spec.design)
-    joint_coords, joint_data, joint_scalars = _joint_results(sol)
-    if sol.joints is not None:  # the section at a joint is its contact strip: checked by joint_eccentricity
-        eta = eta.copy()
-        eta[joint_stations(iface.theta, sol.joints.theta)] = np.nan
-    surf_x, settlement = surface_trough(mg.p, sol.u_ground, scale=max(g.width, g.height))
-    loss = ground_loss(sol.u_ground, iface.ground_node, iface.normal, iface.weight, g.hole_radius)
-    trough, trough_max = gaussian_trough(surf_x, loss, g.hole_radius, g.depth)
-    gap, in_contact = sol.gap, sol.in_contact
-    crown = iface.lining_node[0]
-    max_eta = float(np.nanmax(eta))
-    scalars = {
-        "max_contact_pressure": float(sol.lam.max()),
-        "contact_extent": contact_extent(iface.theta, in_contact),
-        "crown_settlement": float(-sol.u_lining[1, crown]),
-        "max_thrust": float(forces.thrust.max()),
-        "max_abs_moment": float(np.abs(forces.moment).max()),
-        "lining_weight": float(sol.lining_weight),
-        "bolt_theta": float(iface.theta[sol.bolt]) if sol.bolt is not None else np.nan,
-        "bolt_trials": np.int32(len(sol.trials)),
-        "iterations": np.int32(sol.iterations),
-        "converged": np.int8(sol.admissible),
-        "kkt_residual": sol.kkt_residual,
-        "solve_seconds": 0.0,
-        "max_utilization": max_eta,
-        "max_surface_settlement": float(settlement.max()),
-        "volume_loss": volume_loss(surf_x, settlement, g.hole_radius),
-        "ground_crown_settlement": float(-sol.u_ground[1, iface.ground_node[0]]),
-        "water_inflow": float(sol.water_inflow),
-        **_plastic_scalars(sol, node_xy, faces[:n_fg], mesh.center),
-        "ground_loss": loss,
-        "gaussian_max_settlement": trough_max,
-        "axis_settlement": float(settlement[0]),
-        "max_surface_heave": float(max(-settlement.min(), 0.0)),
-        **joint_scalars,
-    }
-    warnings = [f"the line between layers {i - 1} and {i} ({z:.4g} m deep) is drawn at {drawn:.4g} m: it met the "
-                "tunnel's crown or invert level, where the mesh cannot follow a line tangent to the excavation"
-                for i, z, drawn in moved_lines(spec)]
-    warnings += surface_warnings(surf_x, settlement)
-    largest = float(np.max(np.hypot(u[0], u[1])))
-    if largest > SMALL_DISPLACEMENT_LIMIT * g.hole_radius:
-        warnings.append(
-            f"largest displacement {largest:.4g} m exceeds {SMALL_DISPLACEMENT_LIMIT:.0%} of the excavation "
-            f"radius ({g.hole_radius:.4g} m): outside the small-displacement model")
-    if not sol.admissible:
-        where = f"bolt at theta={iface.theta[sol.bolt]:.2f} deg" if sol.bolt is not None else "the bolt set"
-        warnings.append(f"{where} has a negative reaction: not a contact solution")
-    for w in warnings:
-        log.warning("case %s: %s", spec.case_id, w)
-    attrs = {
-        "bolt_search": [_plain(vars(t)) for t in sol.trials],
-        "timings_seconds": {**model.timings, **sol.timings},
-        # a segmental lining: the amplitudes of its segments' rigid modes (``lining_modes``)
-        "lining_translation_m": float(sol.a) if np.ndim(sol.a) == 0 else _plain(sol.a),
-        "interface_model": spec.interface.model,
-        "excavation_method": spec.excavation.method,
-        **({"plastic_iterations": int(sol.plastic["iterations"])} if sol.plastic is not None else {}),
-        "water_uplift_N_per_m": float(sol.water_uplift),
-        "warnings": warnings,
-    }
-    if sol.joints is not None:
-        attrs["lining_modes"] = list(model.modes.label)
-        attrs["joint_contact_height_m"] = float(sol.joints.contact_height)
-    if spec.excavation.method == "deconfinement":
-        gn = iface.ground_node
-        attrs["deconfinement"] = spec.excavation.deconfinement
-        # the wall's mean convergence against the share of the excavation load released, over
-        # stage 1 (the unsupported ground): each increment of a yielding ground, else the one
-        # straight segment an elastic ground follows
-        curve = (sol.plastic["ground_reaction"] if sol.plastic is not None
-                 else [(spec.excavation.deconfinement, mean_convergence(sol.u_stage1, iface))])
-        attrs["ground_reaction_curve"] = [{"released": f, "wall_convergence_m": c} for f, c in curve]
-        attrs["stage1_convergence_m"] = {
-            "crown": _convergence(sol.u_stage1, iface, gn, 0.0),
-            "springline": _convergence(sol.u_stage1, iface, gn, 90.0),
-            "invert": _convergence(sol.u_stage1, iface, gn, 180.0)}
-        attrs["final_convergence_m"] = {
-            "crown": _convergence(sol.u_ground, iface, gn, 0.0),
-            "springline": _convergence(sol.u_ground, iface, gn, 90.0),
-            "invert": _convergence(sol.u_ground, iface, gn, 180.0)}
     on_node = {"mesh": "mesh", "location": "node"}
     on_face = {"mesh": "mesh", "location": "face"}
-    since = ("since excavation" if spec.excavation.method == "deconfinement" else "since the stress-free start")
+    since = _since(spec)
     coords = {
         "node_x": _var("node", node_xy[0], "m", "x of mesh node", standard_name="projection_x_coordinate"),
         "node_y": _var("node", node_xy[1], "m", "y of mesh node", standard_name="projection_y_coordinate"),
-        "theta": _var("interface", iface.theta, "degree", "interface position at the tunnel axis from the crown"),
-        "interface_x": _var("interface", node_xy[0, iface.ground_node], "m", "x of interface node"),
-        "interface_y": _var("interface", node_xy[1, iface.ground_node], "m", "y of interface node"),
-        "surface_x": _var("surface", surf_x, "m", "x of ground surface node"),
-        **joint_coords,
     }
     data = {
         "mesh": xr.Variable((), np.int32(0), {
@@ -353,6 +267,24 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
         "plastic": _var("face", np.r_[plastic, np.zeros(n_fl, np.int8)], "1", "1 where the ground is at yield at the end", **on_face),
         "equivalent_plastic_strain": _var("face", np.r_[eqps, np.zeros(n_fl)], "1",
                                           "accumulated equivalent plastic strain sqrt(2/3 dep:dep)", **on_face),
+    }
+    return coords, data, {"node_xy": node_xy, "ground_faces": faces[:n_fg], "u": u}
+
+
+def _since(spec) -> str:
+    return "since excavation" if spec.excavation.method == "deconfinement" else "since the stress-free start"
+
+
+def _interface_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict]:
+    """``(coords, data)`` of the interface stations: geometry, water, contact state."""
+    iface, ng = model.mesh.interface, model.mesh.ground.p.shape[1]
+    p_ground = model.mesh.ground.p
+    coords = {
+        "theta": _var("interface", iface.theta, "degree", "interface position at the tunnel axis from the crown"),
+        "interface_x": _var("interface", p_ground[0, iface.ground_node], "m", "x of interface node"),
+        "interface_y": _var("interface", p_ground[1, iface.ground_node], "m", "y of interface node"),
+    }
+    data = {
         "water_pressure": _var("interface", sol.water_pressure, "Pa", "water pressure on the lining's extrados (0 when dry or drained)"),
         "normal_x": _var("interface", iface.normal[0], "1", "x of the ground's outward normal"),
         "normal_y": _var("interface", iface.normal[1], "1", "y of the ground's outward normal"),
@@ -361,11 +293,24 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
         "lining_node": _var("interface", (iface.lining_node + ng).astype(np.int32), "1", "lining copy of the interface node (index into node)"),
         "contact_pressure": _var("interface", sol.lam, "Pa", "contact pressure"),
         "normal_jump": _var("interface", sol.normal_jump, "m", "normal displacement jump [u]nu"),
-        "gap": _var("interface", gap, "m", "remaining gap g0 - [u]nu"),
-        "in_contact": _var("interface", in_contact.astype(np.int8), "1", "1 where the interface is closed"),
+        "gap": _var("interface", sol.gap, "m", "remaining gap g0 - [u]nu"),
+        "in_contact": _var("interface", sol.in_contact.astype(np.int8), "1", "1 where the interface is closed"),
         "shear_traction": _var("interface", sol.shear, "Pa", "interface shear traction on the lining (positive towards increasing theta)"),
         "tangential_jump": _var("interface", sol.tangential_jump, "m", "tangential displacement jump [u]tau"),
         "slipping": _var("interface", sol.slipping.astype(np.int8), "1", "1 where the interface slips"),
+    }
+    return coords, data
+
+
+def _lining_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict]:
+    """``(data, scalars)`` of the lining's section forces and their EN 1992 check."""
+    spec, iface = sol.spec, model.mesh.interface
+    forces = lining_forces(spec, model.lining.body, iface, model.mesh.center, sol.u_lining, sol.lam, sol.shear)
+    eta, env_n, env_m = design_utilization(forces.thrust, forces.moment, spec.geometry.thickness, spec.design)
+    if sol.joints is not None:  # the section at a joint is its contact strip: checked by joint_eccentricity
+        eta = eta.copy()
+        eta[joint_stations(iface.theta, sol.joints.theta)] = np.nan
+    data = {
         "thrust": _var("interface", forces.thrust, "N m-1", "lining thrust (compression positive)"),
         "moment": _var("interface", forces.moment, "N m m-1", "lining bending moment (positive: inner fibre in compression)"),
         "shear": _var("interface", forces.shear, "N m-1", "lining shear force (outward force of the invert side on the crown side)"),
@@ -373,19 +318,118 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
                             else "EN 1992-1-1 utilization of the lining section (<= 1 passes)"),
         "capacity_thrust": _var("envelope", env_n, "N m-1", "design N-M resistance envelope: thrust (compression positive)"),
         "capacity_moment": _var("envelope", env_m, "N m m-1", "design N-M resistance envelope: moment"),
-        "surface_settlement": _var("surface", settlement, "m", f"FE ground surface settlement (downward positive, {since}; "
-                                   "depends on the model's size, see gaussian_settlement)"),
+    }
+    scalars = {"max_thrust": float(forces.thrust.max()), "max_abs_moment": float(np.abs(forces.moment).max()),
+               "max_utilization": float(np.nanmax(eta))}
+    return data, scalars
+
+
+def _surface_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict, dict, tuple]:
+    """``(coords, data, scalars, (x, settlement))`` of the ground surface: the FE trough and the
+    Gaussian trough holding the ground loss."""
+    g, iface = sol.spec.geometry, model.mesh.interface
+    surf_x, settlement = surface_trough(model.mesh.ground.p, sol.u_ground, scale=max(g.width, g.height))
+    loss = ground_loss(sol.u_ground, iface.ground_node, iface.normal, iface.weight, g.hole_radius)
+    trough, trough_max = gaussian_trough(surf_x, loss, g.hole_radius, g.depth)
+    coords = {"surface_x": _var("surface", surf_x, "m", "x of ground surface node")}
+    data = {
+        "surface_settlement": _var("surface", settlement, "m", f"FE ground surface settlement (downward positive, "
+                                   f"{_since(sol.spec)}; depends on the model's size, see gaussian_settlement)"),
         "gaussian_settlement": _var("surface", trough, "m", "Gaussian settlement trough holding the ground loss "
                                     "(Peck; O'Reilly and New), downward positive",
                                     trough_width_factor=TROUGH_WIDTH_FACTOR,
                                     trough_width_m=TROUGH_WIDTH_FACTOR * g.depth),
-        **joint_data,
     }
-    for name, (units, long_name) in SCALARS.items():
-        data[name] = _var((), scalars[name], units, long_name)
-    ds = xr.Dataset(data, coords=coords)
+    scalars = {
+        "max_surface_settlement": float(settlement.max()),
+        "volume_loss": volume_loss(surf_x, settlement, g.hole_radius),
+        "ground_loss": loss,
+        "gaussian_max_settlement": trough_max,
+        "axis_settlement": float(settlement[0]),
+        "max_surface_heave": float(max(-settlement.min(), 0.0)),
+    }
+    return coords, data, scalars, (surf_x, settlement)
+
+
+def _contact_scalars(model: TunnelModel, sol: Solution) -> dict:
+    iface = model.mesh.interface
+    return {
+        "max_contact_pressure": float(sol.lam.max()),
+        "contact_extent": contact_extent(iface.theta, sol.in_contact),
+        "crown_settlement": float(-sol.u_lining[1, iface.lining_node[0]]),
+        "lining_weight": float(sol.lining_weight),
+        "bolt_theta": float(iface.theta[sol.bolt]) if sol.bolt is not None else np.nan,
+        "bolt_trials": np.int32(len(sol.trials)),
+        "iterations": np.int32(sol.iterations),
+        "converged": np.int8(sol.admissible),
+        "kkt_residual": sol.kkt_residual,
+        "solve_seconds": 0.0,
+        "ground_crown_settlement": float(-sol.u_ground[1, iface.ground_node[0]]),
+        "water_inflow": float(sol.water_inflow),
+    }
+
+
+def _warnings(model: TunnelModel, sol: Solution, u: np.ndarray, surface: tuple) -> list[str]:
+    """What the reader of this result must know: moved layer lines, a heaving surface, large
+    displacements, an inadmissible bolt."""
+    spec, g, iface = sol.spec, sol.spec.geometry, model.mesh.interface
+    warnings = [f"the line between layers {i - 1} and {i} ({z:.4g} m deep) is drawn at {drawn:.4g} m: it met the "
+                "tunnel's crown or invert level, where the mesh cannot follow a line tangent to the excavation"
+                for i, z, drawn in moved_lines(spec)]
+    warnings += surface_warnings(*surface)
+    largest = float(np.max(np.hypot(u[0], u[1])))
+    if largest > SMALL_DISPLACEMENT_LIMIT * g.hole_radius:
+        warnings.append(
+            f"largest displacement {largest:.4g} m exceeds {SMALL_DISPLACEMENT_LIMIT:.0%} of the excavation "
+            f"radius ({g.hole_radius:.4g} m): outside the small-displacement model")
+    if not sol.admissible:
+        where = f"bolt at theta={iface.theta[sol.bolt]:.2f} deg" if sol.bolt is not None else "the bolt set"
+        warnings.append(f"{where} has a negative reaction: not a contact solution")
+    for w in warnings:
+        log.warning("case %s: %s", spec.case_id, w)
+    return warnings
+
+
+def _stage_attrs(model: TunnelModel, sol: Solution) -> dict:
+    """A staged excavation's λd, ground reaction curve and wall convergences (attributes)."""
+    spec, iface = sol.spec, model.mesh.interface
+    if spec.excavation.method != "deconfinement":
+        return {}
+    gn = iface.ground_node
+    # the wall's mean convergence against the share of the excavation load released, over
+    # stage 1 (the unsupported ground): each increment of a yielding ground, else the one
+    # straight segment an elastic ground follows
+    curve = (sol.plastic["ground_reaction"] if sol.plastic is not None
+             else [(spec.excavation.deconfinement, mean_convergence(sol.u_stage1, iface))])
+    where = {"crown": 0.0, "springline": 90.0, "invert": 180.0}
+    return {
+        "deconfinement": spec.excavation.deconfinement,
+        "ground_reaction_curve": [{"released": f, "wall_convergence_m": c} for f, c in curve],
+        "stage1_convergence_m": {k: _convergence(sol.u_stage1, iface, gn, th) for k, th in where.items()},
+        "final_convergence_m": {k: _convergence(sol.u_ground, iface, gn, th) for k, th in where.items()},
+    }
+
+
+def _attrs(model: TunnelModel, sol: Solution, warnings: list[str], software_version: str) -> dict:
+    """The dataset's global attributes (lists and dicts as JSON)."""
+    spec = sol.spec
+    attrs = {
+        "bolt_search": [_plain(vars(t)) for t in sol.trials],
+        "timings_seconds": {**model.timings, **sol.timings},
+        # a segmental lining: the amplitudes of its segments' rigid modes (``lining_modes``)
+        "lining_translation_m": float(sol.a) if np.ndim(sol.a) == 0 else _plain(sol.a),
+        "interface_model": spec.interface.model,
+        "excavation_method": spec.excavation.method,
+        **({"plastic_iterations": int(sol.plastic["iterations"])} if sol.plastic is not None else {}),
+        "water_uplift_N_per_m": float(sol.water_uplift),
+        "warnings": warnings,
+    }
+    if sol.joints is not None:
+        attrs["lining_modes"] = list(model.modes.label)
+        attrs["joint_contact_height_m"] = float(sol.joints.contact_height)
+    attrs.update(_stage_attrs(model, sol))
     now = datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
-    ds.attrs = {
+    return {
         "Conventions": "CF-1.10 UGRID-1.0",
         "title": "tunnel-contact result",
         "case_id": spec.case_id,
@@ -395,6 +439,23 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
                    f"{spec.excavation.method}, {spec.interface.model} interface, inner solver {spec.solver.inner})",
         **{k: (json.dumps(v) if isinstance(v, (list, dict)) else v) for k, v in attrs.items()},
     }
+
+
+def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, started: float | None = None) -> xr.Dataset:
+    """Build the SPEC §3 dataset of a solved case; interface nodes appear once per body in ``node``."""
+    mesh_coords, mesh_data, geo = _mesh_variables(model, sol)
+    iface_coords, iface_data = _interface_variables(model, sol)
+    lining_data, lining_scalars = _lining_variables(model, sol)
+    surf_coords, surf_data, surf_scalars, surface = _surface_variables(model, sol)
+    joint_coords, joint_data, joint_scalars = _joint_results(sol)
+    scalars = {**_contact_scalars(model, sol), **lining_scalars, **surf_scalars,
+               **_plastic_scalars(sol, geo["node_xy"], geo["ground_faces"], model.mesh.center), **joint_scalars}
+    coords = {**mesh_coords, **iface_coords, **surf_coords, **joint_coords}
+    data = {**mesh_data, **iface_data, **lining_data, **surf_data, **joint_data}
+    for name, (units, long_name) in SCALARS.items():
+        data[name] = _var((), scalars[name], units, long_name)
+    ds = xr.Dataset(data, coords=coords)
+    ds.attrs = _attrs(model, sol, _warnings(model, sol, geo["u"], surface), software_version)
     if started is not None:
         ds["solve_seconds"].values = np.float64(time.perf_counter() - started)
     return ds

@@ -1,4 +1,4 @@
-"""Post-processing: lining section forces, the KKT check, the surface trough.
+"""The lining's section forces N, M, V at every interface station.
 
 Lining forces use the section-equilibrium (nodal force) method: at the radial line of
 lining nodes below a vertex station i (the structured lining has one per element
@@ -17,9 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .assembly import Body, element_nodal_forces
-from .mesh import Interface
-from .spec import CaseSpec
+from ..fe.assembly import Body, element_nodal_forces
+from ..geometry.mesh import Interface
+from ..spec import CaseSpec
 
 
 @dataclass(frozen=True)
@@ -102,62 +102,3 @@ def lining_forces(spec: CaseSpec, lining: Body, iface: Interface, center, u_lini
 
     th_all = np.radians(iface.theta)
     return LiningForces(*(np.interp(th_all, theta, f) for f in (thrust, moment, shear)))
-
-
-def contact_extent(theta_deg: np.ndarray, in_contact: np.ndarray) -> float:
-    """Degrees of interface in contact (each node owns half of its neighbouring intervals)."""
-    dth = np.diff(theta_deg)
-    own = 0.5 * (np.r_[0.0, dth] + np.r_[dth, 0.0])
-    return float(np.sum(own * in_contact))
-
-
-def surface_trough(ground_p: np.ndarray, u_ground: np.ndarray, *, scale: float) -> tuple[np.ndarray, np.ndarray]:
-    """x (ascending, m) and settlement (m, downward positive) of the ground surface y = 0."""
-    top = np.flatnonzero(np.abs(ground_p[1]) <= 1e-9 * scale)
-    order = top[np.argsort(ground_p[0, top])]
-    return ground_p[0, order], -u_ground[1, order]
-
-
-def kkt_residual(*, K_u_minus_f: list[tuple[np.ndarray, np.ndarray]], balance: float, balance_scale: float,
-                 lam: np.ndarray, normal_jump: np.ndarray, g0: float, p_ref: float, u_ref: float,
-                 model: str = "frictionless", shear: np.ndarray | None = None,
-                 tangential_jump: np.ndarray | None = None, mu: float = 0.0) -> float:
-    """Largest relative violation of the discrete KKT conditions (dimensionless).
-
-    ``K_u_minus_f`` holds per body the residual ``K u + Bᵀ W t - f`` and the size of the
-    forces it balances; ``balance`` is ``F2 + I(λ ν2 + s τ2)`` (N/m), relative to
-    ``balance_scale`` = ``|F2| + I|λ ν2 + s τ2|`` (not ``|F2|`` alone: a lining as light as the
-    water it displaces has F2 ≈ 0 while the interface carries megapascals); the gap is
-    ``g0 - normal_jump``. Pressures are scaled by ``p_ref`` (Pa), jumps and gaps by
-    ``u_ref`` (m). By model:
-
-    - frictionless / coulomb: λ ≥ 0, gap ≥ 0, λ·gap = 0;
-    - coulomb adds the friction law through its natural map,
-      ``|s - proj_[-μλ, μλ](s + c [u]τ)| / p_ref`` with ``c = p_ref / u_ref``: zero iff
-      |s| ≤ μλ, [u]τ = 0 where |s| < μλ, and [u]τ parallel to s where |s| = μλ
-      (the lining slips against s relative to the ground);
-    - bonded: the jumps [u]ν and [u]τ themselves, which the tie makes zero (the clearance
-      g0, if any, is kept as it was when the lining was placed).
-    """
-    parts = [np.max(np.abs(r)) / max(np.max(np.abs(f)), 1e-300) for r, f in K_u_minus_f]
-    parts.append(abs(balance) / max(balance_scale, 1e-300))
-    if model == "bonded":
-        parts.append(float(np.max(np.abs(normal_jump))) / u_ref)
-        parts.append(float(np.max(np.abs(tangential_jump))) / u_ref)
-        return float(max(parts))
-    gap = g0 - normal_jump
-    parts.append(max(0.0, -float(lam.min())) / p_ref)
-    parts.append(max(0.0, -float(gap.min())) / u_ref)
-    parts.append(float(np.max(np.abs(lam * gap))) / (p_ref * u_ref))
-    if model == "coulomb":
-        c = p_ref / u_ref
-        bound = mu * np.maximum(lam, 0.0)
-        nat = shear - np.clip(shear + c * tangential_jump, -bound, bound)
-        parts.append(float(np.max(np.abs(nat))) / p_ref)
-    return float(max(parts))
-
-
-def mean_convergence(u: np.ndarray, iface) -> float:
-    """Inward radial displacement (m) of the ground wall, averaged over the interface."""
-    inward = np.sum(u[:, iface.ground_node] * iface.normal, axis=0)
-    return float(np.sum(iface.weight * inward) / np.sum(iface.weight))

@@ -1,7 +1,7 @@
 """Plane-strain linear elasticity of each body with scikit-fem (isoparametric P2 triangles).
 
 Each body is assembled on its own mesh; the two meet only through the interface
-operators built in :mod:`solver.flexibility`. A :class:`Body` holds what its mesh,
+operators built in :mod:`solver.fe.flexibility`. A :class:`Body` holds what its mesh,
 material and essential conditions fix (basis, stiffness on the free DOFs); loads are
 assembled separately (:func:`gravity_load`, :func:`surface_load`, ...) because they
 change from stage to stage and case to case.
@@ -19,7 +19,7 @@ import scipy.sparse as sp
 from skfem import Basis, BilinearForm, ElementTriP2, ElementVector, FacetBasis, LinearForm, asm
 from skfem.models.elasticity import lame_parameters
 
-from .mesh import BodyMesh
+from ..geometry.mesh import BodyMesh
 
 #: Quadrature degree (exact for the geostatic equilibrium on quadratic geometry, see above).
 INTORDER = 4

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .linalg import Cholesky, _SYS_L, _SYS_LT, nested_dissection
+from ..fe.linalg import Cholesky, _SYS_L, _SYS_LT, nested_dissection
 
 _GAUSS = np.polynomial.legendre.leggauss(4)
 

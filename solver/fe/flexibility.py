@@ -9,11 +9,11 @@ both bodies hold, so s = 0 there by symmetry). The force on the lining at node i
 ``B`` maps a body's free DOFs to ``sign · [ν·u; τ·u]`` at the interface rows (sign +1
 ground, -1 lining), so the jumps ``J = [[u]ν; [u]τ] = B' u' + B'' u''``. The interface
 nodes of both bodies carry their normal and tangential components as unknowns (a skew
-basis, :func:`solver.assembly.assemble_body`), so each row of ``B`` acts on one unknown
+basis, :func:`solver.fe.assembly.assemble_body`), so each row of ``B`` acts on one unknown
 (at the crown and the invert, where x is held, the normal is vertical and the row is
 ``±u_y`` itself). Each body is
 factorized once with the interface unknowns its contact model needs ordered last
-(:class:`FactoredBody`, :mod:`solver.linalg`); the dense flexibility ``S = B K⁺ Bᵀ``
+(:class:`FactoredBody`, :mod:`solver.fe.linalg`); the dense flexibility ``S = B K⁺ Bᵀ``
 then comes from the factor's trailing block, and for loads
 ``f`` the jumps are ``J = d - S W t - a r`` with ``d = B K⁺ f`` and ``r = [ν2; τ2]``
 the jumps of a unit rigid upward translation ``a`` of the lining.
@@ -27,7 +27,7 @@ import scipy.sparse as sp
 
 from .assembly import Body
 from .linalg import InterfaceFactor, nested_dissection
-from .mesh import Interface
+from ..geometry.mesh import Interface
 
 
 def interface_rows(iface: Interface) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

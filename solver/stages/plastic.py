@@ -11,7 +11,7 @@ work unchanged). A sweep over loads, K0, λd or strength therefore still shares 
 geometry. The stop test is the equilibrium residual: the out-of-balance force
 ``‖K u - f - p(u)‖`` of the iterate, relative to the increment's load, at most ``solver.tolerance``
 floored at :data:`MIN_TOLERANCE`; the plastic consistency holds at every point by the return
-mapping (:mod:`solver.mohr_coulomb`).
+mapping (:mod:`solver.ground.mohr_coulomb`).
 
 Where an increment stalls (:data:`STAGNATION`) it is split in halves, down to 1/64 of it,
 and the sub-increments grow again as they converge (:func:`_follow`; the automatic step
@@ -41,12 +41,16 @@ import logging
 
 import numpy as np
 
-from .contact import NotConvergedError
-from .limits import check_time
-from .ground import in_situ_stress, moduli
-from .mohr_coulomb import Material, equivalent, return_stress
-from .post import mean_convergence
-from .strata import strata
+from ..errors import NotConvergedError
+from ..ground.loads import in_situ_stress, moduli
+from ..ground.mohr_coulomb import Material, equivalent, return_stress
+from ..ground.strata import strata
+from ..limits import check_time
+from ..results.post import mean_convergence
+from .contact import contact_tractions
+from .loads import stage_loads
+from .recovery import finish
+from .state import Forward, StageLoads
 
 log = logging.getLogger(__name__)
 
@@ -324,38 +328,18 @@ def _follow(solve, commit, x: np.ndarray, x_prev: np.ndarray, h_prev: float, sta
     return x, p, iterations, x_prev, h_prev, min(size, units)
 
 
-def solve_staged(model, spec, rows, t0: float):
-    """Solve a case whose ground can yield (see the module's docstring): a
-    :class:`~solver.model.Solution` with ``plastic`` results filled."""
-    from .model import Forward, StageLoads
-
-    ground, lining = model.ground, model.lining
-    body = ground.body
-    gauss = _Points(model, spec, "gauss")
-    out = _Points(model, spec, "points")
-    loads = model.stage_loads(spec)
-    steps = spec.solver.load_steps
-    tol = max(spec.solver.tolerance, MIN_TOLERANCE)
-    ld = spec.excavation.deconfinement if loads.release is not None else 0.0
-    iterations, curve = 0, []
+def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "_Points", stress_of, commit):
+    """Stage 1: λd r on the unsupported ground in ``steps`` equal increments; those the ground
+    takes elastically in one solve (up to its first yield). Returns the free-DOF displacement,
+    the plastic load, the iterations and the ground reaction curve [(released, convergence)]."""
+    ground = model.ground
+    body, iface = ground.body, model.mesh.interface
     K = ground.stiffness()
-    iface = model.mesh.interface
-
-    def stress_of(u_free):
-        grad = gauss.gradient(u_free)
-        return (u_free, grad) + gauss.trial(grad)
-
-    def commit(u_free, grad, stress, dep, flags, tau):
-        gauss.commit(grad, stress, dep, flags, tau)
-        og = out.gradient(u_free)
-        out.commit(og, *out.trial(og))
-
-    # stage 1: λd r on the unsupported ground in ``steps`` equal increments; those the ground
-    # takes elastically in one solve (up to its first yield)
+    iterations, curve = 0, []
     u1 = np.zeros(body.n)
     p1 = np.zeros(body.n)
-    if loads.release is not None and ld > 0:
-        y_r = ground.forward(loads.release, rows)
+    if release is not None and ld > 0:
+        y_r = ground.forward(release, rows)
         u_r = ground.backward(y_r, rows)
         start = first_yield(gauss, u_r, ld)
         elastic = int(np.floor(start / ld * steps * (1 + 1e-12)))
@@ -367,7 +351,7 @@ def solve_staged(model, spec, rows, t0: float):
         u1_prev, h_prev = u1 - ld / steps * u_r, ld / steps
 
         def solve1(frac, guess, patience, limit):
-            ref = frac * float(np.linalg.norm(loads.release))
+            ref = frac * float(np.linalg.norm(release))
             base = frac * y_r
 
             def G(x):
@@ -383,6 +367,32 @@ def solve_staged(model, spec, rows, t0: float):
                                                          ld * k / steps, f"stage 1, increment {k} of {steps}", size)
             iterations += its
             curve.append((ld * k / steps, mean_convergence(body.expand(u1), iface)))
+    return u1, p1, iterations, curve
+
+
+def solve_staged(model, spec, rows, t0: float):
+    """Solve a case whose ground can yield (see the module's docstring): a
+    :class:`~solver.model.Solution` with ``plastic`` results filled."""
+    ground, lining = model.ground, model.lining
+    body = ground.body
+    gauss = _Points(model, spec, "gauss")
+    out = _Points(model, spec, "points")
+    loads = stage_loads(model, spec)
+    steps = spec.solver.load_steps
+    tol = max(spec.solver.tolerance, MIN_TOLERANCE)
+    ld = spec.excavation.deconfinement if loads.release is not None else 0.0
+    K = ground.stiffness()
+
+    def stress_of(u_free):
+        grad = gauss.gradient(u_free)
+        return (u_free, grad) + gauss.trial(grad)
+
+    def commit(u_free, grad, stress, dep, flags, tau):
+        gauss.commit(grad, stress, dep, flags, tau)
+        og = out.gradient(u_free)
+        out.commit(og, *out.trial(og))
+
+    u1, p1, iterations, curve = _stage_one(model, rows, loads.release, ld, steps, tol, gauss, stress_of, commit)
     # stage 2: the rest, with the lining and contact
     full = StageLoads(loads.ground, loads.lining, None, loads.seepage)
     y_g = ground.forward(full.ground, rows)
@@ -406,7 +416,7 @@ def solve_staged(model, spec, rows, t0: float):
             state = stress_of(u1 + x)
             p = _plastic_load(gauss, state[-1])
             _, stage, d = stage_of(p, a)
-            _, t = model.contact_tractions(spec, d, a * F2_full)
+            _, t = contact_tractions(model, spec, d, a * F2_full)
             return ground.backward(stage.ground, rows, model.w * t), p, state
 
         return _fixed_point(G, guess, K, tol * ref, patience, limit)
@@ -417,7 +427,7 @@ def solve_staged(model, spec, rows, t0: float):
                                                     f"stage 2, increment {k} of {steps}", size)
         iterations += its
     # the whole contact stage (both bodies, the checks) of the last increment's converged iterate
-    sol = model._finish(spec, rows, *stage_of(p, 1.0), F2_full, t0, u1=u1)
+    sol = finish(model, spec, rows, *stage_of(p, 1.0), F2_full, t0, u1=u1)
     E = out.shape[0]
     sol.plastic = {
         "stress": out.sigma.reshape(4, -1),

@@ -37,7 +37,7 @@ import scipy.sparse as sp
 from cvxopt import cholmod as _cvxopt_cholmod
 from threadpoolctl import ThreadpoolController
 
-from .errors import SolverError
+from ..errors import SolverError
 
 
 #: BLAS threads the solver allows itself (``TUNNEL_CONTACT_BLAS_THREADS``, default 1). Its

@@ -2,7 +2,7 @@
 
 These functions only read ``spec.geometry`` and ``spec.mesh`` (anything with those two
 attributes will do), so :mod:`solver.spec` can validate the mesh size before a
-:class:`~solver.spec.CaseSpec` exists and :mod:`solver.mesh` builds exactly what was estimated.
+:class:`~solver.spec.CaseSpec` exists and :mod:`solver.geometry.mesh` builds exactly what was estimated.
 """
 from __future__ import annotations
 
@@ -116,7 +116,7 @@ def ground_density_integral(R: float, area: float, size_min: float, size_max: fl
 def check_mesh_size(n_elements: int) -> None:
     """Refuse a generated mesh over :data:`MAX_ELEMENTS` (the run-time half of the cap)."""
     if n_elements > MAX_ELEMENTS:
-        from .contact import SolverError
+        from ..errors import SolverError
 
         raise SolverError(
             f"mesh.interface_size: the mesh has {n_elements:,} elements, over the cap of "

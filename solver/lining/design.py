@@ -360,7 +360,7 @@ def joint_utilization(N, M, contact_height: float, design, *, width: float = 1.0
     joint is read: the thrust is what the ring carries, the moment what the joint's rotation leaves
     on it); ``inf`` when the strip cannot take the thrust at all (x ≥ a) or carries a moment
     without thrust. An open joint of the elastic contact solution bears on its strip's edge
-    (|M| → N a/2, :attr:`solver.joints.JointResults.eccentricity_ratio` → 1), so its
+    (|M| → N a/2, :attr:`solver.lining.joints.JointResults.eccentricity_ratio` → 1), so its
     utilization is a / (a - x): the stress block the edge needs is what the strip must give.
 
     Parameters: N, M (N/m, N·m/m) at the joints; design as :func:`design_utilization`.

@@ -1,6 +1,6 @@
 """Coulomb friction on the interface (SPEC §1.2): bolt search outside, active sets inside.
 
-Notation (:mod:`solver.flexibility`): R = m + (m - 2) interface rows, ``t = [λ; s]`` (Pa)
+Notation (:mod:`solver.fe.flexibility`): R = m + (m - 2) interface rows, ``t = [λ; s]`` (Pa)
 the tractions on the lining, ``W = diag(w)`` (m) the quadrature, the jumps
 ``J = d - S W t - a r`` (m) with ``a`` the lining's rigid upward translation; the gap is
 ``g0 - J[:m]`` and ``[u]τ = J[m:]``. Tangential row ``m + k`` belongs to node ``k + 1``
@@ -12,7 +12,7 @@ the tractions on the lining, ``W = diag(w)`` (m) the quadrature, the jumps
   against s);
 - the lining's vertical balance ``F2 + rᵀ W t = 0``.
 
-Outer loop: the paper's bolt search (§3, as :func:`solver.contact.solve_contact`).
+Outer loop: the paper's bolt search (§3, as :func:`solver.contact.bolt.solve_contact`).
 With a bolt at A, ``gap_A = 0`` fixes ``a`` and λ_A is free (no sign condition); the
 trial is accepted when λ_A ≥ 0.
 
@@ -22,7 +22,7 @@ node is *free* (λ = 0, s = 0), *stick* (gap = 0, [u]τ = 0) or *slip* (gap = 0,
 s = μλσ with σ = ±1); one step solves the linear system of the current sets with the
 balance row (unknowns: λ on the contact set, s on the stick set, ``a``) and updates the
 sets from ``λ - c gap`` and ``s + c [u]τ`` (c = 1/max(diag(S) w) makes pressures and
-jumps commensurate, as in :func:`solver.contact.active_set`). When the sets and slip
+jumps commensurate, as in :func:`solver.contact.bolt.active_set`). When the sets and slip
 signs repeat, every condition holds exactly: stick nodes have |s| ≤ μλ, slip nodes have
 ``σ [u]τ > 0`` and λ > 0, free nodes have gap ≥ 0. Why this method: it terminates in
 finitely many steps with the exact solution of the discrete problem (the answer does not
@@ -39,7 +39,7 @@ Stark & Parker) on its Cholesky factor; after each Tresca solve the set iteratio
 restarted from its sets and usually ends at once. The fixed point converges for the
 small-to-moderate μ for which the discrete Coulomb problem is known to be unique.
 Both paths stop only when the KKT measure of :func:`coulomb_kkt` (that of
-:func:`solver.post.kkt_residual` on the interface, friction natural map included) is
+:func:`solver.contact.kkt.kkt_residual` on the interface, friction natural map included) is
 below ``tol / 2``.
 """
 from __future__ import annotations
@@ -51,8 +51,8 @@ import numpy as np
 import scipy.linalg as la
 from scipy.optimize import lsq_linear
 
-from .contact import BoltedSolution, NotConvergedError, pressure_scale, search_bolt
-from .limits import check_time
+from .bolt import BoltedSolution, NotConvergedError, pressure_scale, search_bolt
+from ..limits import check_time
 
 log = logging.getLogger(__name__)
 
@@ -108,9 +108,9 @@ class _Sets:
 
 
 def coulomb_kkt(fp: FrictionProblem, t: np.ndarray, J: np.ndarray, bolt: int) -> float:
-    """KKT measure of :func:`solver.post.kkt_residual` on the interface (dimensionless).
+    """KKT measure of :func:`solver.contact.kkt.kkt_residual` on the interface (dimensionless).
 
-    Normal part as :func:`solver.contact.dual_kkt` (the bolt's normal row excluded) and the
+    Normal part as :func:`solver.contact.bolt.dual_kkt` (the bolt's normal row excluded) and the
     friction natural map ``|s - proj_[-μλ, μλ](s + c [u]τ)| / p_ref``, c = p_ref / u_ref;
     ``p_ref = max(pressure_scale, max |t|)``, ``u_ref`` the size of d, S W t and g0.
     """
@@ -296,7 +296,7 @@ def solve_bolted(fp: FrictionProblem, bolt: int, sets: _Sets, *, tol: float, max
 
 def solve_coulomb(fp: FrictionProblem, theta: np.ndarray, *, tol: float, max_iterations: int,
                   bolt: float | str = "auto") -> CoulombSolution:
-    """:func:`solver.contact.search_bolt` around :func:`solve_bolted`; each trial starts from
+    """:func:`solver.contact.bolt.search_bolt` around :func:`solve_bolted`; each trial starts from
     the previous trial's sets (the first from all nodes stuck)."""
     m = fp.m
     sets = _bonded_sets(m)

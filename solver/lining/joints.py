@@ -1,6 +1,6 @@
 """Segmental linings (SPEC §1.6): the joints as contact rows, the segments' rigid modes, the joint results.
 
-A joint is a radial cut through the lining (:func:`solver.mesh.build_mesh` makes each face's
+A joint is a radial cut through the lining (:func:`solver.geometry.mesh.build_mesh` makes each face's
 nodes twice). Over its contact strip, ``a`` high and centred on the mid-surface, the faces touch
 node by node: a *normal row* per node pair, the jump ``J = (u_A - u_B)·e_θ`` (A the crown-side
 face, B the invert side, e_θ the hoop direction towards increasing θ), so that the gap
@@ -18,7 +18,7 @@ half model's share of the work ``∫ λ [u]``; the face is otherwise free (the s
 
 The segments float: a segment cut by the symmetry line keeps its vertical translation, the
 others translate both ways and rotate (:func:`rigid_modes`); only contact holds them
-(:mod:`solver.floating`).
+(:mod:`solver.contact.floating`).
 """
 from __future__ import annotations
 
@@ -28,9 +28,9 @@ import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
 
-from .assembly import Body
-from .flexibility import interface_operator
-from .mesh import Joints, TunnelMesh
+from ..fe.assembly import Body
+from ..fe.flexibility import interface_operator
+from ..geometry.mesh import Joints, TunnelMesh
 
 
 @dataclass(frozen=True)
@@ -185,7 +185,7 @@ def rigid_modes(lining: Body, mesh: TunnelMesh, avoid: np.ndarray) -> RigidModes
 
 
 def joint_kkt(rows: JointRows, t: np.ndarray, jump: np.ndarray, law, *, p_ref: float, u_ref: float) -> float:
-    """The KKT measure of :func:`solver.post.kkt_residual` on the joints' rows: unilateral
+    """The KKT measure of :func:`solver.contact.kkt.kkt_residual` on the joints' rows: unilateral
     contact on the normal rows, and on the tangential ones the bond (J = 0) or the Coulomb
     law's natural map (``law``: the case's ``lining.joints``)."""
     n, s = rows.normal, ~rows.normal

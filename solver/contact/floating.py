@@ -1,7 +1,7 @@
 """Contact of a lining whose segments float (SPEC §1.6): the bolt-point method over every rigid mode.
 
-Notation (:mod:`solver.flexibility`, :mod:`solver.friction`): R contact rows (the interface's,
-then the joints' of :mod:`solver.joints`), tractions ``t`` (Pa), weights ``W = diag(w)`` (m),
+Notation (:mod:`solver.fe.flexibility`, :mod:`solver.contact.friction`): R contact rows (the interface's,
+then the joints' of :mod:`solver.lining.joints`), tractions ``t`` (Pa), weights ``W = diag(w)`` (m),
 the jumps ``J = d - S W t - G a`` with ``a`` (k,) the amplitudes of the lining's rigid modes
 and ``G`` (R, k) their jumps, and the balance of every mode ``F + Gᵀ W t = 0`` (``F`` the
 loads on the modes, N/m). A row is
@@ -14,12 +14,12 @@ loads on the modes, N/m). A row is
 
 The monolithic lining has one mode (its vertical translation) and the paper's bolt: one node
 held closed, its pressure free, the trial accepted when that pressure is not negative
-(Theorem 3.3; :mod:`solver.contact`). Here every segment brings its modes (the vertical
+(Theorem 3.3; :mod:`solver.contact.bolt`). Here every segment brings its modes (the vertical
 translation of one cut by the symmetry line, two translations and a rotation otherwise), so a
 trial holds a *bolt set*: unilateral rows kept closed with free tractions, chosen so that they
 and the always-held equality rows fix every mode (the rows' ``G`` span Rᵏ). With the bolt set
 the problem has a unique solution, computed exactly by the primal-dual active-set method of
-:mod:`solver.friction` (each step one dense solve of the sets' rows and the k balances); the
+:mod:`solver.contact.friction` (each step one dense solve of the sets' rows and the k balances); the
 trial is accepted when every bolt's traction is non-negative, which makes the bolted solution
 the contact solution (each bolt then satisfies t ≥ 0, gap = 0). Otherwise, as in the paper,
 the rejected bolts are dropped and the set is completed from the rows pressed hardest in the
@@ -30,7 +30,7 @@ A segment that no set of compressive rows can hold (a mode that every row leaves
 every holding row would pull) is not pinned: the solve fails, naming the segment and its mode.
 On a cycle of the sets (Coulomb friction is not monotone) the friction bound is frozen (Tresca)
 and the bolted problem, the bolts eliminated by the balances, is a box-constrained QP solved
-exactly (:func:`solver.friction._box_qp`), then the set iteration resumes from its answer.
+exactly (:func:`solver.contact.friction._box_qp`), then the set iteration resumes from its answer.
 """
 from __future__ import annotations
 
@@ -41,10 +41,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as la
 
-from .contact import BoltedSolution, NoAdmissibleBoltError, NotConvergedError
-from .errors import SolverError
+from .bolt import BoltedSolution, NoAdmissibleBoltError, NotConvergedError
+from ..errors import SolverError
 from .friction import _box_qp
-from .limits import check_time
+from ..limits import check_time
 
 log = logging.getLogger(__name__)
 
@@ -161,7 +161,7 @@ def _solve_sets(fp: FloatingProblem, SW: np.ndarray, sets: _Sets, bolts) -> tupl
 def _symmetric(fp: FloatingProblem, H: np.ndarray, rhs: np.ndarray) -> np.ndarray | None:
     """The sets' system without slipping rows, by the Cholesky factor of the flexibility block:
     with its rows scaled by w it is ``[[W S W, W G], [(W G)ᵀ, 0]]`` (as
-    :func:`solver.contact.solve_on_set`); None if the block is not positive definite."""
+    :func:`solver.contact.bolt.solve_on_set`); None if the block is not positive definite."""
     w = fp.w[H]
     A = fp.WSW[np.ix_(H, H)]
     C = w[:, None] * fp.G[H]
@@ -177,7 +177,7 @@ def _symmetric(fp: FloatingProblem, H: np.ndarray, rhs: np.ndarray) -> np.ndarra
 
 
 def _update(fp: FloatingProblem, t: np.ndarray, J: np.ndarray, c: float, bolts) -> _Sets:
-    """Sets from the natural maps (as :func:`solver.friction._update`), bolts held."""
+    """Sets from the natural maps (as :func:`solver.contact.friction._update`), bolts held."""
     uni, fri = fp.kind == UNILATERAL, fp.kind == FRICTION
     z = t - c * (fp.g0 - J)
     held = uni & (z > 0)
@@ -318,7 +318,7 @@ def _tresca(fp: FloatingProblem, WSW: np.ndarray, bolts, t: np.ndarray) -> tuple
 
 def solve_bolted(fp: FloatingProblem, bolts, sets: _Sets, *, tol: float, max_iter: int):
     """The problem with the bolt set held: (t, a, sets, iterations); the set iteration, and on a
-    cycle Tresca steps each followed by the set iteration (:func:`solver.friction.solve_bolted`)."""
+    cycle Tresca steps each followed by the set iteration (:func:`solver.contact.friction.solve_bolted`)."""
     SW = fp.S * fp.w[None, :]
     c = 1.0 / float(np.max(np.diag(fp.S) * fp.w))
     t, a, sets, steps, status = _active_set(fp, SW, c, bolts, sets, tol=tol, max_iter=max_iter)

@@ -31,16 +31,8 @@ import scipy.linalg as la
 from scipy.optimize import nnls
 from scipy.sparse.linalg import eigsh
 
-from .errors import SolverError
-from .limits import check_time
-
-
-class NotConvergedError(SolverError):
-    """The inner solver did not reach the tolerance within ``max_iterations``."""
-
-
-class NoAdmissibleBoltError(SolverError):
-    """No bolt node gave a non-negative bolt reaction (contradicts Theorem 3.3)."""
+from ..errors import NoAdmissibleBoltError, NotConvergedError, SolverError  # noqa: F401 (re-exported)
+from ..limits import check_time
 
 
 log = logging.getLogger(__name__)
@@ -160,7 +152,7 @@ def _curvature(dual: DualProblem, bolt: int) -> float:
 
 
 def dual_kkt(dual: DualProblem, lam: np.ndarray, gap: np.ndarray, bolt: int) -> float:
-    """The KKT measure of :func:`solver.post.kkt_residual` on the interface (dimensionless).
+    """The KKT measure of :func:`solver.contact.kkt.kkt_residual` on the interface (dimensionless).
 
     ``max(-gap / u_ref, |λ gap| / (p_ref u_ref), -λ / p_ref)`` over the non-bolt nodes, with
     ``p_ref = max(pressure_scale, max λ)`` and ``u_ref`` the size of the two terms whose
