@@ -25,7 +25,8 @@ from solver.results.dataset import SCALARS
 from .joint_check import joint_check, joint_report, statement
 from .joint_plots import OPEN_STYLE, has_joints
 from .parameters import flat_parameters, parameter_attrs
-from .result_store import case_warnings
+from .store_files import case_warnings
+from .tables import utilization_report
 from .units import DIAGNOSTICS, input_unit, shown_value
 
 A4_PORTRAIT = (8.27, 11.69)
@@ -48,8 +49,6 @@ def _margins(fig: Figure, ds: xr.Dataset, page: int, pages: int) -> None:
 
 def _verdict(ds: xr.Dataset) -> tuple[str, str, list[str]]:
     """``(word, colour, lines)`` of the design answer."""
-    from .commands import utilization_report
-
     if "utilization" not in ds or np.isnan(ds["utilization"].values).all():
         return "NO CHECK", "0.4", ["no EN 1992 check in this result"]
     eta = float(np.nanmax(ds["utilization"].values))

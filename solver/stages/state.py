@@ -2,15 +2,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
-
 import numpy as np
 
+from ..contact.bolt import BoltTrial
+from ..lining.joints import JointResults
 from ..spec import CaseSpec
 
-if TYPE_CHECKING:  # typing only
-    from ..contact.bolt import BoltTrial
-    from ..lining.joints import JointResults
 
 #: Relative gap (to the largest displacement) below which a node counts as closed.
 CONTACT_GAP_TOL = 1e-6
