@@ -29,7 +29,7 @@ import xarray as xr
 
 from .combine import for_netcdf
 from .files import DamagedFile, verify, write_atomically
-from .plots import PLOTS, SWEEP_PLOT_NAMES, SWEEP_PLOTS, case_labels, plot_interaction
+from .plots import PLOTS, STAGED_PLOTS, SWEEP_PLOT_NAMES, SWEEP_PLOTS, case_labels, plot_interaction
 from .result_store import ResultStore, StoreLike, as_store, netcdf_lock
 
 logger = logging.getLogger(__name__)
@@ -44,10 +44,11 @@ def plot_path(root: StoreLike, case_id: str, name: str) -> Path:
     return as_store(root).plot_path(case_id, name)
 
 
-def render_plot(root: StoreLike, case_id: str, name: str, ds=None) -> Path:
+def render_plot(root: StoreLike, case_id: str, name: str, ds=None, *, stage: str | None = None) -> Path:
     """The cached PNG of plot ``name`` of a stored case, rendered first if missing.
 
-    ``ds`` is the case's result if the caller has it open already.
+    ``ds`` is the case's result if the caller has it open already; ``stage`` the construction
+    stage a plot of :data:`workflows.plots.STAGED_PLOTS` shows (``"total"``, ``"1"``, ``"2"``).
 
     Raises
     ------
@@ -57,13 +58,16 @@ def render_plot(root: StoreLike, case_id: str, name: str, ds=None) -> Path:
         If the case is not stored.
     """
     plot = PLOTS[name]
+    if stage is not None and name not in STAGED_PLOTS:
+        raise ValueError(f"stage: the plot {name!r} has no stages (only {', '.join(STAGED_PLOTS)})")
     store = as_store(root)
-    target = store.plot_path(case_id, name)
+    target = store.plot_path(case_id, name if stage in (None, "total") else f"{name}-stage{stage}")
     if target.is_file():
         return target
     with _BUILD_LOCK:
         if not target.is_file():
-            figure = plot(store.open_case(case_id) if ds is None else ds)
+            data = store.open_case(case_id) if ds is None else ds
+            figure = plot(data) if stage is None else plot(data, stage=stage)
             write_atomically(target, lambda tmp: figure.savefig(tmp, format="png", dpi=110))
             logger.info("rendered %s of case %s", name, case_id)
     return target

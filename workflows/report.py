@@ -227,10 +227,13 @@ def case_report(ds: xr.Dataset) -> bytes:
                                      "Creator": f"tunnel-contact {ds.attrs.get('software_version', '')}",
                                      "CreationDate": created}) as pdf:
         pdf.savefig(_summary_page(ds, spec, 1, pages))
-        pdf.savefig(_inputs_page(ds, 2, pages))
+        # page 2: the whole model, as the engineer checks it before any result
+        pdf.savefig(_figure_page(ds, PLOTS["model"](ds), "model", 2, pages))
+        pdf.savefig(_inputs_page(ds, 3, pages))
         if joints:
-            pdf.savefig(_joints_page(ds, spec, 3, pages))
-        for k, (name, plot) in enumerate(PLOTS.items(), start=3 + joints):
+            pdf.savefig(_joints_page(ds, spec, 4, pages))
+        rest = [(name, plot) for name, plot in PLOTS.items() if name != "model"]
+        for k, (name, plot) in enumerate(rest, start=4 + joints):
             pdf.savefig(_figure_page(ds, plot(ds), name, k, pages))
     return buffer.getvalue()
 
