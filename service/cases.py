@@ -111,13 +111,24 @@ async def get_case_result(case_id: CaseId, request: Request) -> FileResponse:
 @router.get("/{case_id}/report.pdf", response_class=FileResponse, responses={
     200: {"content": {"application/pdf": {}}, "description": "the case's printable report, written once and cached"},
     **responses(404, 409)})
-async def get_case_report(case_id: CaseId, request: Request) -> FileResponse:
-    """The printable report of a finished case: the design answer (PASS/FAIL), the results in
-    engineering units, the warnings, every input and every figure, on A4 pages."""
+async def get_case_report(case_id: CaseId, request: Request,
+                          project: Optional[str] = Query(None, max_length=120, description="title block: project"),
+                          job: Optional[str] = Query(None, max_length=40, description="title block: job number"),
+                          author: Optional[str] = Query(None, max_length=60, description="title block: author"),
+                          checker: Optional[str] = Query(None, max_length=60, description="title block: checker"),
+                          revision: Optional[str] = Query(None, max_length=20, description="title block: revision"),
+                          date: Optional[str] = Query(None, max_length=20, description="title block: date "
+                                                                                          "(default today)"),
+                          ) -> FileResponse:
+    """The printable report of a finished case, a calculation record: the title block (optional
+    fields), the design answer (PASS/FAIL), the results in engineering units, the warnings, the
+    model, the stratigraphy and every input, the design basis and every figure, on A4 pages."""
     await _result_of_done_case(request, case_id)
     jobs = jobs_of(request)
+    title = {"project": project, "job": job, "author": author, "checker": checker, "revision": revision,
+             "date": date}
     try:
-        path = await asyncio.to_thread(render_report, jobs.root, case_id)
+        path = await asyncio.to_thread(render_report, jobs.root, case_id, title=title)
     except Exception:
         if await jobs.recompute_broken(case_id):
             raise not_ready(f"case {case_id}", "its stored result was missing or unreadable; "

@@ -19,6 +19,8 @@ its folder.
 """
 from __future__ import annotations
 
+import json
+
 import logging
 import threading
 import time
@@ -73,18 +75,26 @@ def render_plot(root: StoreLike, case_id: str, name: str, ds=None, *, stage: str
     return target
 
 
-def render_report(root: StoreLike, case_id: str, ds=None) -> Path:
+def render_report(root: StoreLike, case_id: str, ds=None, *, title: dict | None = None) -> Path:
     """The cached PDF report of a stored case (:func:`workflows.report.case_report`), written
-    first if missing; kept beside the case's plots (removed with them when the case is)."""
-    from .report import case_report
+    first if missing; kept beside the case's plots (removed with them when the case is). A
+    report with a title block (``title``: :data:`workflows.report.TITLE_FIELDS`) is cached apart,
+    per title."""
+    from solver.spec import content_id
+
+    from .report import case_report, title_block
 
     store = as_store(root)
-    target = store.plot_dir(case_id) / "report.pdf"
+    given = {k: v for k, v in (title or {}).items() if v not in (None, "")}
+    if given:
+        title_block(given)  # refuse an unknown field before writing anything
+    stem = "report" if not given else f"report-{content_id(json.dumps(given, sort_keys=True))}"
+    target = store.plot_dir(case_id) / f"{stem}.pdf"
     if target.is_file():
         return target
     with _BUILD_LOCK:
         if not target.is_file():
-            pdf = case_report(store.open_case(case_id) if ds is None else ds)
+            pdf = case_report(store.open_case(case_id) if ds is None else ds, title=given)
             write_atomically(target, lambda tmp: Path(tmp).write_bytes(pdf))
             logger.info("wrote the report of case %s", case_id)
     return target

@@ -288,9 +288,10 @@ def _open_stored(store: ResultStore, case_id: str, results: str, out: TextIO) ->
                          "tunnel-contact run (or sweep) with its case recomputes it") from None
 
 
-def report_command(case_id: str, results: str, *, output: str | None = None, out: TextIO | None = None) -> int:
+def report_command(case_id: str, results: str, *, output: str | None = None, out: TextIO | None = None,
+                   title: dict | None = None) -> int:
     """Write the PDF report of a stored case (``case_id`` may be a unique prefix) to ``output``
-    (default ``<case_id>.pdf``); 1 if the case failed."""
+    (default ``<case_id>.pdf``), with the title block's ``title`` fields; 1 if the case failed."""
     out = out or sys.stdout
     from .artifacts import render_report
 
@@ -302,6 +303,6 @@ def report_command(case_id: str, results: str, *, output: str | None = None, out
     target = Path(output or f"{case_id}.pdf")
     if target.is_dir():
         target = target / f"{case_id}.pdf"
-    shutil.copyfile(render_report(store, case_id, ds), target)
+    shutil.copyfile(render_report(store, case_id, ds, title=title), target)
     print(f"wrote {target} (report of case {case_id})", file=out)
     return 0
