@@ -29,7 +29,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .mohr_coulomb import from_principal, principal
-from .tangent import active_set_jacobian, elastic_matrix, full_tangent
+from .tangent import active_set_jacobian, elastic_matrix, full_tangent, unsort
 
 #: Relative tolerance of "on or inside a surface" (to the stresses' scale).
 YIELD_TOL = 1e-9
@@ -292,12 +292,8 @@ def _return(trial, m: HBMaterial, scale, jacobian: bool):
     np.put_along_axis(back, order, res.T, axis=0)
     dep = np.empty((3, k))
     np.put_along_axis(dep, order, strain.T, axis=0)
-    if jacobian:  # to the trial's axes: J_axes[order_i, order_j] = J_sorted[i, j]
-        Ja = np.empty_like(J)
-        idx = order.T  # (k, 3)
-        rows = np.arange(k)[:, None, None]
-        Ja[rows, idx[:, :, None], idx[:, None, :]] = J
-        J = Ja
+    if jacobian:
+        J = unsort(J, order)
     return from_principal(back[0], back[1], angle, back[2]), dep, J
 
 

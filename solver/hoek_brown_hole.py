@@ -98,8 +98,9 @@ def hoek_brown_hole(P0: float, ucs: float, gsi: float, mi: float, disturbance: f
 
     # integral I(r) = ∫_a^r (ε_r^e + Kψ ε_θ^e) ρ^Kψ dρ, so w(a) a^Kψ = w(R0) R0^Kψ - I(R0)
     span = (a, 10.0 * plastic_radius(P0, ucs, mb, s, a_hb, a, p))
-    sol = solve_ivp(rhs, span, [p, 0.0], method="DOP853", rtol=RTOL, atol=[RTOL * max(P0, ucs), RTOL * max(P0, ucs) / G * a ** (Kq + 1.0)],
-                    events=reach, dense_output=True)
+    stress_scale = max(P0, ucs)
+    sol = solve_ivp(rhs, span, [p, 0.0], method="DOP853", rtol=RTOL, events=reach, dense_output=True,
+                    atol=[RTOL * stress_scale, RTOL * stress_scale / G * a ** (Kq + 1.0)])
     if sol.status != 1:
         raise ArithmeticError(f"the plastic zone's integration did not reach p_cr: {sol.message}")
     R0 = float(sol.t_events[0][0])

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from .mohr_coulomb import Material, principal, return_stress, yield_values
-from .tangent import active_set_jacobian, elastic_matrix, full_tangent
+from .tangent import active_set_jacobian, elastic_matrix, full_tangent, unsort
 
 #: A surface is active where the returned stress lies within this (relative) distance of it.
 ACTIVE_TOL = 1e-8
@@ -67,8 +67,5 @@ def consistent_tangent(trial: np.ndarray, mat: Material, flag_tolerance: float |
         p = np.flatnonzero(codes == code)
         rows = np.flatnonzero(active[:, p[0]])
         J[p] = active_set_jacobian(A[p][:, rows], B[p][:, rows], m.lam[p], m.mu[p])
-    Ja = np.empty_like(J)  # to the trial's axes: Ja[order_i, order_j] = J[i, j]
-    idx = order.T
-    Ja[np.arange(todo.size)[:, None, None], idx[:, :, None], idx[:, None, :]] = J
-    tangent[todo] = full_tangent(tr, st, Ja, m.lam, m.mu, scale)
+    tangent[todo] = full_tangent(tr, st, unsort(J, order), m.lam, m.mu, scale)
     return stress, dep, at_yield, tangent
