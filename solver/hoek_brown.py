@@ -84,6 +84,18 @@ def default_tensile_strength(ucs, gsi, mi, disturbance):
     return s * np.asarray(ucs, dtype=float) / mb
 
 
+def hoek_brown_excess(s_major: float, s_minor: float, ucs: float, gsi: float, mi: float, disturbance: float,
+                      tensile_strength: float | None = None) -> float:
+    """How far a state with major and minor principal stresses (Pa, compression positive) lies outside
+    the Hoek–Brown surface with its tension cut-off (Pa; ≤ 0 inside), as
+    :func:`solver.strata.mohr_coulomb_excess` (for the geostatic check)."""
+    mb, s, a = (float(v) for v in constants(gsi, mi, disturbance))
+    apex = s * ucs / mb
+    t = apex if tensile_strength is None else min(tensile_strength, apex)
+    shear = (s_major - s_minor) - ucs * max(mb * s_minor / ucs + s, 0.0) ** a
+    return float(max(shear, -s_minor - t))
+
+
 class HBMaterial(NamedTuple):
     """Per-point constants of the return (arrays (n,)): Lamé's λ, μ (Pa), σci (Pa), m_b, s, a,
     sin ψ and the tension cut-off σt (Pa, ≤ s σci / m_b). Built with :meth:`of`, or directly

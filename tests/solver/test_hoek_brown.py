@@ -11,7 +11,7 @@ from scipy.optimize import nnls
 from solver import mohr_coulomb as mc
 from solver.analytic import salencon
 from solver.hoek_brown import (HBMaterial, constants, consistent_tangent, default_tensile_strength,
-                               parameter_errors, return_map, return_stress, yield_values)
+                               hoek_brown_excess, parameter_errors, return_map, return_stress, yield_values)
 from solver.hoek_brown_hole import critical_pressure, ground_reaction_curve, hoek_brown_hole, plastic_radius
 from solver.mc_tangent import consistent_tangent as mc_consistent_tangent
 from solver.tangent import elastic_matrix
@@ -58,6 +58,16 @@ def test_parameter_errors_name_the_field(fields, bad):
     assert parameter_errors(**good) == {}
     assert parameter_errors(**good, tensile_strength=1e5) == {}
     assert list(parameter_errors(**{**good, **fields})) == [bad]
+
+
+def test_hoek_brown_excess_of_a_geostatic_state():
+    mb, s, a = (float(v) for v in constants(GSI, MI, 0.0))
+    minor = 2e6
+    major = minor + UCS * (mb * minor / UCS + s) ** a  # on the surface
+    assert hoek_brown_excess(major, minor, UCS, GSI, MI, 0.0) == pytest.approx(0.0, abs=1e-8 * major)
+    assert hoek_brown_excess(major * 0.9, minor, UCS, GSI, MI, 0.0) < 0 < hoek_brown_excess(major * 1.1, minor, UCS,
+                                                                                             GSI, MI, 0.0)
+    assert hoek_brown_excess(0.0, -2e4, UCS, GSI, MI, 0.0, tensile_strength=1e4) == pytest.approx(1e4)
 
 
 # --- the return -----------------------------------------------------------------------------------------
