@@ -340,7 +340,7 @@ def _linear_returns(st, m: HBMaterial, scale, left, res, strain, J):
         mp, sr = m.at(p), st[p]
         lam, mu, sq = mp.lam, mp.mu, mp.sin_psi
         A, B, kc = [], [], []
-        st_t = strength(mp.tensile, mp)
+        st_t = _cutoff_strength(mp)[1]
         for c in cand:
             a = np.zeros((p.size, 3))
             if c < 3:
@@ -373,6 +373,14 @@ def _linear_returns(st, m: HBMaterial, scale, left, res, strain, J):
         left[hit] = False
 
 
+def _cutoff_strength(m: HBMaterial):
+    """Whether the cut-off is at the apex and σci x(σt)^a: the apex judged on x and its strength taken
+    as exactly 0, since x^a magnifies the rounding of x = s - m_b σt/σci there (1e-20 of s gives
+    σci 1e-10, mPa)."""
+    at_apex = m.s - m.mb * m.tensile / m.ucs <= 1e-12 * m.s
+    return at_apex, np.where(at_apex, 0.0, strength(m.tensile, m))
+
+
 def _corner_returns(st, m: HBMaterial, scale, left, res, strain, J):
     """Returns to the corner σ1 = σ2 = σt, σ3 = σt - σci x(σt)^a (the apex when the cut-off is
     there), where more surfaces meet than principal space has dimensions (the cut-offs of σ1 and
@@ -382,14 +390,13 @@ def _corner_returns(st, m: HBMaterial, scale, left, res, strain, J):
     p = np.flatnonzero(left)
     mp, sr = m.at(p), st[p]
     lam, mu, sq = mp.lam, mp.mu, mp.sin_psi
-    gap = strength(mp.tensile, mp)
+    at_apex, gap = _cutoff_strength(mp)  # b12 and e3 join at the apex
     corner = np.stack([mp.tensile, mp.tensile, mp.tensile - gap], axis=1)
     drop = sr - corner  # D Δεp
     dep = (drop - (lam / (3.0 * lam + 2.0 * mu))[:, None] * drop.sum(axis=1, keepdims=True)) / (2.0 * mu[:, None])
     e = np.eye(3)
     flows = np.stack([_flow(0, 2, sq), _flow(1, 2, sq), *(np.broadcast_to(v, (p.size, 3)) for v in e[:2]),
                       _flow(0, 1, sq), np.broadcast_to(e[2], (p.size, 3))], axis=1)  # (P, 6, 3)
-    at_apex = gap <= YIELD_TOL * scale[p]  # b12 and e3 join there
     found = np.zeros(p.size, bool)
     for triple in itertools.combinations(range(6), 3):
         Bt = np.swapaxes(flows[:, list(triple)], 1, 2)  # (P, 3, 3), columns b_l

@@ -125,6 +125,31 @@ def test_koiter_multipliers_are_non_negative_on_the_active_surfaces(psi, tensile
         assert resid <= 1e-9 * np.abs(ds[:, i]).max()
 
 
+@pytest.mark.parametrize("gsi, mi, D, psi, nu", [(10, 1, 1, 0, 0.0), (10, 50, 0, 45, 0.49), (100, 50, 1, 0, 0.3),
+                                                   (100, 1, 0, 45, 0.0), (30, 25, 0.5, 20, 0.2)])
+@pytest.mark.parametrize("scale", [1e5, 1e7])
+def test_the_return_holds_across_the_admissible_inputs(gsi, mi, D, psi, nu, scale):
+    n = 2000
+    lam, mu = E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+    trial = _trials(n, 13, scale=scale)
+    mat = HBMaterial.of(n, lam, mu, UCS, gsi, mi, D, psi)
+    stress, _, _, C = consistent_tangent(trial, mat)
+    assert yield_values(_sorted_principal(stress), mat).max() <= 1e-9 * scale
+    assert np.isfinite(C).all()
+
+
+def test_hydrostatic_tension_returns_to_the_cut_off():
+    mb, s, _ = constants(GSI, MI, 0.0)
+    apex = s * UCS / mb
+    trial = mc.from_principal(np.full(3, 5e6), np.full(3, 5e6), np.zeros(3), np.full(3, 5e6))
+    for t in (None, 0.5 * apex, 0.0):
+        stress, dep, _ = return_map(trial, LAM, MU, UCS, GSI, MI, 0.0, 10.0, t)
+        expected = apex if t is None else t
+        np.testing.assert_allclose(stress[[0, 1, 3]], expected, rtol=1e-12, atol=1e-6)
+        np.testing.assert_allclose(stress[2], 0.0, atol=1e-6)
+        assert np.all(dep > 0)
+
+
 def _mc_equivalent(mb, s, ucs):
     """Mohr–Coulomb's c, φ of Hoek–Brown with a = 1: σ1 = (1 + m_b) σ3 + s σci (compression positive),
     Kp = 1 + m_b, σc = s σci: sin φ = m_b / (2 + m_b), c = σc (1 - sin φ) / (2 cos φ)."""
