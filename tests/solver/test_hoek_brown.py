@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 from scipy.optimize import nnls
 
-from solver import mohr_coulomb as mc
+from solver.ground import mohr_coulomb as mc
 from solver.analytic import salencon
-from solver.hoek_brown import (HBMaterial, constants, consistent_tangent, default_tensile_strength,
+from solver.ground.hoek_brown import (HBMaterial, constants, consistent_tangent, default_tensile_strength,
                                hoek_brown_excess, parameter_errors, return_map, return_stress, yield_values)
-from solver.hoek_brown_hole import critical_pressure, ground_reaction_curve, hoek_brown_hole, plastic_radius
-from solver.mc_tangent import consistent_tangent as mc_consistent_tangent
-from solver.tangent import elastic_matrix
+from solver.ground.hoek_brown_hole import critical_pressure, ground_reaction_curve, hoek_brown_hole, plastic_radius
+from solver.ground.mc_tangent import consistent_tangent as mc_consistent_tangent
+from solver.ground.tangent import elastic_matrix
 
 E, NU = 5.0e9, 0.25
 LAM, MU = E * NU / ((1 + NU) * (1 - 2 * NU)), E / (2 * (1 + NU))

@@ -4,7 +4,7 @@ Newton iteration of the plastic equilibrium.
 The surfaces are planes in principal space, so the return is piecewise linear in the trial's principal
 stresses: on each piece the active surfaces (those the returned stress lies on) fix the principal
 Jacobian ``J = I - D B (Nᵀ D B)⁻¹ Nᵀ`` (zero at a corner: three or more surfaces), and
-:func:`solver.tangent.full_tangent` adds the spin of the in-plane principal directions. The active set
+:func:`solver.ground.tangent.full_tangent` adds the spin of the in-plane principal directions. The active set
 is read off the returned stress (within :data:`ACTIVE_TOL` of a surface): on the boundary between two
 pieces the return is not differentiable and either one-sided tangent is given.
 """

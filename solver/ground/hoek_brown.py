@@ -163,7 +163,7 @@ def consistent_tangent(trial: np.ndarray, mat: HBMaterial, flag_tolerance: float
     """The return (as :func:`return_stress`) and its algorithmic tangent (n, 4, 4): strain
     increments (dεxx, dεyy, dγxy, dεzz), engineering shear γxy = 2 εxy, to stress increments
     (dσxx, dσyy, dσxy, dσzz), the spin of the principal directions included
-    (:mod:`solver.tangent`); the elastic matrix at points inside.
+    (:mod:`solver.ground.tangent`); the elastic matrix at points inside.
 
     Returns ``(stress, plastic_strain, at_yield, tangent)``.
     """

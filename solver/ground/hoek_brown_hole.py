@@ -1,7 +1,7 @@
 """A circular tunnel in generalized Hoek–Brown ground (Carranza-Torres & Fairhurst 1999; Carranza-Torres
 2004): the hole of radius ``a`` under the hydrostatic far field P0 and the support pressure p, plane
 strain, elastic–perfectly plastic with a constant dilatancy ψ (plastic potential of Mohr–Coulomb type,
-as :mod:`solver.hoek_brown`). Compression positive, as :func:`solver.analytic.salencon`.
+as :mod:`solver.ground.hoek_brown`). Compression positive, as :func:`solver.analytic.salencon`.
 
 In the plastic zone a ≤ r ≤ R0 the radial stress is the minor principal stress and the hoop stress the
 major one, σθ = σr + σci q(σr)^a with q(σ) = m_b σ/σci + s; equilibrium ``dσr/dr = (σθ - σr)/r`` is
