@@ -343,9 +343,8 @@ def _figure_page(ds: xr.Dataset, figure: Figure, name: str, page: int, pages: in
     figure.set_size_inches(*A4_LANDSCAPE)
     engine = figure.get_layout_engine()
     if engine is not None and hasattr(engine, "set"):
-        engine.set(rect=(0.02, 0.07, 0.96, 0.87))  # room for the heading and the caption
+        engine.set(rect=(0.02, 0.07, 0.96, 0.90))  # room for the margins and the caption
     _margins(figure, ds, page, pages)
-    figure.text(0.04, 0.95, f"Figure {number}: {name.replace('_', ' ')}", fontsize=13, weight="bold", va="top")
     caption = CAPTIONS.get(name, name.replace("_", " "))
     figure.text(0.04, 0.045, f"Figure {number}. {caption}", fontsize=9, va="bottom", style="italic", gid="caption")
     return figure

@@ -207,7 +207,7 @@ def test_report_is_a_printable_pdf_of_every_figure_rendered_once(client, app, do
     stamp = cached.stat().st_mtime_ns
     assert client.get(url).content == response.content and cached.stat().st_mtime_ns == stamp
     pdf = pdfium.PdfDocument(response.content)
-    assert len(pdf) == 2 + len(PLOTS)
+    assert len(pdf) == 3 + len(PLOTS)  # summary, inputs, design basis and one page per figure
     for i in range(len(pdf)):
         pixels = np.asarray(pdf[i].render(scale=0.5).to_pil().convert("L"), dtype=float)
         inked = (pixels < 200).mean()
@@ -216,10 +216,11 @@ def test_report_is_a_printable_pdf_of_every_figure_rendered_once(client, app, do
     eta = done_case["summary"]["max_utilization"]
     assert ("PASS" if eta <= 1 else "FAIL") in first and f"{eta:.3g}" in first
     assert "max_thrust" in first and "kN/m" in first
-    assert "model" in pdf[1].get_textpage().get_text_range()  # page 2: the whole model
+    assert "Figure 1. The model" in pdf[1].get_textpage().get_text_range()  # page 2: the whole model
     assert "ground_young" in pdf[2].get_textpage().get_text_range()
-    for i, name in enumerate([n for n in PLOTS if n != "model"], start=3):  # a page per figure, named
-        assert name.replace("_", " ") in pdf[i].get_textpage().get_text_range()
+    assert "γC = 1.5" in pdf[3].get_textpage().get_text_range()  # the design basis: partial factors
+    for i, name in enumerate([n for n in PLOTS if n != "model"], start=4):  # a page per figure, numbered
+        assert f"Figure {i - 2}." in pdf[i].get_textpage().get_text_range()
     pdf.close()
 
 
