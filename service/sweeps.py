@@ -16,7 +16,7 @@ from workflows.artifacts import write_combined
 from .errors import invalid, responses
 from .cases import RETRY_QUERY, Retry
 from .guards import check_capacity, require_token
-from .params import NETCDF, SweepId, jobs_of, settings_of, sweep_or_404, sweep_results
+from .params import NETCDF, SweepId, build_over_results, jobs_of, settings_of, sweep_or_404
 from .schemas import FieldError, SweepAccepted, SweepStatus
 
 router = APIRouter(prefix="/sweeps", tags=["sweeps"])
@@ -44,9 +44,9 @@ async def submit_sweep(sweep: Sweep, request: Request, response: Response,
                             for path, message in exc.errors])
         cases = [(s.case_id, s.canonical_json()) for s in specs]
         known = jobs.store.statuses([c for c, _ in cases])
-        check_capacity(request, len(cases) - len(known),
-                       sum(estimated_result_bytes(s) for s in specs if s.case_id not in known))
-        record, new = await enqueue_sweep(jobs, sweep, cases)
+        rooms = {s.case_id: estimated_result_bytes(s) for s in specs if s.case_id not in known}
+        check_capacity(request, len(cases) - len(known), sum(rooms.values()))
+        record, new = await enqueue_sweep(jobs, sweep, cases, rooms)
         created = True
     new += requeue_cancelled(jobs, record)
     retried = []
@@ -77,16 +77,16 @@ async def get_sweep_result(sweep_id: SweepId, request: Request) -> FileResponse:
     """The combined dataset (dim ``case``) of the sweep's finished cases; 409 while none is done
     but some is still queued or running, 404 (saying why) when none is done and none is open."""
     jobs, record = jobs_of(request), sweep_or_404(request, sweep_id)
-    done = await sweep_results(jobs, record)
-    path = await asyncio.to_thread(write_combined, jobs.root, sweep_id, done)
+    done, path = await build_over_results(jobs, record, lambda ids: write_combined(jobs.root, sweep_id, ids))
     return FileResponse(path, media_type=NETCDF, filename=f"sweep-{sweep_id}.nc",
                         headers={"X-Cases-Included": f"{len(done)}/{len(record.case_ids)}"})
 
 
-async def enqueue_sweep(jobs, sweep: Sweep, cases: list[tuple[str, str]]):
+async def enqueue_sweep(jobs, sweep: Sweep, cases: list[tuple[str, str]], rooms: dict[str, int]):
     """Record the sweep (job records and its record on disk) and submit its cases not known
-    before; ``(record, new case ids)``. POST /sweeps and a search's trials come here."""
-    record, new = jobs.store.add_sweep(sweep.sweep_id, sweep.name, sweep.canonical_json(), cases)
+    before; ``(record, new case ids)``. ``rooms``: the bytes each case's result will take (held
+    for it while it is open). POST /sweeps and a search's trials come here."""
+    record, new = jobs.store.add_sweep(sweep.sweep_id, sweep.name, sweep.definition_json(), cases, rooms)
     await jobs.record_sweep_on_disk(record)
     specs_by_id = dict(cases)
     for case_id in new:

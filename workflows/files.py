@@ -43,7 +43,11 @@ _VERIFIED: dict[str, tuple[int, int, int, int]] = {}
 
 
 class DamagedFile(Exception):
-    """A stored file whose bytes do not match the checksum written with it."""
+    """A stored file whose bytes do not match the checksum written with it; ``path`` is the file."""
+
+    def __init__(self, message: str, path: Path | str | None = None):
+        super().__init__(message)
+        self.path = None if path is None else Path(path)
 
 
 def digest(path: Path | str) -> str:
@@ -93,7 +97,7 @@ def verify(path: Path | str) -> None:
         expected = actual
     if actual != expected:
         _VERIFIED.pop(str(path), None)
-        raise DamagedFile(f"{path.name} does not match its checksum (damaged after it was written)")
+        raise DamagedFile(f"{path.name} does not match its checksum (damaged after it was written)", path)
     if _key(path.stat()) == key:  # unchanged while it was read
         _VERIFIED[str(path)] = key
 
