@@ -51,10 +51,9 @@ async def submit_sweep(sweep: Sweep, request: Request, response: Response,
     new += requeue_cancelled(jobs, record)
     retried = []
     if retry:
-        failed = jobs.store.status_counts(record.case_ids)["failed"]
-        if failed:  # the room of that many cases like the sweep's first
-            first = CaseSpec.model_validate(jobs.store.get_case(record.case_ids[0]).spec)
-            check_capacity(request, failed, failed * estimated_result_bytes(first))
+        failed = _failed_cases(jobs, record)
+        if failed:  # the room of the failed cases that name a case (the others stay failed)
+            check_capacity(request, len(failed), sum(map(estimated_result_bytes, failed)))
         retried = await jobs.retry(list(record.case_ids))
     response.headers["Location"] = f"/sweeps/{record.id}"
     counts = jobs.store.status_counts(record.case_ids)
@@ -92,6 +91,18 @@ async def enqueue_sweep(jobs, sweep: Sweep, cases: list[tuple[str, str]], rooms:
     for case_id in new:
         jobs.submit(case_id, specs_by_id[case_id])
     return record, new
+
+
+def _failed_cases(jobs, record) -> list[CaseSpec]:
+    """The cases of the sweep's ``failed`` records whose spec is a valid case."""
+    cases = []
+    for case in jobs.store.get_cases(list(record.case_ids)).values():
+        if case.status == "failed":
+            try:
+                cases.append(CaseSpec.model_validate(case.spec))
+            except ValueError:  # a record that names no case (pydantic's ValidationError too)
+                pass
+    return cases
 
 
 def requeue_cancelled(jobs, record) -> list[str]:

@@ -347,7 +347,8 @@ def trial_outcome(search: Search, value: float, root: StoreLike, case_ids: list[
 
 def run_search(search: Search | dict, root: StoreLike, client=None, *, progress: bool = False) -> dict:
     """Run ``search`` (SPEC §8) on dask and return ``{"value", "satisfied", "trials"}``; each
-    trial's cases are stored as any sweep's, so a search run again resumes where it stopped."""
+    trial's cases are stored as any sweep's, so a search run again resumes where it stopped.
+    A case of the grounds that is not valid raises :class:`StudyError` naming ``over``."""
     from .sweep import _client_or_local
 
     search = Search.model_validate(search)
@@ -357,7 +358,10 @@ def run_search(search: Search | dict, root: StoreLike, client=None, *, progress:
             value, answer = next_trial(search, trials)
             if answer is not None:
                 return {**answer, "trials": trials, "grid_cases": grid_cases(search, trials)}
-            ids = run_sweep(search.trial_sweep(value), root, c, progress=progress, retry_failed=False)
+            try:
+                ids = run_sweep(search.trial_sweep(value), root, c, progress=progress, retry_failed=False)
+            except SweepError as exc:  # the grounds are validated as the first trial is expanded
+                raise StudyError([("over", f"{path}: {message}") for path, message in exc.errors]) from None
             trials.append(trial_outcome(search, value, root, ids))
 
 

@@ -189,3 +189,33 @@ def test_retrying_a_failed_record_that_names_no_case_is_no_server_error(client, 
     assert again.status_code == 202, again.text
     record = client.get(f"/cases/{lost.case_id}").json()
     assert record["status"] == "queued" and CaseSpec.model_validate(record["spec"]).case_id == lost.case_id
+
+
+# -- python -m service.server (12) --------------------------------------------------------------------
+
+def test_python_m_service_server_serves(tmp_path):
+    """It exited 0 at once; it serves with the environment's settings (here: no scheduler, so
+    /health answers 503, but it answers)."""
+    import sys
+
+    import httpx
+
+    from service.process import start, stop
+    from service_helpers import wait_until
+
+    port = free_port()
+    env = {"TUNNEL_CONTACT_PORT": str(port), "TUNNEL_CONTACT_RESULTS": str(tmp_path / "results"),
+           "DASK_SCHEDULER_ADDRESS": f"tcp://127.0.0.1:{free_port()}", "PYTHONPATH": str(EXAMPLES.parent)}
+    process = start([sys.executable, "-m", "service.server"], log=tmp_path / "server.log", env=env)
+
+    def answered():
+        assert process.poll() is None, (tmp_path / "server.log").read_text()[-2000:]
+        try:
+            return httpx.get(f"http://127.0.0.1:{port}/health", timeout=5).status_code
+        except httpx.HTTPError:
+            return None
+
+    try:
+        assert wait_until(answered, timeout=120, interval=0.2, what="python -m service.server to answer") == 503
+    finally:
+        stop(process)
