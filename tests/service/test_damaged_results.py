@@ -63,13 +63,16 @@ def _damage_case_and_index(root, case_id: str) -> None:
 def test_a_damaged_case_file_is_recomputed_and_the_rest_served(client, app, bonded, path, victim):
     root = app.state.jobs.root
     case_id = bonded["case_ids"][victim]
+    path_of = as_store(root).case_path(case_id)
+    before = path_of.stat().st_ino
     _damage_case_and_index(root, case_id)
     response = client.get(f"/sweeps/{bonded['id']}/{path}")
     assert response.status_code == 200, response.text
     assert response.headers["x-cases-included"] in ("39/40", "40/40")
     wait_until(lambda: client.get(f"/cases/{case_id}").json()["status"] == "done", timeout=300,
                what="the damaged case recomputed")
-    verify(as_store(root).case_path(case_id))  # a new file with its own checksum
+    assert path_of.stat().st_ino != before  # computed again: a new file
+    verify(path_of)  # with its own checksum
 
 
 def test_cached_figures_and_reports_damaged_on_disk_are_built_again(client, app, bonded):
