@@ -11,7 +11,7 @@ Layout::
 
 All are written atomically (temporary file, then rename) with a checksum, so a concurrent
 request either finds the complete file or builds its own copy, and a cached file damaged
-since is built again, never served. netCDF/HDF5 and matplotlib are
+since, or whose checksum is gone, is built again, never served. netCDF/HDF5 and matplotlib are
 not safe to drive from several threads at once, so building is serialised by a lock.
 A case's cached plots are removed whenever its result is written again
 (:meth:`workflows.result_store.ResultStore.write_case`). Used by the CLI's ``show`` and by the
@@ -29,7 +29,7 @@ from typing import Sequence
 import xarray as xr
 
 from .combine import for_netcdf
-from .files import DamagedFile, remove_checksum, verify, write_atomically
+from .files import DamagedFile, remove_checksum, unverifiable, verify, write_atomically
 from .plots import PLOTS, SWEEP_PLOT_NAMES, SWEEP_PLOTS, case_labels, plot_interaction
 from .result_store import ResultStore, StoreLike, as_store, netcdf_lock
 
@@ -127,10 +127,10 @@ def _remove_superseded(target: Path, pattern: str) -> None:
 
 
 def _intact(path: Path) -> bool:
-    """True when ``path`` is there and matches its checksum (a damaged copy is built again; a
-    copy cached before checksums were written is adopted as it is)."""
+    """True when ``path`` is there and matches its checksum (a damaged copy, or one whose
+    checksum is gone, is built again)."""
     try:
-        verify(path)
+        verify(path, without_checksum=unverifiable)
     except FileNotFoundError:
         return False
     except DamagedFile as exc:
