@@ -325,7 +325,7 @@ class AllowedHostsMiddleware:
         self.allowed = settings.allowed_hosts
 
     async def __call__(self, scope, receive, send):
-        if scope["type"] not in ("http", "websocket") or "*" in self.allowed:
+        if scope["type"] != "http" or "*" in self.allowed:  # (the service has no websockets)
             await self.app(scope, receive, send)
             return
         host = dict(scope["headers"]).get(b"host")
