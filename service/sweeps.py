@@ -51,7 +51,7 @@ async def submit_sweep(sweep: Sweep, request: Request, response: Response,
     new += requeue_cancelled(jobs, record)
     retried = []
     if retry:
-        failed = _failed_cases(jobs, record)
+        failed = await asyncio.to_thread(_failed_cases, jobs, record)  # each validated: off the loop
         if failed:  # the room of the failed cases that name a case (the others stay failed)
             check_capacity(request, len(failed), sum(map(estimated_result_bytes, failed)))
         retried = await jobs.retry(list(record.case_ids))
