@@ -15,10 +15,14 @@ from fastapi import FastAPI
 from fastapi.exceptions import RequestValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
+from workflows.files import DamagedFile
+
 from . import cases, health, pages, searches, studies, sweeps
 from .cluster import cluster_connection
-from .errors import http_error_handler, overflow_handler, request_validation_handler, store_error_handler
-from .guards import BodyLimitMiddleware, SameOriginMiddleware, TokenReadsMiddleware, openapi_auth_as_configured
+from .errors import (damaged_file_handler, http_error_handler, overflow_handler, request_validation_handler,
+                     store_error_handler)
+from .guards import (AllowedHostsMiddleware, BodyLimitMiddleware, SameOriginMiddleware, TokenReadsMiddleware,
+                     openapi_auth_as_configured)
 from .jobs import Dispatcher
 from .searches import Searches
 from .settings import Settings, get_settings
@@ -79,11 +83,13 @@ def create_app(settings: Optional[Settings] = None) -> FastAPI:
     app.state.settings = settings or get_settings()
     app.add_middleware(BodyLimitMiddleware, max_bytes=app.state.settings.max_body_bytes)
     app.add_middleware(TokenReadsMiddleware, settings=app.state.settings)
-    app.add_middleware(SameOriginMiddleware)  # outermost: a cross-site POST is refused before its body is read
+    app.add_middleware(SameOriginMiddleware)  # a cross-site POST is refused before its body is read
+    app.add_middleware(AllowedHostsMiddleware, settings=app.state.settings)  # outermost: a foreign Host, first
     app.add_exception_handler(RequestValidationError, request_validation_handler)
     for error in (sqlite3.DatabaseError, OSError):  # full, read-only, locked, damaged: 503
         app.add_exception_handler(error, store_error_handler)
     app.add_exception_handler(OverflowError, overflow_handler)
+    app.add_exception_handler(DamagedFile, damaged_file_handler)
     app.add_exception_handler(StarletteHTTPException, http_error_handler)
     openapi_auth_as_configured(app)
     for module in (cases, sweeps, studies, searches, health, pages):

@@ -16,6 +16,7 @@ from workflows.result_store import as_store, estimated_result_bytes
 from workflows.artifacts import render_plot, render_report
 from .errors import invalid, responses
 from .guards import check_capacity, require_token
+from .job_records import UNREADABLE
 from .params import NETCDF, CaseId, Offset, jobs_of, not_found, not_ready
 from .schemas import Case, CaseAccepted, CasePage, FieldError, Status, json_response
 
@@ -40,10 +41,14 @@ async def submit_case(spec: CaseSpec, request: Request, retry: Optional[Retry] =
     spec_json = spec.canonical_json()
     case_id = content_id(spec_json)  # = spec.case_id, without building the JSON again
     known = jobs.store.get_case(case_id)
+    room = estimated_result_bytes(spec)
     if known is None or known.status == "cancelled" or (retry and known.status == "failed"):
-        check_capacity(request, need_bytes=estimated_result_bytes(spec))
+        check_capacity(request, need_bytes=room)
+    if known is not None and UNREADABLE in known.spec:  # the posted case is what the record lost
+        jobs.store.repair_spec(case_id, spec_json)
+        known = jobs.store.get_case(case_id)
     if known is None:
-        record, created = jobs.store.add_case(case_id, spec_json)
+        record, created = jobs.store.add_case(case_id, spec_json, room=room)
     elif known.status == "cancelled" and jobs.store.requeue([case_id]):  # submitted again
         record, created = jobs.store.get_case(case_id), True
     else:

@@ -18,8 +18,10 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from solver.errors import field_errors as _field_reasons
+from workflows.files import DamagedFile
 
 from .job_tables import is_damage
+from .results import damaged_case, forget
 from .schemas import ErrorBody, FieldError
 from .views import error_page
 
@@ -96,6 +98,21 @@ async def store_error_handler(request: Request, exc: Exception) -> JSONResponse:
     logger.error("%s (%s %s)", reason, request.method, request.url.path)
     return JSONResponse(status_code=503, content=ErrorBody(detail=reason).model_dump(),
                         headers={"Retry-After": "60"})
+
+
+async def damaged_file_handler(request: Request, exc: DamagedFile) -> JSONResponse:
+    """503 with ``Retry-After`` for a stored file found damaged while answering (it no longer
+    matches its checksum): a case's result goes back to the queue to be recomputed; nothing
+    damaged is served, and it is no server error."""
+    jobs = request.app.state.jobs
+    case_id = damaged_case(exc, jobs.root)
+    if case_id is not None:
+        forget(case_id)
+        await jobs.recompute_broken(case_id)
+    what = f"the stored result of case {case_id}" if case_id is not None else "a stored file"
+    reason = f"{what} was found damaged ({exc}); it is being rebuilt: retry in a little while"
+    logger.error("%s (%s %s)", reason, request.method, request.url.path)
+    return JSONResponse(status_code=503, content=ErrorBody(detail=reason).model_dump(), headers={"Retry-After": "10"})
 
 
 async def http_error_handler(request: Request, exc: StarletteHTTPException) -> Response:

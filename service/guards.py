@@ -85,7 +85,9 @@ def check_capacity(request: Request, new_cases: int = 1, need_bytes: int = 0) ->
     503 when the results store refuses writes (read-only, job records read-only) or has less
     free space than the new cases' results need (``need_bytes``, from their mesh estimates;
     at least ``settings.min_free_bytes``); 429 with ``Retry-After`` when ``new_cases`` more
-    would put the queued and running cases over ``settings.max_open_cases``.
+    would put the queued and running cases over ``settings.max_open_cases``. The room the
+    queued and running cases' results will take is held for them (:meth:`JobStore.open_room`):
+    what they need is not offered again to new work.
     """
     if new_cases <= 0:
         return
@@ -98,11 +100,14 @@ def check_capacity(request: Request, new_cases: int = 1, need_bytes: int = 0) ->
                             headers={"Retry-After": str(settings.retry_after)})
     need = max(settings.min_free_bytes, need_bytes)
     free = free_bytes(jobs.root)
-    if free < need:
+    held = _held_room(request.app.state)  # the results of the cases accepted before
+    if free - held < need:
+        what = 'this case needs' if new_cases == 1 else f'these {new_cases:,} cases need'
         raise HTTPException(status_code=status.HTTP_503_SERVICE_UNAVAILABLE,
-                            detail=f"results store is full: {free / 2**20:.1f} MiB free, "
-                                   f"{'this case needs' if new_cases == 1 else f'these {new_cases:,} cases need'} "
-                                   f"about {need / 2**20:.0f} MiB",
+                            detail=f"results store is full: {free / 2**20:.1f} MiB free"
+                                   + (f", {held / 2**20:.0f} MiB of it held for the queued and running cases"
+                                      if held else "")
+                                   + f"; {what} about {need / 2**20:.0f} MiB",
                             headers={"Retry-After": str(settings.retry_after)})
     open_cases = _open_cases(request.app.state, new_cases)
     if open_cases + new_cases > settings.max_open_cases:
@@ -110,6 +115,7 @@ def check_capacity(request: Request, new_cases: int = 1, need_bytes: int = 0) ->
                             detail=f"{open_cases:,} cases are queued or running, the limit is "
                                    f"{settings.max_open_cases:,}; retry later",
                             headers={"Retry-After": str(settings.retry_after)})
+    _hold_room(request.app.state, need_bytes)
 
 
 #: Seconds a writability check of the store is reused.
@@ -139,6 +145,24 @@ def _open_cases(state, new_cases: int) -> int:
         cached = (now, state.jobs.store.count_open())
     state.open_count = (cached[0], cached[1] + new_cases)  # this request's cases, until the next count
     return cached[1]
+
+
+def _held_room(state) -> int:
+    """Bytes held for the open cases' results, counted at most every :data:`OPEN_COUNT_TTL` s;
+    the room of cases accepted since the count is added (as :func:`_open_cases` does)."""
+    now = time.monotonic()
+    cached = getattr(state, "held_room", None)
+    if cached is None or now - cached[0] > OPEN_COUNT_TTL:
+        cached = (now, state.jobs.store.open_room())
+    state.held_room = cached
+    return cached[1]
+
+
+def _hold_room(state, need_bytes: int) -> None:
+    """Count ``need_bytes`` as held until the next count (the request's cases were accepted)."""
+    cached = getattr(state, "held_room", None)
+    if cached is not None:
+        state.held_room = (cached[0], cached[1] + need_bytes)
 
 
 def openapi_auth_as_configured(app) -> None:
@@ -272,6 +296,47 @@ class SameOriginMiddleware:
     async def _refuse(send, reason: str) -> None:
         payload = json.dumps({"detail": reason, "errors": []}).encode()
         await send({"type": "http.response.start", "status": 403,
+                    "headers": [(b"content-type", b"application/json"),
+                                (b"content-length", str(len(payload)).encode()), *SECURITY_HEADERS]})
+        await send({"type": "http.response.body", "body": payload})
+
+
+def host_allowed(host: str, allowed: tuple[str, ...]) -> bool:
+    """Whether the ``Host`` header value ``host`` (a name or address, perhaps with a port)
+    names one of ``allowed`` (exact names, ``*.domain`` for a domain's names, ``*`` for any)."""
+    host = host.strip().lower()
+    if host.startswith("["):  # [::1]:8000
+        name = host[1:].partition("]")[0]
+    else:
+        name = host.rpartition(":")[0] if host.count(":") == 1 else host
+    name = name.rstrip(".")
+    return any(pattern == "*" or name == pattern
+               or (pattern.startswith("*.") and name.endswith(pattern[1:])) for pattern in allowed)
+
+
+class AllowedHostsMiddleware:
+    """ASGI middleware answering 400 to a request whose ``Host`` header is not one of
+    ``settings.allowed_hosts``: what DNS rebinding sends (a page of another site whose name
+    now points at this machine carries that site's name), with or without a token. A request
+    without a ``Host`` header (HTTP/1.0) is no browser's and passes."""
+
+    def __init__(self, app, settings):
+        self.app = app
+        self.allowed = settings.allowed_hosts
+
+    async def __call__(self, scope, receive, send):
+        if scope["type"] != "http" or "*" in self.allowed:  # (the service has no websockets)
+            await self.app(scope, receive, send)
+            return
+        host = dict(scope["headers"]).get(b"host")
+        if host is None or host_allowed(host.decode("latin-1"), self.allowed):
+            await self.app(scope, receive, send)
+            return
+        shown = host.decode("latin-1")[:100]
+        payload = json.dumps({"detail": f"host {shown!r} is not one this service answers to (allowed: "
+                                        f"{', '.join(self.allowed)}; set TUNNEL_CONTACT_ALLOWED_HOSTS)",
+                              "errors": []}).encode()
+        await send({"type": "http.response.start", "status": 400,
                     "headers": [(b"content-type", b"application/json"),
                                 (b"content-length", str(len(payload)).encode()), *SECURITY_HEADERS]})
         await send({"type": "http.response.body", "body": payload})

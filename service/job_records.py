@@ -88,13 +88,19 @@ class JobStore(JobDatabase):
 
     # -- cases ---------------------------------------------------------------------------
 
-    def add_case(self, case_id: str, spec_json: str) -> tuple[CaseRecord, bool]:
-        """Record a case as queued unless it exists; return the record and whether it is new."""
+    def add_case(self, case_id: str, spec_json: str, room: Optional[int] = None) -> tuple[CaseRecord, bool]:
+        """Record a case as queued unless it exists; return the record and whether it is new.
+        ``room``: the bytes its result is expected to take (held for it while it is open)."""
         row = {**self._new_case, "id": case_id, "spec": spec_json, "status": "queued", "submitted_at": time.time()}
-        if self._write("INSERT OR IGNORE INTO cases (id, spec, status, submitted_at) VALUES (?, ?, ?, ?)",
-                       (case_id, spec_json, row["status"], row["submitted_at"])) != 1:
+        if self._write("INSERT OR IGNORE INTO cases (id, spec, status, submitted_at, room) VALUES (?, ?, ?, ?, ?)",
+                       (case_id, spec_json, row["status"], row["submitted_at"], room)) != 1:
             return self.get_case(case_id), False
         return _case(row), True  # the row inserted, without reading it back
+
+    def repair_spec(self, case_id: str, spec_json: str) -> None:
+        """Give a record whose spec is unreadable (:data:`UNREADABLE`) the case it is the id of
+        (``spec_json``, canonical: the caller has checked that its content id is ``case_id``)."""
+        self._write("UPDATE cases SET spec = ? WHERE id = ?", (spec_json, case_id))
 
     def get_case(self, case_id: str) -> Optional[CaseRecord]:
         rows = self._read("SELECT * FROM cases WHERE id = ?", (case_id,))
@@ -132,6 +138,11 @@ class JobStore(JobDatabase):
     def count_open(self) -> int:
         """How many cases are ``queued`` or ``running`` (the queue the 429 limit bounds)."""
         return self._read("SELECT count(*) AS n FROM cases WHERE status IN ('queued', 'running')")[0]["n"]
+
+    def open_room(self) -> int:
+        """Bytes held for the results of the ``queued`` and ``running`` cases (their ``room``)."""
+        return self._read("SELECT coalesce(sum(room), 0) AS n FROM cases "
+                          "WHERE status IN ('queued', 'running')")[0]["n"]
 
     def count_submissions(self, case_ids: Sequence[str]) -> None:
         """Note that the cases were (re)submitted to the scheduler."""
@@ -219,13 +230,15 @@ class JobStore(JobDatabase):
 
     # -- sweeps --------------------------------------------------------------------------
 
-    def add_sweep(self, sweep_id: str, name: str, spec_json: str,
-                  cases: Sequence[tuple[str, str]]) -> tuple[SweepRecord, list[str]]:
+    def add_sweep(self, sweep_id: str, name: str, spec_json: str, cases: Sequence[tuple[str, str]],
+                  rooms: Mapping[str, int] | None = None) -> tuple[SweepRecord, list[str]]:
         """Record a sweep and its cases (new cases queued) in one transaction.
 
         Returns the sweep record and the ids of cases that were not known before.
-        An existing sweep is returned unchanged with no new cases.
+        An existing sweep is returned unchanged with no new cases. ``rooms``: the bytes each
+        case's result is expected to take (held for it while it is open).
         """
+        rooms = rooms or {}
         now = time.time()
         new: list[str] = []
         with self._lock, self._transaction() as db:
@@ -233,8 +246,9 @@ class JobStore(JobDatabase):
                                 (sweep_id, name, spec_json, now))
             if cursor.rowcount == 1:
                 for position, (case_id, case_json) in enumerate(cases):
-                    inserted = db.execute("INSERT OR IGNORE INTO cases (id, spec, status, submitted_at) "
-                                          "VALUES (?, ?, 'queued', ?)", (case_id, case_json, now)).rowcount
+                    inserted = db.execute("INSERT OR IGNORE INTO cases (id, spec, status, submitted_at, room) "
+                                          "VALUES (?, ?, 'queued', ?, ?)",
+                                          (case_id, case_json, now, rooms.get(case_id))).rowcount
                     if inserted == 1:
                         new.append(case_id)
                     db.execute("INSERT INTO sweep_cases (sweep_id, position, case_id) VALUES (?, ?, ?)",
@@ -284,8 +298,9 @@ class JobStore(JobDatabase):
 
 def open_job_records(path: Path | str, **options) -> tuple["JobStore", Optional[str]]:
     """The job records at ``path``, checked (:func:`integrity_problem`); a damaged database
-    (a broken header: "file is not a database"; a broken page) is moved aside
-    (:func:`move_aside`) and a new one is opened. Returns the store and the problem found
+    (a broken header: "file is not a database"; a broken page; a file cut to zero bytes, which
+    SQLite would take for a new empty database) is moved aside (:func:`move_aside`) and a new
+    one is opened. Returns the store and the problem found
     (None if none): the caller rebuilds the records from the result store then
     (:meth:`service.jobs.Dispatcher.rebuild_records`)."""
     path = Path(path)
@@ -293,13 +308,25 @@ def open_job_records(path: Path | str, **options) -> tuple["JobStore", Optional[
         logger.error("job records %s are on a read-only store: serving what is recorded, taking no work",
                      path.name)
         return JobStore(path, read_only=True), None
-    try:
-        store = JobStore(path, **options)
-        problem = integrity_problem(store)
-        if problem is None:
-            return store, None
-        store.close()
-    except sqlite3.DatabaseError as exc:
-        problem = str(exc)
+    problem = emptied(path)
+    if problem is None:
+        try:
+            store = JobStore(path, **options)
+            problem = integrity_problem(store)
+            if problem is None:
+                return store, None
+            store.close()
+        except sqlite3.DatabaseError as exc:
+            problem = str(exc)
     move_aside(path, problem)
     return JobStore(path, **options), problem
+
+
+def emptied(path: Path) -> Optional[str]:
+    """What is wrong with a database file that exists but holds no byte (every database SQLite
+    writes has at least its header page): None if it is absent or not empty."""
+    try:
+        size = path.stat().st_size
+    except FileNotFoundError:
+        return None
+    return "the file is empty (zero bytes): its records are lost" if size == 0 else None

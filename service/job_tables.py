@@ -46,7 +46,8 @@ CREATE TABLE IF NOT EXISTS {name} (
     started_at   REAL,
     finished_at  REAL,
     submissions  INTEGER NOT NULL DEFAULT 0,
-    warnings     TEXT
+    warnings     TEXT,
+    room         INTEGER
 );
 """
 
@@ -142,7 +143,7 @@ class JobDatabase:
             # cases left a 166 MB log beside an 8.8 MB database when it was not)
             self._db.execute(f"PRAGMA journal_size_limit={WAL_SIZE_LIMIT}")
             self._migrate_status_check()
-            self._migrate_warnings_column()
+            self._migrate_added_columns()
             self._db.execute("PRAGMA foreign_keys=ON")
             self._db.executescript(_SCHEMA)
             # a new case's row as the table makes it: every column's default, evaluated by SQLite
@@ -193,11 +194,14 @@ class JobDatabase:
     def _case_columns(self) -> set[str]:
         return {r[1] for r in self._db.execute("PRAGMA table_info(cases)").fetchall()}
 
-    def _migrate_warnings_column(self) -> None:
-        """Give a database written before case warnings were recorded their column."""
+    def _migrate_added_columns(self) -> None:
+        """Give a database written before a column of ``cases`` existed that column: the case
+        warnings, and the room (bytes) a case's result is expected to take (unknown, NULL,
+        for the cases recorded before)."""
         columns = self._case_columns()
-        if columns and "warnings" not in columns:
-            self._db.execute("ALTER TABLE cases ADD COLUMN warnings TEXT")
+        for name, kind in (("warnings", "TEXT"), ("room", "INTEGER")):
+            if columns and name not in columns:
+                self._db.execute(f"ALTER TABLE cases ADD COLUMN {name} {kind}")
 
     def close(self) -> None:
         if self._checkpointer is not None:

@@ -132,7 +132,8 @@ class Dispatcher(Submitter):
         """Settle every open record that no watcher owns: done from the store, else resubmit.
 
         Also: a record whose case no longer validates (written by an older version, or
-        damaged) is ``failed`` with the reason instead of stopping the service; a ``done``
+        damaged) is ``failed`` with the reason instead of stopping the service; a ``failed``
+        case whose result file reads back is ``done``; a ``done``
         case whose file has gone is recomputed, and a few done files are read back each
         round (a broken one is recomputed too); stale temporary files are removed.
         """
@@ -198,11 +199,17 @@ class Dispatcher(Submitter):
         return None
 
     async def _check_done_results(self) -> None:
-        """Recompute done cases whose file is missing; read back a few others (rolling)."""
+        """Recompute done cases whose file is missing; read back a few others (rolling). A
+        failed case whose result file is stored and reads back is done: solved elsewhere (the
+        command line, on a record this service could not name), a good result is never failed."""
         done = self.store.case_ids_with_status("done")
-        if not done:
+        failed = self.store.case_ids_with_status("failed")
+        if not done and not failed:
             return
         stored = set(await asyncio.to_thread(ResultStore(self.root).case_ids))
+        for case_id in (c for c in failed if c in stored):
+            if await self._resolve_from_store(case_id) == "readable":
+                logger.info("case %s: its stored result reads back, done (it was failed)", case_id)
         for case_id in (c for c in done if c not in stored):
             await self.recompute_broken(case_id)
         unchecked = [c for c in done if c in stored and c not in self._scrubbed]

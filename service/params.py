@@ -1,14 +1,22 @@
 """What the routers share: id path parameters, access to app state, common errors."""
 from __future__ import annotations
 
-from typing import Annotated
+import asyncio
+import logging
+from typing import Annotated, Callable, TypeVar
 
 from fastapi import HTTPException, Path, Query, Request
+
+from workflows.files import DamagedFile
 
 from .jobs import Dispatcher
 from .schemas import CASE_ID_PATTERN
 from .settings import Settings
 from .job_records import SweepRecord
+from .results import damaged_case, forget
+
+logger = logging.getLogger(__name__)
+T = TypeVar("T")
 
 CaseId = Annotated[str, Path(pattern=CASE_ID_PATTERN, description="case id, 16 lowercase hex digits")]
 SweepId = Annotated[str, Path(pattern=CASE_ID_PATTERN, description="sweep id, 16 lowercase hex digits")]
@@ -52,6 +60,26 @@ async def sweep_results(jobs: Dispatcher, record: SweepRecord) -> list[str]:
     if not done:
         raise no_sweep_result(record.id, jobs.store.status_counts(record.case_ids))
     return done
+
+
+async def build_over_results(jobs: Dispatcher, record: SweepRecord, build: Callable[[list[str]], T]
+                             ) -> tuple[list[str], T]:
+    """``(done, build(done))`` over the sweep's readable done cases (:func:`sweep_results`),
+    ``build`` run in a thread. A case file found damaged while building (it no longer matches
+    its checksum though it read back earlier) goes back to the queue, and the rest are built
+    again: a damaged result is recomputed, never served, nor a reason for a server error."""
+    for _ in range(len(record.case_ids) + 1):
+        done = await sweep_results(jobs, record)
+        try:
+            return done, await asyncio.to_thread(build, done)
+        except DamagedFile as exc:
+            case_id = damaged_case(exc, jobs.root)
+            if case_id is None or case_id not in done:
+                raise
+            logger.warning("result of case %s found damaged (%s): recomputing it", case_id, exc)
+            forget(case_id)
+            await jobs.recompute_broken(case_id)
+    raise RuntimeError(f"sweep {record.id}: its results kept changing while they were combined")
 
 
 def no_sweep_result(sweep_id: str, counts: dict[str, int]) -> HTTPException:

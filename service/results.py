@@ -15,6 +15,7 @@ import re
 from pathlib import Path
 from typing import Optional
 
+from workflows.files import DamagedFile
 from workflows.result_store import FileKey, ResultStore, as_store, file_key
 
 logger = logging.getLogger(__name__)
@@ -54,6 +55,19 @@ def stored_outcome(root: Path, case_id: str) -> Optional[tuple[dict[str, float],
     if version is not None:
         _VERIFIED[case_id] = version
     return outcome
+
+
+def damaged_case(exc: DamagedFile, root: Path | str) -> Optional[str]:
+    """The case whose result file ``exc`` found damaged, or None if it was another file."""
+    path = exc.path
+    if path is None or path.parent != as_store(root).cases_dir or not path.name.endswith(".nc"):
+        return None
+    return path.name[:-len(".nc")]
+
+
+def forget(case_id: str) -> None:
+    """Read the result of ``case_id`` again at its next check (it was found damaged since)."""
+    _VERIFIED.pop(case_id, None)
 
 
 def written(root: Path, case_id: str) -> None:

@@ -23,11 +23,9 @@ from fastapi import APIRouter, Depends, Query, Request, Response
 from pydantic import BaseModel
 
 from workflows.files import write_atomically
-from workflows.studies import Search, grid_cases, next_trial, trial_outcome
-from workflows.sweep import expand_sweep
-
 from workflows.result_store import estimated_result_bytes
-from workflows.sweep import sweep_size
+from workflows.studies import Search, StudyError, expand_trial, grid_cases, next_trial, trial_outcome
+from workflows.sweep import expand_sweep, sweep_size
 
 from .errors import invalid, responses
 from .guards import check_capacity, require_token
@@ -40,6 +38,8 @@ router = APIRouter(prefix="/searches", tags=["studies"])
 
 #: Seconds between looks at a trial's cases.
 POLL = 0.25
+#: Trials past :func:`max_trials` (its rounding) after which a search is failed rather than go on.
+TRIAL_SLACK = 2
 
 
 class SearchRecord(BaseModel):
@@ -121,12 +121,16 @@ class Searches:
                                                        "grid_cases": grid_cases(search, record.trials)})
                     await asyncio.to_thread(self.write, record)
                     return
+                if len(record.trials) >= record.max_trials + TRIAL_SLACK:  # never loop on
+                    raise RuntimeError(f"no answer after {len(record.trials)} trials, more than this search "
+                                       f"can need ({record.max_trials})")
                 sweep = search.trial_sweep(value)
                 sweep_record = jobs.store.get_sweep(sweep.sweep_id)
                 if sweep_record is None:
                     specs = await asyncio.to_thread(expand_sweep, sweep)
-                    sweep_record, _ = await enqueue_sweep(jobs, sweep, [(s.case_id, s.canonical_json())
-                                                                       for s in specs])
+                    sweep_record, _ = await enqueue_sweep(
+                        jobs, sweep, [(s.case_id, s.canonical_json()) for s in specs],
+                        {s.case_id: estimated_result_bytes(s) for s in specs})
                 requeue_cancelled(jobs, sweep_record)
                 ids = list(sweep_record.case_ids)
                 while True:
@@ -162,14 +166,18 @@ async def submit_search(search: Search, request: Request, response: Response):
     store and the queue); the search survives restarts of the API and workers."""
     searches = searches_of(request)
     ident = search_id(search)
-    record = searches.read(ident)
+    record = await asyncio.to_thread(searches.read, ident)
     if record is None:
-        trial = search.trial_sweep(search.high)
+        # off the event loop, and bounded before the expansion starts
+        trial = await asyncio.to_thread(search.trial_sweep, search.high)
         size, cap = sweep_size(trial), settings_of(request).max_sweep_cases
         if size > cap:
             return invalid([FieldError(field="over", type="too_many_cases",
                                        reason=f"a trial has {size:,} cases, over this service's cap of {cap:,}")])
-        first = await asyncio.to_thread(expand_sweep, trial)
+        try:
+            first = await asyncio.to_thread(expand_trial, trial)
+        except StudyError as exc:
+            return invalid([FieldError(field=field, reason=reason, type="value_error") for field, reason in exc.errors])
         check_capacity(request, size, sum(estimated_result_bytes(s) for s in first))
         record = SearchRecord(id=ident, name=search.name, search=search.model_dump(mode="json"), status="running",
                               max_trials=max_trials(search), submitted_at=time.time())

@@ -1,4 +1,5 @@
-"""Run the service with uvicorn (what ``tunnel-contact serve`` calls)."""
+"""Run the service with uvicorn (what ``tunnel-contact serve`` calls; ``python -m service.server``
+serves with the settings of the environment, as ``tunnel-contact serve`` does)."""
 from __future__ import annotations
 
 import logging
@@ -55,3 +56,8 @@ def serve(*, host: Optional[str] = None, port: Optional[int] = None, scheduler: 
     logger.info("serving on http://%s:%d", settings.host, settings.port)
     uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_level="info",
                 access_log=settings.access_log)
+
+
+if __name__ == "__main__":
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    serve()

@@ -11,6 +11,12 @@ Environment variables
     sweep files and the job database ``jobs.sqlite``.
 ``TUNNEL_CONTACT_HOST`` / ``TUNNEL_CONTACT_PORT``
     Bind address (default ``127.0.0.1:8000``; loopback unless asked otherwise).
+``TUNNEL_CONTACT_ALLOWED_HOSTS``
+    Comma-separated host names (or addresses) the service answers to, checked against every
+    request's ``Host`` header (a page of another site that rebinds its own name to this
+    machine's address sends its own name and is refused, 400). Default: the loopback names
+    ``localhost``, ``127.0.0.1`` and ``::1``; add the name clients use behind a proxy or on a
+    network (``api.example.org``), a leading ``*.`` for a whole domain, or ``*`` for any.
 ``TUNNEL_CONTACT_TOKEN``
     When set, every ``POST`` needs ``Authorization: Bearer <token>`` (or HTTP basic
     authentication with the token as the password, any user name).
@@ -19,7 +25,8 @@ Environment variables
     pages included. A browser asks for it (HTTP basic authentication: any user name,
     the token as the password) and sends it with every later request of the dashboard.
 ``TUNNEL_CONTACT_MAX_BODY_BYTES`` / ``TUNNEL_CONTACT_MAX_SWEEP_CASES``
-    Request body cap (default 1 MiB) and sweep size cap (default 1000 cases).
+    Request body cap (default 1 MiB) and sweep size cap (default 4096 cases: the README's
+    1 024-case Sobol' study fits, and a 4 096-point one).
 ``TUNNEL_CONTACT_LOCAL_WORKERS``
     Worker processes of the embedded cluster (default: one per CPU).
 ``TUNNEL_CONTACT_MAX_OPEN_CASES``
@@ -41,7 +48,10 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Mapping, Optional
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+#: Host names a service answers to unless told otherwise: this machine's loopback.
+LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
 
 #: Environment variable for each settings field.
 ENVIRONMENT = {
@@ -49,6 +59,7 @@ ENVIRONMENT = {
     "results": "TUNNEL_CONTACT_RESULTS",
     "host": "TUNNEL_CONTACT_HOST",
     "port": "TUNNEL_CONTACT_PORT",
+    "allowed_hosts": "TUNNEL_CONTACT_ALLOWED_HOSTS",
     "token": "TUNNEL_CONTACT_TOKEN",
     "token_reads": "TUNNEL_CONTACT_TOKEN_READS",
     "max_body_bytes": "TUNNEL_CONTACT_MAX_BODY_BYTES",
@@ -69,11 +80,13 @@ class Settings(BaseModel):
     results: Path = Field(Path("results"), description="results directory (case files and job database)")
     host: str = Field("127.0.0.1", description="bind address")
     port: int = Field(8000, ge=0, le=65535, description="bind port")
+    allowed_hosts: tuple[str, ...] = Field(LOOPBACK_NAMES, description="host names the service answers to "
+                                           "(the Host header; '*.domain' for a domain, '*' for any)")
     token: Optional[str] = Field(None, description="bearer token required on POST; None: no authentication")
     token_reads: bool = Field(False, description="the token protects every request but /health (results, "
                                                  "pages), not only POSTs")
     max_body_bytes: int = Field(1 << 20, gt=0, description="largest accepted request body (bytes)")
-    max_sweep_cases: int = Field(1000, gt=0, description="largest sweep (cases) accepted")
+    max_sweep_cases: int = Field(4096, gt=0, description="largest sweep (cases) accepted")
     local_workers: Optional[int] = Field(None, gt=0, description="embedded cluster worker processes")
     poll_interval: float = Field(0.5, gt=0, description="seconds between scheduler polls for running tasks")
     reconcile_interval: float = Field(5.0, gt=0, description="seconds between record/store reconciliations")
@@ -83,6 +96,14 @@ class Settings(BaseModel):
                                                             "about the largest result the element cap allows")
 
     access_log: bool = Field(False, description="log every request (uvicorn's access log)")
+
+    @field_validator("allowed_hosts", mode="before")
+    @classmethod
+    def _host_list(cls, value):
+        """A comma-separated list (the environment's form) as names, lower case, without blanks."""
+        if isinstance(value, str):
+            value = value.split(",")
+        return tuple(str(v).strip().lower() for v in value if str(v).strip())
 
     @property
     def database(self) -> Path:

@@ -17,7 +17,7 @@ from workflows.studies import StudyError, reliability, sensitivity
 from .comparison import ComparisonTable, comparison_table, table_csv, table_xlsx
 from .errors import invalid, responses
 from .guards import require_token
-from .params import Offset, SweepId, jobs_of, sweep_or_404, sweep_results
+from .params import Offset, SweepId, build_over_results, jobs_of, sweep_or_404
 from .schemas import FieldError, SweepCancelled, SweepPage, SweepStatus
 
 router = APIRouter(prefix="/sweeps", tags=["sweeps"])
@@ -85,8 +85,8 @@ async def get_sweep_plot(sweep_id: SweepId, name: SweepPlotName, request: Reques
     As for ``result.nc``: 409 while no case is done but some is open, 404 when none can be."""
     jobs = jobs_of(request)
     record = sweep_or_404(request, sweep_id)
-    done = await sweep_results(jobs, record)  # as for result.nc
-    path = await asyncio.to_thread(render_sweep_plot, jobs.root, sweep_id, done, name.value)
+    done, path = await build_over_results(  # as for result.nc
+        jobs, record, lambda ids: render_sweep_plot(jobs.root, sweep_id, ids, name.value))
     return FileResponse(path, media_type="image/png",
                         headers={"X-Cases-Included": f"{len(done)}/{len(record.case_ids)}"})
 

@@ -14,7 +14,7 @@ from solver.spec import CaseSpec
 from workflows.result_store import ResultStore
 from workflows.tasks import case_id_of_key, map_cases  # one task key per case, CLI too
 
-from .job_records import CaseRecord
+from .job_records import UNREADABLE, CaseRecord
 from .record_keeping import RecordKeeper, logger
 from .results import public_error, written
 
@@ -99,10 +99,20 @@ class Submitter(RecordKeeper):
 
     def _requeue(self, records: dict[str, CaseRecord], *, statuses: tuple[str, ...]) -> list[str]:
         """Move the ``records`` still in one of ``statuses`` back to ``queued`` and submit
-        them; return their ids."""
-        again = self.store.requeue(list(records), statuses=statuses)
+        them; return their ids. A record that gives no valid case (damaged, or a sweep record's
+        case it could not name) keeps its status: there is nothing to compute."""
+        specs = {}
+        for case_id, record in records.items():
+            try:
+                if UNREADABLE in record.spec:
+                    raise ValueError(record.spec[UNREADABLE])
+                specs[case_id] = CaseSpec.model_validate(record.spec).canonical_json()
+            except ValueError as exc:  # pydantic's ValidationError too
+                logger.warning("case %s not recomputed: its record gives no valid case (%s)", case_id,
+                               str(exc).splitlines()[0])
+        again = self.store.requeue(list(specs), statuses=statuses)
         for case_id in again:
-            self.submit(case_id, CaseSpec.model_validate(records[case_id].spec).canonical_json())
+            self.submit(case_id, specs[case_id])
         return again
 
     async def _watch(self, case_id: str, future: Future) -> None:

@@ -16,7 +16,7 @@ from workflows.artifacts import write_combined
 from .errors import invalid, responses
 from .cases import RETRY_QUERY, Retry
 from .guards import check_capacity, require_token
-from .params import NETCDF, SweepId, jobs_of, settings_of, sweep_or_404, sweep_results
+from .params import NETCDF, SweepId, build_over_results, jobs_of, settings_of, sweep_or_404
 from .schemas import FieldError, SweepAccepted, SweepStatus
 
 router = APIRouter(prefix="/sweeps", tags=["sweeps"])
@@ -44,17 +44,16 @@ async def submit_sweep(sweep: Sweep, request: Request, response: Response,
                             for path, message in exc.errors])
         cases = [(s.case_id, s.canonical_json()) for s in specs]
         known = jobs.store.statuses([c for c, _ in cases])
-        check_capacity(request, len(cases) - len(known),
-                       sum(estimated_result_bytes(s) for s in specs if s.case_id not in known))
-        record, new = await enqueue_sweep(jobs, sweep, cases)
+        rooms = {s.case_id: estimated_result_bytes(s) for s in specs if s.case_id not in known}
+        check_capacity(request, len(cases) - len(known), sum(rooms.values()))
+        record, new = await enqueue_sweep(jobs, sweep, cases, rooms)
         created = True
     new += requeue_cancelled(jobs, record)
     retried = []
     if retry:
-        failed = jobs.store.status_counts(record.case_ids)["failed"]
-        if failed:  # the room of that many cases like the sweep's first
-            first = CaseSpec.model_validate(jobs.store.get_case(record.case_ids[0]).spec)
-            check_capacity(request, failed, failed * estimated_result_bytes(first))
+        failed = await asyncio.to_thread(_failed_cases, jobs, record)  # each validated: off the loop
+        if failed:  # the room of the failed cases that name a case (the others stay failed)
+            check_capacity(request, len(failed), sum(map(estimated_result_bytes, failed)))
         retried = await jobs.retry(list(record.case_ids))
     response.headers["Location"] = f"/sweeps/{record.id}"
     counts = jobs.store.status_counts(record.case_ids)
@@ -77,21 +76,33 @@ async def get_sweep_result(sweep_id: SweepId, request: Request) -> FileResponse:
     """The combined dataset (dim ``case``) of the sweep's finished cases; 409 while none is done
     but some is still queued or running, 404 (saying why) when none is done and none is open."""
     jobs, record = jobs_of(request), sweep_or_404(request, sweep_id)
-    done = await sweep_results(jobs, record)
-    path = await asyncio.to_thread(write_combined, jobs.root, sweep_id, done)
+    done, path = await build_over_results(jobs, record, lambda ids: write_combined(jobs.root, sweep_id, ids))
     return FileResponse(path, media_type=NETCDF, filename=f"sweep-{sweep_id}.nc",
                         headers={"X-Cases-Included": f"{len(done)}/{len(record.case_ids)}"})
 
 
-async def enqueue_sweep(jobs, sweep: Sweep, cases: list[tuple[str, str]]):
+async def enqueue_sweep(jobs, sweep: Sweep, cases: list[tuple[str, str]], rooms: dict[str, int]):
     """Record the sweep (job records and its record on disk) and submit its cases not known
-    before; ``(record, new case ids)``. POST /sweeps and a search's trials come here."""
-    record, new = jobs.store.add_sweep(sweep.sweep_id, sweep.name, sweep.canonical_json(), cases)
+    before; ``(record, new case ids)``. ``rooms``: the bytes each case's result will take (held
+    for it while it is open). POST /sweeps and a search's trials come here."""
+    record, new = jobs.store.add_sweep(sweep.sweep_id, sweep.name, sweep.definition_json(), cases, rooms)
     await jobs.record_sweep_on_disk(record)
     specs_by_id = dict(cases)
     for case_id in new:
         jobs.submit(case_id, specs_by_id[case_id])
     return record, new
+
+
+def _failed_cases(jobs, record) -> list[CaseSpec]:
+    """The cases of the sweep's ``failed`` records whose spec is a valid case."""
+    cases = []
+    for case in jobs.store.get_cases(list(record.case_ids)).values():
+        if case.status == "failed":
+            try:
+                cases.append(CaseSpec.model_validate(case.spec))
+            except ValueError:  # a record that names no case (pydantic's ValidationError too)
+                pass
+    return cases
 
 
 def requeue_cancelled(jobs, record) -> list[str]:

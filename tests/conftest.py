@@ -4,11 +4,15 @@ file decides what may not be spread.
 - A test module with a module-scoped fixture (a served app with its dask cluster, a browser,
   a solved study) keeps its tests on one process: ``xdist_group`` named after the module, so
   the fixture is built once, not once per process.
+- In-process clients (Starlette's ``TestClient``) call the app as ``http://localhost``, a name
+  the service answers to by default (``TUNNEL_CONTACT_ALLOWED_HOSTS``), not ``testserver``.
 - A test that compares times measured while it runs (a speed ratio, a pause, the spread of
   eight solves) is ``serial``: ``make test`` runs those after the parallel part, alone on the
   machine, so the other process's load cannot skew the ratio they check.
 """
 from __future__ import annotations
+
+import sys
 
 import pytest
 
@@ -18,6 +22,7 @@ SERIAL_TESTS = frozenset({
     "test_eight_default_cases_in_a_loaded_plain_process_have_no_outlier",
     "test_factorization_releases_the_gil",
     "test_rejects_unknown_options_and_is_fast",
+    "test_cancel_stops_a_running_case_and_frees_its_worker",  # given up within 10 s of the cancel
 })
 
 
@@ -41,3 +46,18 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(pytest.mark.serial)
         if _module_scoped(item) and not item.get_closest_marker("xdist_group"):
             item.add_marker(pytest.mark.xdist_group(item.nodeid.split("::")[0]))
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _clients_call_localhost():
+    """``TestClient(app)`` sends ``Host: localhost`` (a loopback name the service's host check
+    allows by default) instead of Starlette's ``testserver`` (when a collected module uses it)."""
+    if "starlette.testclient" not in sys.modules:
+        yield
+        return
+    from starlette.testclient import TestClient
+
+    defaults = TestClient.__init__.__defaults__
+    TestClient.__init__.__defaults__ = tuple("http://localhost" if d == "http://testserver" else d for d in defaults)
+    yield
+    TestClient.__init__.__defaults__ = defaults

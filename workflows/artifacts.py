@@ -9,8 +9,9 @@ Layout::
     <root>/sweeps/plots/<sweep_id>-<digest>-<name>.png
                                                  a figure of those cases (workflows.plots)
 
-Both are written atomically (temporary file, then rename), so a concurrent request
-either finds the complete file or builds its own copy. netCDF/HDF5 and matplotlib are
+All are written atomically (temporary file, then rename) with a checksum, so a concurrent
+request either finds the complete file or builds its own copy, and a cached file damaged
+since, or whose checksum is gone, is built again, never served. netCDF/HDF5 and matplotlib are
 not safe to drive from several threads at once, so building is serialised by a lock.
 A case's cached plots are removed whenever its result is written again
 (:meth:`workflows.result_store.ResultStore.write_case`). Used by the CLI's ``show`` and by the
@@ -30,7 +31,7 @@ from typing import Sequence
 import xarray as xr
 
 from .combine import for_netcdf
-from .files import DamagedFile, verify, write_atomically
+from .files import DamagedFile, remove_checksum, unverifiable, verify, write_atomically
 from .plots import PLOTS, STAGED_PLOTS, SWEEP_PLOT_NAMES, SWEEP_PLOTS, case_labels, plot_interaction
 from .result_store import ResultStore, StoreLike, as_store, netcdf_lock
 
@@ -64,13 +65,13 @@ def render_plot(root: StoreLike, case_id: str, name: str, ds=None, *, stage: str
         raise ValueError(f"stage: the plot {name!r} has no stages (only {', '.join(STAGED_PLOTS)})")
     store = as_store(root)
     target = store.plot_path(case_id, name if stage in (None, "total") else f"{name}-stage{stage}")
-    if target.is_file():
+    if _intact(target):
         return target
     with _BUILD_LOCK:
-        if not target.is_file():
+        if not _intact(target):
             data = store.open_case(case_id) if ds is None else ds
             figure = plot(data) if stage is None else plot(data, stage=stage)
-            write_atomically(target, lambda tmp: figure.savefig(tmp, format="png", dpi=110))
+            write_atomically(target, lambda tmp: figure.savefig(tmp, format="png", dpi=110), checksum=True)
             logger.info("rendered %s of case %s", name, case_id)
     return target
 
@@ -90,12 +91,12 @@ def render_report(root: StoreLike, case_id: str, ds=None, *, title: dict | None 
         title_block(given)  # refuse an unknown field before writing anything
     stem = "report" if not given else f"report-{content_id(json.dumps(given, sort_keys=True))}"
     target = store.plot_dir(case_id) / f"{stem}.pdf"
-    if target.is_file():
+    if _intact(target):
         return target
     with _BUILD_LOCK:
-        if not target.is_file():
+        if not _intact(target):
             pdf = case_report(store.open_case(case_id) if ds is None else ds, title=given)
-            write_atomically(target, lambda tmp: Path(tmp).write_bytes(pdf))
+            write_atomically(target, lambda tmp: Path(tmp).write_bytes(pdf), checksum=True)
             logger.info("wrote the report of case %s", case_id)
     return target
 
@@ -122,16 +123,28 @@ def write_combined(root: StoreLike, sweep_id: str, case_ids: Sequence[str]) -> P
                 write_atomically(target, lambda tmp: for_netcdf(combined).to_netcdf(tmp, engine="netcdf4"),
                                  checksum=True)
             logger.info("combined %d cases of sweep %s into %s", len(case_ids), sweep_id, target.name)
-            for old in target.parent.glob(f"{sweep_id}-*.nc"):
-                if old != target and time.time() - old.stat().st_mtime > _STALE_AFTER:
-                    old.unlink(missing_ok=True)
+            _remove_superseded(target, f"{sweep_id}-*.nc")
     return target
 
 
+def _remove_superseded(target: Path, pattern: str) -> None:
+    """Delete the files beside ``target`` matching ``pattern`` (and their checksums) that are
+    older than :data:`_STALE_AFTER`: copies over fewer cases of the same sweep."""
+    for old in target.parent.glob(pattern):
+        try:
+            stale = old != target and time.time() - old.stat().st_mtime > _STALE_AFTER
+        except FileNotFoundError:  # removed by a concurrent request
+            continue
+        if stale:
+            old.unlink(missing_ok=True)
+            remove_checksum(old)
+
+
 def _intact(path: Path) -> bool:
-    """True when ``path`` is there and matches its checksum (a damaged copy is built again)."""
+    """True when ``path`` is there and matches its checksum (a damaged copy, or one whose
+    checksum is gone, is built again)."""
     try:
-        verify(path)
+        verify(path, without_checksum=unverifiable)
     except FileNotFoundError:
         return False
     except DamagedFile as exc:
@@ -157,21 +170,19 @@ def render_sweep_plot(root: StoreLike, sweep_id: str, case_ids: Sequence[str], n
         raise KeyError(name)
     store = as_store(root)
     target = store.sweep_plot_path(sweep_id, case_ids, name)
-    if target.is_file():
+    if _intact(target):
         return target
     with _BUILD_LOCK:
-        if not target.is_file():
+        if not _intact(target):
             combined = store.open_results(list(case_ids))
             if name == "interaction":
                 figure = plot_interaction([_section_forces(store, c) for c in case_ids], case_labels(combined),
                                           combined=combined)
             else:
                 figure = SWEEP_PLOTS[name](combined)
-            write_atomically(target, lambda tmp: figure.savefig(tmp, format="png", dpi=90))
+            write_atomically(target, lambda tmp: figure.savefig(tmp, format="png", dpi=90), checksum=True)
             logger.info("rendered %s of sweep %s (%d cases)", name, sweep_id, len(case_ids))
-            for old in target.parent.glob(f"{sweep_id}-*-{name}.png"):
-                if old != target and time.time() - old.stat().st_mtime > _STALE_AFTER:
-                    old.unlink(missing_ok=True)
+            _remove_superseded(target, f"{sweep_id}-*-{name}.png")
     return target
 
 

@@ -146,7 +146,7 @@ def search_command(search_file: str, results: str, *, scheduler: str | None = No
                    out: TextIO | None = None) -> int:
     """Run a search (SPEC §8) and print its trials and answer; 1 if no value satisfies."""
     out = out or sys.stdout
-    from .studies import Search, run_search
+    from .studies import Search, StudyError, run_search
 
     try:
         search = Search.model_validate(_read_json(search_file))
@@ -155,6 +155,8 @@ def search_command(search_file: str, results: str, *, scheduler: str | None = No
     client = _scheduler_client(scheduler)
     try:
         found = run_search(search, ResultStore(results), client, progress=progress)
+    except StudyError as exc:
+        raise InputError(f"{search_file}: {exc}") from None
     finally:
         if client is not None:
             client.close()

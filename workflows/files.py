@@ -43,7 +43,11 @@ _VERIFIED: dict[str, tuple[int, int, int, int]] = {}
 
 
 class DamagedFile(Exception):
-    """A stored file whose bytes do not match the checksum written with it."""
+    """A stored file whose bytes do not match the checksum written with it; ``path`` is the file."""
+
+    def __init__(self, message: str, path: Path | str | None = None):
+        super().__init__(message)
+        self.path = None if path is None else Path(path)
 
 
 def digest(path: Path | str) -> str:
@@ -65,11 +69,13 @@ def _key(stat: os.stat_result) -> tuple[int, int, int, int]:
     return (stat.st_ino, stat.st_size, stat.st_mtime_ns, stat.st_ctime_ns)
 
 
-def verify(path: Path | str) -> None:
+def verify(path: Path | str, *, without_checksum: Callable[[Path], bool] | None = None) -> None:
     """Check ``path`` against its checksum (one read per version of the file).
 
-    A file without a checksum (written before checksums existed) is adopted: its digest is
-    recorded now (best effort on a read-only store).
+    A file without a checksum is checked by ``without_checksum(path)`` (a check of its own
+    content: True when it is sound, False when it cannot be told, :class:`DamagedFile` when it
+    is damaged); a sound one, or any one when no such check is given (written before checksums
+    existed), is adopted: its digest is recorded now (best effort on a read-only store).
 
     Raises
     ------
@@ -86,6 +92,8 @@ def verify(path: Path | str) -> None:
     try:
         expected = checksum_path(path).read_text().strip()
     except FileNotFoundError:
+        if without_checksum is not None and not without_checksum(path):
+            raise DamagedFile(f"{path.name} has no checksum and cannot be verified", path) from None
         try:
             write_atomically(checksum_path(path), lambda tmp: tmp.write_text(actual + "\n"))
         except OSError:
@@ -93,9 +101,15 @@ def verify(path: Path | str) -> None:
         expected = actual
     if actual != expected:
         _VERIFIED.pop(str(path), None)
-        raise DamagedFile(f"{path.name} does not match its checksum (damaged after it was written)")
+        raise DamagedFile(f"{path.name} does not match its checksum (damaged after it was written)", path)
     if _key(path.stat()) == key:  # unchanged while it was read
         _VERIFIED[str(path)] = key
+
+
+def unverifiable(path: Path) -> bool:
+    """For :func:`verify`: a file that cannot be checked without its checksum file (a cache,
+    built again rather than adopted when its checksum is gone)."""
+    return False
 
 
 def remove_checksum(path: Path | str) -> None:

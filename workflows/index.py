@@ -57,7 +57,7 @@ import xarray as xr
 from xarray.backends.netCDF4_ import NETCDF4_PYTHON_LOCK
 
 from .combine import label_cases, read_reduced, reduce_case, stack_cases
-from .files import verify, write_atomically
+from .files import unverifiable, verify, write_atomically
 from .store_files import OPEN_OPTIONS, FileKey, StoreFiles, check_case_id, file_key, netcdf_encoding, netcdf_lock
 
 logger = logging.getLogger(__name__)
@@ -264,7 +264,8 @@ class ResultIndex:
             yield _Table()
             return
         try:
-            verify(self.path)  # a damaged index is rebuilt from the case files, never read
+            # a damaged index, or one whose checksum is gone, is rebuilt from the case files, never read
+            verify(self.path, without_checksum=unverifiable)
             with NETCDF4_PYTHON_LOCK:  # HDF5 is not thread-safe; xarray's reads take this lock too
                 nc = netCDF4.Dataset(self.path, "r")
         except Exception as exc:

@@ -30,9 +30,9 @@ from solver.spec import CaseSpec
 
 from .files import remove_checksum, remove_stale_temporaries, write_atomically
 from .index import ResultIndex
-from .store_files import (OPEN_OPTIONS, RESULT_BYTES_PER_ELEMENT, RESULT_MARGIN, STORE_FULL, FileKey,
-                          StoreFiles, StoreFull, case_warnings, check_case_id, estimated_result_bytes, file_key,
-                          free_bytes, netcdf_encoding, netcdf_lock)
+from .store_files import (CONTENT_DIGEST, OPEN_OPTIONS, RESULT_BYTES_PER_ELEMENT, RESULT_MARGIN, STORE_FULL,
+                          FileKey, StoreFiles, StoreFull, case_warnings, check_case_id, content_digest,
+                          estimated_result_bytes, file_key, free_bytes, netcdf_encoding, netcdf_lock)
 from .summary import summarize
 
 __all__ = ["OPEN_OPTIONS", "RESULT_BYTES_PER_ELEMENT", "RESULT_MARGIN", "STORE_FULL", "FileKey", "ResultStore",
@@ -171,13 +171,14 @@ class ResultStore(StoreFiles):
         """
         case_id = check_case_id(ds.attrs.get("case_id"))
         target = self.case_path(case_id)
+        stored = ds.assign_attrs({CONTENT_DIGEST: content_digest(ds)})  # verifiable without its .b2
 
         def write(tmp: Path) -> None:
             # in-memory data to a private file: no dask, and no cluster-wide write lock
             # (xarray would take a distributed.Lock when called inside a dask worker)
             with dask.config.set(scheduler="synchronous"):
                 with netcdf_lock:
-                    ds.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=netcdf_encoding(ds))
+                    stored.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=netcdf_encoding(ds))
 
         write_atomically(target, write, checksum=True)
         key = file_key(target.stat())

@@ -24,7 +24,8 @@ Every file is written atomically by :func:`workflows.files.write_atomically` (a 
 lock, a temporary in the same folder, flush, fsync, ``os.replace``): a reader never sees
 a half-written file under a final name, and a crash leaves at most a temporary that
 :meth:`workflows.result_store.ResultStore.remove_stale_temporaries` removes once its
-writer has gone. Case files carry a checksum, verified before they are read: a damaged
+writer has gone. Case files carry a checksum, verified before they are read, and the digest of
+their values inside (:data:`CONTENT_DIGEST`), checked when the checksum file is gone: a damaged
 file is treated as missing.
 """
 from __future__ import annotations
@@ -44,12 +45,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Union
 
+import numpy as np
 import xarray as xr
 
 from solver.geometry.sizing import estimated_elements
 from solver.spec import CaseSpec
 
-from .files import verify, write_atomically
+from .files import DamagedFile, verify, write_atomically
 
 logger = logging.getLogger(__name__)
 #: Every netCDF read and write of this process goes through this lock: the netCDF-C and
@@ -65,6 +67,9 @@ RESULT_BYTES_PER_ELEMENT = 600
 RESULT_MARGIN = 4 << 20
 #: How a full store's failure starts (the service retries such cases once there is room).
 STORE_FULL = "StoreFull"
+#: Global attribute of a case file: the digest of its values (:func:`content_digest`), so that it
+#: verifies without its checksum file (a lost ``.b2`` does not make a damaged file good).
+CONTENT_DIGEST = "content_blake2b"
 #: Options every stored netCDF file is opened with: values come back exactly as written
 #: (integer ``face_nodes`` keep their dtype and ``_FillValue`` attribute).
 OPEN_OPTIONS: dict[str, Any] = dict(
@@ -271,8 +276,9 @@ class StoreFiles:
             If the file no longer matches its checksum (to be recomputed, never served).
         """
         path = self.case_path(case_id)
-        verify(path)
+        verify(path, without_checksum=content_sound)  # no checksum file: the digest inside it
         with netcdf_lock, xr.open_dataset(path, **OPEN_OPTIONS) as ds:
+            ds.attrs.pop(CONTENT_DIGEST, None)  # the file's, not the result's
             yield ds
 
     def open_case(self, case_id: str) -> xr.Dataset:
@@ -300,6 +306,39 @@ FilesLike = Union[StoreFiles, str, os.PathLike]
 def files_of(root: FilesLike) -> StoreFiles:
     """``root`` itself if it is a :class:`StoreFiles` (a store), else the files at that path."""
     return root if isinstance(root, StoreFiles) else StoreFiles(root)
+
+
+def content_digest(ds: xr.Dataset) -> str:
+    """BLAKE2b-128 of a result's variables (names, types, shapes, values), in hex: what
+    :data:`CONTENT_DIGEST` records in a case file, so that the file verifies without its checksum
+    file. The same for the result in memory and for the file read back with :data:`OPEN_OPTIONS`."""
+    h = hashlib.blake2b(digest_size=16)
+    for name in sorted(map(str, ds.variables)):
+        values = np.asarray(ds.variables[name].values)
+        text = values.dtype.kind in "OUS"  # strings: read back as objects whatever their width
+        h.update(f"{name}\0{'text' if text else values.dtype.str}\0{values.shape}\0".encode())
+        if text:
+            h.update("\0".join(map(str, values.ravel().tolist())).encode("utf-8", "backslashreplace"))
+        else:
+            h.update(np.ascontiguousarray(values).tobytes())
+    return h.hexdigest()
+
+
+def content_sound(path: Path) -> bool:
+    """Whether the case file at ``path`` matches the digest it carries (:func:`content_digest`;
+    a file written before files carried one is taken as it is).
+
+    Raises
+    ------
+    DamagedFile
+        If its values do not match its digest.
+    """
+    with netcdf_lock, xr.open_dataset(path, **OPEN_OPTIONS) as ds:
+        recorded = ds.attrs.get(CONTENT_DIGEST)
+        if recorded is not None and content_digest(ds) != recorded:
+            raise DamagedFile(f"{path.name} does not match the digest it carries (damaged after it was written)",
+                              path)
+    return True
 
 
 def case_warnings(ds: xr.Dataset) -> list[str]:

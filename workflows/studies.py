@@ -32,14 +32,16 @@ from typing import Any, Literal, Optional
 
 import numpy as np
 import xarray as xr
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from solver.errors import field_errors
 from solver.results.dataset import SCALARS
+from solver.spec import CaseSpec
 
 from .parameters import (canonical_path, flat_name, flat_parameters, is_parameter, parameter_path, set_parameter,
                          varying_parameters)
 from .result_store import StoreLike, as_store
-from .sweep import Sweep, run_sweep
+from .sweep import Sweep, SweepError, check_structure, expand_sweep, run_sweep
 
 logger = logging.getLogger(__name__)
 
@@ -53,6 +55,11 @@ MIN_SAMPLES = 32
 SENSITIVITY_MIN_SAMPLES = 128
 #: Exceedances (or non-exceedances) below which a reliability estimate is called small.
 FEW = 10
+#: A search's tolerance must span at least this many units in the last place of its bounds: the
+#: bisection then always has a new value strictly inside its bracket.
+RESOLVABLE_ULPS = 8
+#: Longest sweep name (:class:`workflows.sweep.Sweep`): a trial's name is the search's, cut to fit.
+SWEEP_NAME_CHARS = 200
 
 
 class StudyError(ValueError):
@@ -152,12 +159,21 @@ def reliability(root: StoreLike, case_ids: list[str], output: str = "max_utiliza
                 limit: float = 1.0) -> dict[str, Any]:
     """Probability that ``output`` exceeds ``limit`` over the done cases of ``case_ids``: the
     fraction, its exact 95 % interval, β = -Φ⁻¹(P) (None where P is 0 or 1) and a note when the
-    estimate rests on few cases."""
+    estimate rests on few cases. Cases whose ``output`` is NaN (not defined for them) are left
+    out of the sample and counted as ``undefined``; fewer than :data:`MIN_SAMPLES` defined
+    values raise :class:`StudyError` naming ``output``."""
     from scipy import stats
 
     if not math.isfinite(limit):
         raise StudyError([("limit", "must be a finite number")])
     _, _, Y, missing = study_sample(root, case_ids, output)
+    # a NaN output is not defined for that case (bolt_theta of a bonded interface): neither safe
+    # nor failed, so it is no sample of the event (counting it below the limit made P = 0 of nothing)
+    undefined = int(np.count_nonzero(np.isnan(Y)))
+    Y = Y[~np.isnan(Y)]
+    if Y.size < MIN_SAMPLES:
+        raise StudyError([("output", f"{output} is defined (not NaN) in {Y.size} of the {Y.size + undefined} done "
+                                     f"cases; a probability needs at least {MIN_SAMPLES}")])
     n = int(Y.size)
     k = int(np.sum(Y > limit))
     p = k / n
@@ -170,12 +186,21 @@ def reliability(root: StoreLike, case_ids: list[str], output: str = "max_utiliza
     if min(k, n - k) < FEW:
         note = (f"{k} of {n} cases exceed {limit:g}: too few {'exceedances' if k < FEW else 'non-exceedances'} "
                 "for a tight estimate; the interval is exact but wide (more samples narrow it)")
+    if undefined:
+        note = " ".join(filter(None, [f"{output} is not defined (NaN) in {undefined} done cases: left out of the "
+                                      "sample", note]))
     return {"output": output, "limit": float(limit), "probability": p, "ci_low": float(ci.low),
             "ci_high": float(ci.high), "beta": beta(p), "beta_ci": [beta(float(ci.high)), beta(float(ci.low))],
-            "samples": n, "exceedances": k, "not_done": missing, "note": note, "values": Y.tolist()}
+            "samples": n, "exceedances": k, "not_done": missing, "undefined": undefined, "note": note,
+            "values": Y.tolist()}
 
 
 # -- search -------------------------------------------------------------------------------------
+
+
+def _first_error(exc: ValidationError) -> str:
+    """The first field error of ``exc`` as ``path: reason``."""
+    return "{}: {}".format(*field_errors(exc)[0]).lstrip(": ")
 
 
 class Requirement(BaseModel):
@@ -219,33 +244,38 @@ class Search(BaseModel):
 
     @model_validator(mode="after")
     def _consistent(self) -> "Search":
+        """What can be checked without expanding the grounds (cheap: a posted search is
+        validated before the service answers anything else). The grounds' cases themselves are
+        validated when a trial is expanded (:func:`expand_trial`)."""
         if not self.low < self.high:
             raise ValueError(f"high: must exceed low ({self.low} >= {self.high})")
         if not self.tolerance < self.high - self.low:
             raise ValueError(f"tolerance: must be less than high - low ({self.high - self.low:g})")
+        finest = RESOLVABLE_ULPS * math.ulp(max(abs(self.low), abs(self.high)))
+        if self.tolerance < finest:  # bisection would try the same value again and again
+            raise ValueError(f"tolerance: must be at least {finest:.3g} ({RESOLVABLE_ULPS} units in the last place "
+                             "of the bounds): no finer step between them can be represented")
         if self.parameter in self.over:
             raise ValueError(f"over: varies {self.parameter}, the parameter searched")
-        from pydantic import ValidationError
-
-        from solver import CaseSpec
-        from solver.errors import field_errors
-
-        from .sweep import SweepError, expand_sweep
-
-        def first(exc) -> str:
-            return "{}: {}".format(*field_errors(exc)[0]).lstrip(": ")
-
         path = canonical_path(self.parameter)
         try:
             current = flat_parameters(CaseSpec.model_validate(self.base)).get(flat_name(path))
         except ValidationError as exc:
-            raise ValueError(f"base: {first(exc)}") from None
+            raise ValueError(f"base: {_first_error(exc)}") from None
         if not is_parameter(path, self.base) or isinstance(current, bool) or not isinstance(current, (int, float)):
             raise ValueError(f"parameter: {self.parameter!r} is not a numeric case field")
-        try:  # the grounds, as a sweep would check them
-            expand_sweep(self.trial_sweep(self.low))
+        for end in ("low", "high"):  # both ends of the range are cases of their own
+            case = copy.deepcopy(self.base)
+            set_parameter(case, path, float(getattr(self, end)))
+            try:
+                CaseSpec.model_validate(case)
+            except ValidationError as exc:
+                raise ValueError(f"{end}: {getattr(self, end):g} is not a valid {self.parameter}: "
+                                 f"{_first_error(exc)}") from None
+        try:  # the grounds' table as a sweep checks it before expanding: paths, lists, size
+            check_structure(self.trial_sweep(self.low))
         except ValidationError as exc:
-            raise ValueError(f"over: {first(exc)}") from None
+            raise ValueError(f"over: {_first_error(exc)}") from None
         except SweepError as exc:
             raise ValueError("over: {}: {}".format(*exc.errors[0])) from None
         return self
@@ -255,9 +285,26 @@ class Search(BaseModel):
         base = copy.deepcopy(self.base)
         set_parameter(base, canonical_path(self.parameter), float(value))
         extra = {k: getattr(self, k) for k in ("samples", "seed") if getattr(self, k) is not None}
-        return Sweep.model_validate({"name": f"{self.name}: {self.parameter} = {value:.6g}", "base": base,
+        label = f": {self.parameter} = {value:.6g}"
+        name = self.name[:SWEEP_NAME_CHARS - len(label) - 1] + "…" if len(self.name) + len(label) > SWEEP_NAME_CHARS \
+            else self.name
+        return Sweep.model_validate({"name": name + label, "base": base,
                                      "vary": self.over or {self.parameter: [float(value)]}, "mode": self.mode,
                                      **extra})
+
+
+def expand_trial(sweep: Sweep) -> list[CaseSpec]:
+    """The cases of a search's trial sweep (:meth:`Search.trial_sweep`), validated.
+
+    Raises
+    ------
+    StudyError
+        Naming ``over`` when a case of the grounds is invalid.
+    """
+    try:
+        return expand_sweep(sweep)
+    except SweepError as exc:
+        raise StudyError([("over", f"{path}: {message}") for path, message in exc.errors]) from None
 
 
 def next_trial(search: Search, trials: list[dict]) -> tuple[Optional[float], Optional[dict]]:
@@ -278,9 +325,10 @@ def next_trial(search: Search, trials: list[dict]) -> tuple[Optional[float], Opt
         return None, {"value": search.low, "satisfied": True}
     hi = min(passed)
     lo = max(v for v in failed if v < hi)
-    if hi - lo <= search.tolerance:
+    middle = 0.5 * (lo + hi)
+    if hi - lo <= search.tolerance or not lo < middle < hi:  # (no float strictly between them)
         return None, {"value": hi, "satisfied": True}
-    return 0.5 * (lo + hi), None
+    return middle, None
 
 
 def trial_outcome(search: Search, value: float, root: StoreLike, case_ids: list[str]) -> dict:
@@ -299,7 +347,8 @@ def trial_outcome(search: Search, value: float, root: StoreLike, case_ids: list[
 
 def run_search(search: Search | dict, root: StoreLike, client=None, *, progress: bool = False) -> dict:
     """Run ``search`` (SPEC §8) on dask and return ``{"value", "satisfied", "trials"}``; each
-    trial's cases are stored as any sweep's, so a search run again resumes where it stopped."""
+    trial's cases are stored as any sweep's, so a search run again resumes where it stopped.
+    A case of the grounds that is not valid raises :class:`StudyError` naming ``over``."""
     from .sweep import _client_or_local
 
     search = Search.model_validate(search)
@@ -309,7 +358,10 @@ def run_search(search: Search | dict, root: StoreLike, client=None, *, progress:
             value, answer = next_trial(search, trials)
             if answer is not None:
                 return {**answer, "trials": trials, "grid_cases": grid_cases(search, trials)}
-            ids = run_sweep(search.trial_sweep(value), root, c, progress=progress, retry_failed=False)
+            try:
+                ids = run_sweep(search.trial_sweep(value), root, c, progress=progress, retry_failed=False)
+            except SweepError as exc:  # the grounds are validated as the first trial is expanded
+                raise StudyError([("over", f"{path}: {message}") for path, message in exc.errors]) from None
             trials.append(trial_outcome(search, value, root, ids))
 
 
@@ -320,4 +372,4 @@ def grid_cases(search: Search, trials: list[dict]) -> dict:
     return {"search": per_trial * len(trials), "grid": per_trial * steps}
 
 
-__all__ = ["Requirement", "Search", "StudyError", "next_trial", "reliability", "run_search", "sensitivity"]
+__all__ = ["Requirement", "Search", "StudyError", "expand_trial", "next_trial", "reliability", "run_search", "sensitivity"]

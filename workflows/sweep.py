@@ -98,6 +98,13 @@ class Sweep(BaseModel):
         data.pop("seed", None)
         return json.dumps(data, sort_keys=True, separators=(",", ":"))
 
+    def definition_json(self) -> str:
+        """The sweep as given, as JSON: defaults filled, every key in the order it came (a
+        sampled sweep's dimensions follow the order of ``vary``, so a record written in sorted
+        order would expand to other cases). What a sweep's record stores; its id is still that
+        of :meth:`canonical_json`."""
+        return json.dumps(self.model_dump(mode="json"), separators=(",", ":"))
+
     def table(self) -> dict[str, list[Any]]:
         """The values of each varied parameter: the lists, or a sampled sweep's samples."""
         if self.mode in SAMPLED_MODES and not sample_errors(self.mode, self.samples, self.vary):
@@ -126,6 +133,15 @@ def sweep_size(sweep: Sweep) -> int:
     if not lengths:
         return 1
     return math.prod(lengths) if sweep.mode == "grid" else max(lengths)
+
+
+def check_structure(sweep: Sweep) -> None:
+    """Raise :class:`SweepError` for the problems of the ``vary`` table itself (paths, empty or
+    unequal lists, sample settings, size) without validating a case: cheap, so it runs before an
+    expansion is started (a search's grounds are checked so when it is posted)."""
+    errors = _structure_errors(sweep, sweep.base.model_dump(mode="json"))
+    if errors:
+        raise SweepError(errors)
 
 
 def expand_sweep(sweep: Sweep | dict[str, Any]) -> list[CaseSpec]:
@@ -185,6 +201,9 @@ def _structure_errors(sweep: Sweep, base: dict[str, Any]) -> list[tuple[str, str
     sampled = sweep.mode in SAMPLED_MODES
     if sampled:
         errors.extend(sample_errors(sweep.mode, sweep.samples, sweep.vary))
+        if not sweep.vary:
+            errors.append(("vary", f"a {sweep.mode} sweep with nothing varied has no case to sample; give each "
+                                   "uncertain parameter a distribution (or use mode 'grid' for the base case alone)"))
     elif sweep.mode == "zip" and not sweep.vary:
         errors.append(("vary", "a zip sweep with nothing varied has no case; vary at least one parameter "
                                "(or use mode 'grid', whose empty vary is the base case alone)"))
@@ -269,7 +288,7 @@ def run_sweep(sweep: Sweep | dict[str, Any], root: StoreLike, client=None, *, pr
     specs = expand_sweep(sweep)
     store.remove_stale_temporaries()
     ids = [s.case_id for s in specs]
-    store.write_sweep_record(sweep.sweep_id, sweep.name, sweep.canonical_json(), ids)  # the service lists it
+    store.write_sweep_record(sweep.sweep_id, sweep.name, sweep.definition_json(), ids)  # the service lists it
     broken = set() if force else set(store.unreadable(ids))  # recomputed, never combined
     todo = [s for s in specs if force or not store.is_stored(s.case_id) or s.case_id in broken]
     if not retry_failed and not force:

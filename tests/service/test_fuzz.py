@@ -22,7 +22,7 @@ from schemathesis.specs.openapi.checks import (content_type_conformance, respons
 
 from service.app import create_app
 from service.process import free_port
-from service.settings import Settings
+from service.settings import LOOPBACK_NAMES, Settings
 
 #: Generated requests per operation and mode (valid data, then data the schema forbids).
 EXAMPLES = 20
@@ -31,8 +31,9 @@ CHECKS = [not_a_server_error, status_code_conformance, content_type_conformance,
 
 @pytest.fixture(scope="module")
 def api_schema(tmp_path_factory):
+    # schemathesis's ASGI client calls the app as http://testserver: a name allowed here only
     settings = Settings(results=tmp_path_factory.mktemp("results"), scheduler=f"tcp://127.0.0.1:{free_port()}",
-                        reconcile_interval=3600, max_open_cases=100_000)
+                        reconcile_interval=3600, max_open_cases=100_000, allowed_hosts=(*LOOPBACK_NAMES, "testserver"))
     schema = schemathesis.openapi.from_asgi("/openapi.json", create_app(settings)).exclude(path="/health")
     try:
         yield schema

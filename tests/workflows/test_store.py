@@ -176,3 +176,52 @@ def test_threads_reading_and_writing_netcdf_at_once_do_not_crash(tmp_path, solve
         results = list(pool.map(lambda job: job(), jobs))
     assert len(results) == len(jobs) and all(results)
     xr.testing.assert_identical(store.open_case(case_id).drop_attrs(), solved.drop_attrs())
+
+
+# -- a case file verifies without its checksum file (issue 38, 4) --------------------------------
+
+def _without_checksum(tmp_path, solved) -> Path:
+    from workflows.files import checksum_path
+
+    as_store(tmp_path).write_case(solved)
+    path = as_store(tmp_path).case_path(solved.attrs["case_id"])
+    checksum_path(path).unlink()
+    return path
+
+
+def test_a_sound_case_file_without_its_checksum_file_verifies_by_its_digest(tmp_path, solved):
+    from workflows.files import checksum_path
+
+    path = _without_checksum(tmp_path, solved)
+    xr.testing.assert_identical(open_case(tmp_path, solved.attrs["case_id"]), solved)  # its digest not shown
+    assert checksum_path(path).is_file()  # adopted: checked by its content, then recorded
+
+
+def test_a_case_file_damaged_mid_data_without_its_checksum_file_is_not_served(tmp_path, solved):
+    """A lost ``.b2`` adopted the damaged bytes (hundreds of wrong values served); the digest of
+    the values inside the file refuses them."""
+    from workflows.files import DamagedFile
+
+    path = _without_checksum(tmp_path, solved)
+    values = solved["displacement_x"].values.astype("<f8")
+    raw = bytearray(path.read_bytes())
+    start = bytes(raw).find(values.tobytes()[:64])
+    assert start > 0  # the values lie in the file as they are (floats are not compressed)
+    middle = start + 8 * (values.size // 2)
+    raw[middle: middle + 8] = np.float64(12345.678).tobytes()  # one value, HDF5 metadata untouched
+    path.write_bytes(bytes(raw))
+    store = as_store(tmp_path)
+    with pytest.raises(DamagedFile):
+        open_case(tmp_path, solved.attrs["case_id"])
+    assert store.unreadable([solved.attrs["case_id"]]) == [solved.attrs["case_id"]]
+
+
+def test_a_case_file_written_before_digests_is_adopted_without_its_checksum_file(tmp_path, solved):
+    import netCDF4
+
+    from workflows.store_files import CONTENT_DIGEST
+
+    path = _without_checksum(tmp_path, solved)
+    with netCDF4.Dataset(path, "a") as nc:
+        nc.delncattr(CONTENT_DIGEST)
+    xr.testing.assert_identical(open_case(tmp_path, solved.attrs["case_id"]), solved)

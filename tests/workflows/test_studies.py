@@ -145,8 +145,22 @@ def test_a_search_no_value_satisfies_is_answered_as_such():
     assert answer == {"value": 0.15, "satisfied": True}
 
 
+def test_bisection_ends_when_no_float_lies_inside_its_bracket():
+    """A bracket of two neighbouring floats has no middle: the answer is its passing end (it
+    tried the same value again and again)."""
+    low = 0.3
+    high = math.nextafter(low, 1.0)
+    search = Search.model_construct(**{**Search.model_validate(SEARCH).__dict__, "low": low, "high": high,
+                                        "tolerance": 1e-300})
+    value, answer = next_trial(search, [{"value": high, "satisfied": True}, {"value": low, "satisfied": False}])
+    assert value is None and answer == {"value": high, "satisfied": True}
+
+
 @pytest.mark.parametrize("change, field", [
     ({"low": 0.6}, "high"),
+    ({"high": 30.0}, "high"),  # no valid lining thickness
+    ({"low": 0.3, "high": 0.3 + 2e-16, "tolerance": 1e-17}, "tolerance"),  # finer than the floats there
+    ({"over": {"loads.lateral_ratio": [0.5] * 5001}, "mode": "zip"}, "over"),  # bounded before expansion
     ({"tolerance": 0.0}, "tolerance"),
     ({"tolerance": 1.0}, "tolerance"),
     ({"parameter": "interface.model"}, "parameter"),

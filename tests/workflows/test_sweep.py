@@ -214,3 +214,21 @@ def test_dict_input_and_alias():
     with pytest.raises(SweepError) as info:
         expand_sweep({**data, "vary": {"lining.thickness": [0.2], "geometry.thickness": [0.3]}})
     assert info.value.errors[0][0] == "geometry.thickness"
+
+
+def test_a_sweeps_definition_keeps_the_order_its_sample_depends_on():
+    """A sampled sweep draws its dimensions in the order of ``vary``: the definition a record keeps
+    gives back the same cases, where the canonical (sorted) form, the id's, gives others."""
+    import json
+
+    given = {"name": "order", "base": {"mesh": {"interface_size": 0.25, "far_size": 8.0}}, "mode": "sobol",
+             "samples": 4, "seed": 3,
+             "vary": {"loads.lateral_ratio": {"distribution": "uniform", "low": 0.5, "high": 1.0},
+                      "design.load_factor": {"distribution": "uniform", "low": 1.2, "high": 1.5}}}
+    sweep = Sweep.model_validate(given)
+    ids = [s.case_id for s in expand_sweep(sweep)]
+    again = Sweep.model_validate(json.loads(sweep.definition_json()))
+    assert [s.case_id for s in expand_sweep(again)] == ids and again.sweep_id == sweep.sweep_id
+    assert list(again.vary) == list(given["vary"])
+    canonical = Sweep.model_validate(json.loads(sweep.canonical_json()))
+    assert [s.case_id for s in expand_sweep(canonical)] != ids
