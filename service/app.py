@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import gc
 import logging
-import sqlite3
 from contextlib import asynccontextmanager
 from typing import Optional
 
@@ -22,7 +21,8 @@ from .guards import BodyLimitMiddleware, SameOriginMiddleware, TokenReadsMiddlew
 from .jobs import Dispatcher
 from .searches import Searches
 from .settings import Settings, get_settings
-from .job_records import open_job_records
+from .job_records import open_records
+from .job_tables import DATABASE_ERRORS
 from .views import mount_static
 
 logger = logging.getLogger(__name__)
@@ -34,7 +34,7 @@ async def lifespan(app: FastAPI):
     settings: Settings = app.state.settings
     root = settings.results.resolve()
     root.mkdir(parents=True, exist_ok=True)
-    store, damage = open_job_records(settings.database, background_checkpoints=True)
+    store, damage = open_records(settings, background_checkpoints=True)
     try:
         async with cluster_connection(settings) as connect:
             jobs = Dispatcher(connect, store, root, poll_interval=settings.poll_interval,
@@ -81,7 +81,7 @@ def create_app(settings: Optional[Settings] = None) -> FastAPI:
     app.add_middleware(TokenReadsMiddleware, settings=app.state.settings)
     app.add_middleware(SameOriginMiddleware)  # outermost: a cross-site POST is refused before its body is read
     app.add_exception_handler(RequestValidationError, request_validation_handler)
-    for error in (sqlite3.DatabaseError, OSError):  # full, read-only, locked, damaged: 503
+    for error in (*DATABASE_ERRORS, OSError):  # full, read-only, locked, damaged, away: 503
         app.add_exception_handler(error, store_error_handler)
     app.add_exception_handler(OverflowError, overflow_handler)
     app.add_exception_handler(StarletteHTTPException, http_error_handler)

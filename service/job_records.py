@@ -217,6 +217,16 @@ class JobStore(JobDatabase):
                           (json.dumps(list(case_ids)),))
         return {r["id"]: r["status"] for r in rows}
 
+    # -- leases (one process: always its own) -------------------------------------------------
+
+    def take_lease(self, name: str, seconds: float | None = None) -> bool:
+        """The records of one process: every driver is its own (see
+        :meth:`service.shared_records.SharedJobStore.take_lease`)."""
+        return True
+
+    def release_lease(self, name: str) -> None:
+        pass
+
     # -- sweeps --------------------------------------------------------------------------
 
     def add_sweep(self, sweep_id: str, name: str, spec_json: str,
@@ -280,6 +290,17 @@ class JobStore(JobDatabase):
             counts[r["sweep_id"]][r["status"]] = r["n"]
         return counts
 
+
+
+def open_records(settings, **options):
+    """The job records ``settings`` name (``TUNNEL_CONTACT_DATABASE``): the SQLite file
+    (:func:`open_job_records`) or a shared database
+    (:class:`service.shared_records.SharedJobStore`, never "damaged": the server keeps it).
+    Returns the store and the damage found (None if none)."""
+    if settings.shared_database:
+        from .shared_records import SharedJobStore
+        return SharedJobStore(settings.database_url, ttl=settings.replica_ttl), None
+    return open_job_records(settings.database, **options)
 
 
 def open_job_records(path: Path | str, **options) -> tuple["JobStore", Optional[str]]:

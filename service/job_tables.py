@@ -24,6 +24,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator, Optional, Sequence
 
+import sqlalchemy as sa
+
 from .database import migrate_sqlite
 
 logger = logging.getLogger(__name__)
@@ -190,6 +192,10 @@ def integrity_problem(store: JobDatabase) -> Optional[str]:
         return str(exc)
     found = [r[0] for r in rows]
     return None if found == ["ok"] else "; ".join(found[:5])
+
+
+#: What a job-record call raises when the database refuses (full, read-only, locked, away).
+DATABASE_ERRORS = (sqlite3.Error, sa.exc.SQLAlchemyError)
 
 
 def is_damage(exc: BaseException) -> bool:

@@ -7,7 +7,6 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
-import sqlite3
 from pathlib import Path
 from typing import Awaitable, Callable, Optional
 
@@ -19,7 +18,7 @@ from workflows.summary import summarize
 from workflows.sweep import Sweep, expand_sweep
 
 from .job_records import UNREADABLE, JobStore, SweepRecord
-from .job_tables import integrity_problem, is_damage
+from .job_tables import DATABASE_ERRORS, integrity_problem, is_damage
 from .results import BrokenResult, public_error, stored_outcome
 
 #: The dispatcher's one logger, whichever of its modules logs.
@@ -67,7 +66,7 @@ class RecordKeeper:
         while True:
             try:
                 return write(*args, **kwargs)
-            except sqlite3.Error as exc:
+            except DATABASE_ERRORS as exc:
                 logger.warning("job records refuse a write (%s); retrying in %.1f s", exc, pause)
                 if is_damage(exc):
                     await self.recover_records(str(exc))

@@ -9,6 +9,15 @@ Environment variables
 ``TUNNEL_CONTACT_RESULTS``
     Results directory (default ``./results``): case files, plots, combined
     sweep files and the job database ``jobs.sqlite``.
+``TUNNEL_CONTACT_DATABASE``
+    SQLAlchemy URL of the job records (default: the SQLite file ``jobs.sqlite`` in the results
+    directory, one API process). ``postgresql://user:password@host/db``: PostgreSQL, shared by
+    any number of API replicas (:mod:`service.shared_records`).
+``TUNNEL_CONTACT_REPLICA_TTL``
+    Seconds after which a replica that stopped beating counts as gone and its open cases and
+    drivers are taken over by the others (default 10; PostgreSQL only).
+``TUNNEL_CONTACT_RECONCILE_INTERVAL``
+    Seconds between two reconciliations of the open records with the store (default 5).
 ``TUNNEL_CONTACT_HOST`` / ``TUNNEL_CONTACT_PORT``
     Bind address (default ``127.0.0.1:8000``; loopback unless asked otherwise).
 ``TUNNEL_CONTACT_TOKEN``
@@ -43,10 +52,15 @@ from typing import Mapping, Optional
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from .database import is_sqlite, sqlite_path
+
 #: Environment variable for each settings field.
 ENVIRONMENT = {
     "scheduler": "DASK_SCHEDULER_ADDRESS",
     "results": "TUNNEL_CONTACT_RESULTS",
+    "database_url": "TUNNEL_CONTACT_DATABASE",
+    "replica_ttl": "TUNNEL_CONTACT_REPLICA_TTL",
+    "reconcile_interval": "TUNNEL_CONTACT_RECONCILE_INTERVAL",
     "host": "TUNNEL_CONTACT_HOST",
     "port": "TUNNEL_CONTACT_PORT",
     "token": "TUNNEL_CONTACT_TOKEN",
@@ -67,6 +81,10 @@ class Settings(BaseModel):
 
     scheduler: Optional[str] = Field(None, description="external dask scheduler address; None: embedded cluster")
     results: Path = Field(Path("results"), description="results directory (case files and job database)")
+    database_url: Optional[str] = Field(None, description="SQLAlchemy URL of the job records; None: jobs.sqlite "
+                                                          "in the results directory")
+    replica_ttl: float = Field(10.0, gt=0, description="seconds of silence after which a replica's cases and "
+                                                        "drivers are taken over (shared database only)")
     host: str = Field("127.0.0.1", description="bind address")
     port: int = Field(8000, ge=0, le=65535, description="bind port")
     token: Optional[str] = Field(None, description="bearer token required on POST; None: no authentication")
@@ -86,8 +104,13 @@ class Settings(BaseModel):
 
     @property
     def database(self) -> Path:
-        """The SQLite job database inside the results directory."""
-        return self.results / "jobs.sqlite"
+        """The SQLite job database (default: inside the results directory)."""
+        return sqlite_path(self.database_url if is_sqlite(self.database_url) else None, self.results)
+
+    @property
+    def shared_database(self) -> bool:
+        """Whether the job records are in a server database (PostgreSQL) replicas share."""
+        return not is_sqlite(self.database_url)
 
     @classmethod
     def from_env(cls, environ: Mapping[str, str] | None = None, **overrides) -> "Settings":
