@@ -14,6 +14,8 @@ from fastapi import FastAPI
 from fastapi.exceptions import RequestValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
+from workflows.result_store import ResultStore
+
 from . import cases, health, pages, searches, studies, sweeps
 from .cluster import cluster_connection
 from .errors import http_error_handler, overflow_handler, request_validation_handler, store_error_handler
@@ -32,8 +34,7 @@ logger = logging.getLogger(__name__)
 async def lifespan(app: FastAPI):
     """Open the job records, connect to dask, recover unfinished cases; undo on shutdown."""
     settings: Settings = app.state.settings
-    root = settings.results.resolve()
-    root.mkdir(parents=True, exist_ok=True)
+    root = results_root(settings)
     store, damage = open_records(settings, background_checkpoints=True)
     try:
         async with cluster_connection(settings) as connect:
@@ -58,6 +59,18 @@ async def lifespan(app: FastAPI):
                 await jobs.stop()
     finally:
         store.close()
+
+
+def results_root(settings: Settings):
+    """The results as the dispatcher hands them on: the resolved folder, or, for object storage,
+    the store itself (its URL goes to the workers, its cache folder serves files here); the
+    folder (cache) is made, and the bucket if missing."""
+    store = ResultStore(settings.results)
+    store.root.mkdir(parents=True, exist_ok=True)
+    if store.url is None:
+        return store.root.resolve()
+    store.remote.make_bucket()
+    return store
 
 
 def create_app(settings: Optional[Settings] = None) -> FastAPI:

@@ -13,7 +13,7 @@ from typing import Awaitable, Callable, Optional
 from distributed import Client, Future
 from pydantic import ValidationError
 
-from workflows.result_store import ResultStore, case_warnings
+from workflows.result_store import ResultStore, StoreFiles, case_warnings
 from workflows.summary import summarize
 from workflows.sweep import Sweep, expand_sweep
 
@@ -37,7 +37,7 @@ class RecordKeeper:
                  poll_interval: float = 0.5, reconcile_interval: float = 5.0, batch_delay: float = 0.01):
         self._connect = connect
         self.store = store
-        self.root = Path(root)
+        self.root = root if isinstance(root, StoreFiles) else Path(root)
         self.poll_interval = poll_interval
         self.reconcile_interval = reconcile_interval
         self.batch_delay = batch_delay
@@ -133,8 +133,7 @@ class RecordKeeper:
                         found.append((case_id, "done", ds.attrs["case_spec"], summarize(ds), case_warnings(ds), None))
                 except Exception as exc:  # an unreadable file: left for the usual recompute
                     logger.warning("case %s not rebuilt: %s", case_id, exc)
-            for path in results.cases_dir.glob("*.error.json") if results.cases_dir.is_dir() else ():
-                case_id = path.name[:-len(".error.json")]
+            for case_id in results.error_ids():
                 error = results.read_error(case_id)
                 if error and "spec" in error and case_id not in stored:
                     spec = error["spec"] if isinstance(error["spec"], str) else json.dumps(error["spec"])

@@ -28,6 +28,7 @@ from fastapi import APIRouter, Depends, Query, Request, Response
 from pydantic import BaseModel
 
 from workflows.files import write_atomically
+from workflows.result_store import as_store
 from workflows.studies import Search, grid_cases, next_trial, trial_outcome
 from workflows.sweep import expand_sweep
 
@@ -78,7 +79,8 @@ class Searches:
 
     def __init__(self, jobs):
         self.jobs = jobs
-        self.folder = Path(jobs.root) / "searches"
+        self.results = as_store(jobs.root)
+        self.folder = self.results.root / "searches"
         self.tasks: dict[str, asyncio.Task] = {}
         self.adopting: Optional[asyncio.Task] = None
 
@@ -87,15 +89,20 @@ class Searches:
 
     def read(self, ident: str) -> Optional[SearchRecord]:
         try:
+            if not self.results.fetched(self.path(ident)):  # on object storage: the current object
+                return None
             return SearchRecord.model_validate_json(self.path(ident).read_text())
         except FileNotFoundError:
             return None
 
     def write(self, record: SearchRecord) -> None:
         write_atomically(self.path(record.id), lambda tmp: tmp.write_text(record.model_dump_json(indent=1)))
+        self.results.publish(self.path(record.id))
 
     def all(self) -> list[SearchRecord]:
         out = []
+        if self.results.url:
+            self.results.remote.sync_folder(self.folder)
         for p in sorted(self.folder.glob("*.json")):
             try:
                 out.append(SearchRecord.model_validate_json(p.read_text()))

@@ -8,7 +8,12 @@ Environment variables
     thread each).
 ``TUNNEL_CONTACT_RESULTS``
     Results directory (default ``./results``): case files, plots, combined
-    sweep files and the job database ``jobs.sqlite``.
+    sweep files and the job database ``jobs.sqlite``. Or an fsspec URL of object storage
+    (``s3://bucket/prefix``): the results are objects there (:mod:`workflows.object_store`;
+    endpoint and keys from ``AWS_ENDPOINT_URL``, ``AWS_ACCESS_KEY_ID``, ``AWS_SECRET_ACCESS_KEY`` or
+    ``TUNNEL_CONTACT_STORAGE_OPTIONS``, JSON), worked on in a local cache folder
+    (``TUNNEL_CONTACT_CACHE``, default under ``~/.cache/tunnel-contact``), where ``jobs.sqlite``
+    then lives unless ``TUNNEL_CONTACT_DATABASE`` says otherwise.
 ``TUNNEL_CONTACT_DATABASE``
     SQLAlchemy URL of the job records (default: the SQLite file ``jobs.sqlite`` in the results
     directory, one API process). ``postgresql://user:password@host/db``: PostgreSQL, shared by
@@ -48,9 +53,11 @@ from __future__ import annotations
 import os
 from functools import lru_cache
 from pathlib import Path
-from typing import Mapping, Optional
+from typing import Mapping, Optional, Union
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from workflows.object_store import cache_folder, is_url
 
 from .database import is_sqlite, sqlite_path
 
@@ -80,7 +87,8 @@ class Settings(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
     scheduler: Optional[str] = Field(None, description="external dask scheduler address; None: embedded cluster")
-    results: Path = Field(Path("results"), description="results directory (case files and job database)")
+    results: Union[Path, str] = Field(Path("results"), description="results directory (case files and job "
+                                                                    "database), or an fsspec URL (s3://bucket/prefix)")
     database_url: Optional[str] = Field(None, description="SQLAlchemy URL of the job records; None: jobs.sqlite "
                                                           "in the results directory")
     replica_ttl: float = Field(10.0, gt=0, description="seconds of silence after which a replica's cases and "
@@ -102,10 +110,21 @@ class Settings(BaseModel):
 
     access_log: bool = Field(False, description="log every request (uvicorn's access log)")
 
+    @field_validator("results", mode="before")
+    @classmethod
+    def _path_unless_url(cls, value):
+        return value if is_url(value) else Path(value)
+
+    @property
+    def results_folder(self) -> Path:
+        """The folder the results are worked on in: the results directory, or the local cache of
+        a store on object storage."""
+        return cache_folder(self.results) if is_url(self.results) else self.results
+
     @property
     def database(self) -> Path:
         """The SQLite job database (default: inside the results directory)."""
-        return sqlite_path(self.database_url if is_sqlite(self.database_url) else None, self.results)
+        return sqlite_path(self.database_url if is_sqlite(self.database_url) else None, self.results_folder)
 
     @property
     def shared_database(self) -> bool:

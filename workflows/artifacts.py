@@ -99,7 +99,7 @@ def write_combined(root: StoreLike, sweep_id: str, case_ids: Sequence[str]) -> P
     """
     store = as_store(root)
     target = store.combined_path(sweep_id, case_ids)
-    if _intact(target):
+    if _intact(target) or store.url and store.fetched(target) and _intact(target):
         return target
     with _BUILD_LOCK:
         if not _intact(target):
@@ -107,6 +107,7 @@ def write_combined(root: StoreLike, sweep_id: str, case_ids: Sequence[str]) -> P
             with netcdf_lock:
                 write_atomically(target, lambda tmp: for_netcdf(combined).to_netcdf(tmp, engine="netcdf4"),
                                  checksum=True)
+            store.publish(target)  # on object storage: one object, its checksum beside it
             logger.info("combined %d cases of sweep %s into %s", len(case_ids), sweep_id, target.name)
             for old in target.parent.glob(f"{sweep_id}-*.nc"):
                 if old != target and time.time() - old.stat().st_mtime > _STALE_AFTER:

@@ -1,6 +1,6 @@
-"""Real servers on loopback for the tests of the multi-machine deployment: a PostgreSQL
-cluster made by ``initdb`` in a temporary folder (Debian's ``postgresql`` package; the
-Makefile installs it) and an S3-compatible server (moto's server mode)."""
+"""A real PostgreSQL on loopback for the tests of the multi-machine deployment: a cluster made by
+``initdb`` in a temporary folder (Debian's ``postgresql`` package; the Makefile installs it). The
+S3-compatible server (moto's server mode) is the ``s3`` fixture of ``tests/conftest.py``."""
 from __future__ import annotations
 
 import os
@@ -82,19 +82,3 @@ def new_database(server_url: str) -> str:
         db.exec_driver_sql(f"CREATE DATABASE {name}")
     engine.dispose()
     return server_url.rsplit("/", 1)[0] + f"/{name}"
-
-
-@contextmanager
-def s3_server() -> Iterator[dict]:
-    """moto's S3 server on a free loopback port; yields the environment a client needs
-    (``AWS_ENDPOINT_URL`` and made-up keys)."""
-    from moto.server import ThreadedMotoServer
-
-    port = free_port()
-    server = ThreadedMotoServer(ip_address="127.0.0.1", port=port, verbose=False)
-    server.start()
-    try:
-        yield {"AWS_ENDPOINT_URL": f"http://127.0.0.1:{port}", "AWS_ACCESS_KEY_ID": "test",
-               "AWS_SECRET_ACCESS_KEY": "test", "AWS_DEFAULT_REGION": "us-east-1"}
-    finally:
-        server.stop()
