@@ -57,6 +57,11 @@ def written(root: Path, case_id: str) -> None:
         _VERIFIED[case_id] = version
 
 
+def forget_read(case_id: str) -> None:
+    """Read the file of ``case_id`` again at its next check (its copy proved unreadable)."""
+    _VERIFIED.pop(case_id, None)
+
+
 def result_state(root: Path, case_id: str) -> str:
     """``"missing"``, ``"readable"`` or ``"broken"`` (reads the file unless this version was read)."""
     version = as_store(root).version(case_id)

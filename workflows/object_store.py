@@ -87,7 +87,11 @@ class Remote:
         """Create the bucket if missing (a new deployment's first start)."""
         bucket = self.base.split("/", 1)[0]
         if not self.fs.exists(bucket):
-            self.fs.mkdir(bucket)
+            try:
+                self.fs.mkdir(bucket)
+            except (FileExistsError, PermissionError, OSError) as exc:  # made meanwhile by another replica
+                if not self.fs.exists(bucket):
+                    raise OSError(f"cannot make the bucket {bucket}: {exc}") from exc
 
     # -- objects -------------------------------------------------------------------------
 

@@ -343,12 +343,26 @@ class StoreFiles:
         DamagedFile
             If the file no longer matches its checksum (to be recomputed, never served).
         """
+        path = self.verified_copy(case_id)
+        with netcdf_lock, xr.open_dataset(path, **OPEN_OPTIONS) as ds:
+            yield ds
+
+    def verified_copy(self, case_id: str) -> Path:
+        """The stored file of ``case_id`` (on object storage: the cached copy of its object,
+        fetched if it changed), checked against its checksum.
+
+        Raises
+        ------
+        FileNotFoundError
+            If the case is not stored.
+        DamagedFile
+            If the file no longer matches its checksum.
+        """
         path = self.case_path(case_id)
         if self.url and not self.remote.fetch(path):
             raise FileNotFoundError(errno.ENOENT, "case is not stored", f"{self.url}/cases/{path.name}")
         verify(path)
-        with netcdf_lock, xr.open_dataset(path, **OPEN_OPTIONS) as ds:
-            yield ds
+        return path
 
     def open_case(self, case_id: str) -> xr.Dataset:
         """Read the stored result of ``case_id`` fully into memory (the file is closed).
