@@ -40,6 +40,8 @@ logger = logging.getLogger(__name__)
 #: Seconds between a replica's heartbeats, and after which a silent replica counts as dead.
 HEARTBEAT = 1.0
 TTL = 10.0
+#: Seconds after which the row of a replica long gone is deleted (by the next replica to start).
+FORGET_AFTER = 86400.0
 
 metadata = sa.MetaData()
 cases = sa.Table(
@@ -76,6 +78,7 @@ class SharedJobStore:
         migrate(self.engine)
         with self.engine.begin() as db:
             now = time.time()
+            db.execute(replicas.delete().where(replicas.c.heartbeat_at < now - FORGET_AFTER))
             db.execute(self._insert(replicas).values(id=self.replica, started_at=now, heartbeat_at=now)
                        .on_conflict_do_update(index_elements=["id"], set_={"heartbeat_at": now}))
         self._stopping = threading.Event()

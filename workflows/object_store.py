@@ -145,6 +145,13 @@ class Remote:
         return self.info(path) is not None
 
     def remove(self, *paths: Path) -> None:
+        """Delete the objects of ``paths`` (absent ones are no error; many go in bulk requests)."""
+        if len(paths) > 1:
+            try:
+                self.fs.rm([self.key(p) for p in paths])
+                return
+            except FileNotFoundError:
+                pass
         for path in paths:
             try:
                 self.fs.rm_file(self.key(path))

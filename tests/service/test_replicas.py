@@ -29,6 +29,8 @@ CASES = 60
 SWEEP = {"name": "replicas", "base": coarse_case(), "mode": "grid",
          "vary": {"ground.young": [1.5e7 + 1e6 * i for i in range(CASES)]}}
 TTL = 3.0
+#: What two solves of one case need not share: their time and the round-off left in the KKT conditions.
+DIAGNOSTICS = {"solve_seconds", "kkt_residual"}
 
 
 @pytest.mark.slow
@@ -133,8 +135,10 @@ def check_equal_to_a_local_run(base: str, tmp_path) -> None:
     assert set(served_ds.variables) == set(local_ds.variables) and served_ds.attrs["case_spec"] == spec.canonical_json()
     # the same to round-off (another process; a closed gap is zero to 1e-17 either way)
     for name, expected in local_ds.variables.items():
-        if name == "solve_seconds" or expected.dtype.kind not in "fc":
-            assert name == "solve_seconds" or np.array_equal(served_ds[name].values, expected.values), name
+        if name in DIAGNOSTICS:
+            continue
+        if expected.dtype.kind not in "fc":
+            assert np.array_equal(served_ds[name].values, expected.values), name
             continue
         scale = float(np.nanmax(np.abs(expected.values))) if expected.size else 0.0
         np.testing.assert_allclose(served_ds[name].values, expected.values, rtol=1e-8, atol=max(1e-10 * scale, 1e-12),
