@@ -23,7 +23,7 @@ from .guards import BodyLimitMiddleware, SameOriginMiddleware, TokenReadsMiddlew
 from .jobs import Dispatcher
 from .searches import Searches
 from .settings import Settings, get_settings
-from .job_records import open_records
+from .job_stores import open_records
 from .job_tables import DATABASE_ERRORS
 from .views import mount_static
 

@@ -1,8 +1,9 @@
 """The comparison table of a sweep: one row per case, what varies first, then the results.
 
 The same table feeds ``GET /sweeps/{id}/table`` (JSON), ``GET /sweeps/{id}/summary.csv``,
-``GET /sweeps/{id}/table.parquet`` (with the sweep's ``name``: :func:`table_parquet`) and the sweep page of the dashboard. It is built from the job records alone (the
-summary scalars recorded when each case finished), so it costs no file reads.
+``GET /sweeps/{id}/table.parquet`` (with the sweep's ``name``: :func:`table_parquet`) and the
+sweep page of the dashboard. It is built from the job records alone (the summary scalars
+recorded when each case finished), so it costs no file reads.
 
 Columns, in order
 -----------------

@@ -85,7 +85,14 @@ def migrate_sqlite(path: Path) -> None:
     finally:
         db.close()
     engine = sa.create_engine(f"sqlite:///{Path(path).resolve()}", poolclass=sa.pool.NullPool,
-                              connect_args={"timeout": 30})
+                              connect_args={"timeout": 30, "isolation_level": None})
+
+    # SQLite's own transactions (SQLAlchemy's recipe for pysqlite): every migration in one, so the
+    # tables of a new file cost one sync of the disk, not one per statement
+    @sa.event.listens_for(engine, "begin")
+    def _begin(connection):
+        connection.exec_driver_sql("BEGIN IMMEDIATE")
+
     try:
         migrate(engine)
     except sa.exc.DBAPIError as exc:

@@ -292,17 +292,6 @@ class JobStore(JobDatabase):
 
 
 
-def open_records(settings, **options):
-    """The job records ``settings`` name (``TUNNEL_CONTACT_DATABASE``): the SQLite file
-    (:func:`open_job_records`) or a shared database
-    (:class:`service.shared_records.SharedJobStore`, never "damaged": the server keeps it).
-    Returns the store and the damage found (None if none)."""
-    if settings.shared_database:
-        from .shared_records import SharedJobStore
-        return SharedJobStore(settings.database_url, ttl=settings.replica_ttl), None
-    return open_job_records(settings.database, **options)
-
-
 def open_job_records(path: Path | str, **options) -> tuple["JobStore", Optional[str]]:
     """The job records at ``path``, checked (:func:`integrity_problem`); a damaged database
     (a broken header: "file is not a database"; a broken page) is moved aside

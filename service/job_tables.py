@@ -1,6 +1,6 @@
 """The SQLite file of the job records: the one connection and its lock (the schema and its
-migrations are Alembic's: :mod:`service.database`), the checkpoints, and what to do with a damaged file. The records themselves (cases,
-sweeps and the queries over them) are :class:`service.job_records.JobStore`, built on
+migrations are Alembic's: :mod:`service.database`), the checkpoints, and what to do with a
+damaged file. The records themselves (cases, sweeps and the queries over them) are :class:`service.job_records.JobStore`, built on
 :class:`JobDatabase`.
 
 One connection, serialised by a lock, is shared by the event loop and worker threads;

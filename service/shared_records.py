@@ -4,9 +4,8 @@ The same records and queries as :class:`service.job_records.JobStore` (the one-p
 file), in SQLAlchemy Core over a connection pool, plus what replicas need to share them:
 
 Replicas
-    Each process is one row of ``replicas`` (a random id), its ``heartbeat_at`` renewed every
-    :data:`HEARTBEAT` seconds by a thread of the store's. A replica whose heartbeat is older
-    than ``ttl`` (default :data:`TTL`) is taken for dead.
+    Each process is a :class:`service.replicas.Replica`: a heartbeat row, dead once silent
+    for ``ttl`` seconds.
 Claims
     An open case (``queued``, ``running``) is submitted and watched by one replica, its
     ``claimed_by``: the one that accepted it, else the one that claimed it in a reconciliation
@@ -17,31 +16,19 @@ Claims
     attaches to a task still on the scheduler instead of running the case twice.
 Leases
     A driver (a search) runs in the replica that holds the lease row named after it
-    (:meth:`SharedJobStore.take_lease`), renewed while it drives, taken over once expired.
+    (:meth:`service.replicas.Replica.take_lease`), renewed while it drives, taken over once expired.
 """
 from __future__ import annotations
 
 import json
-import logging
-import threading
 import time
-import uuid
 from typing import Iterable, Optional, Sequence
 
 import sqlalchemy as sa
-from sqlalchemy.dialects import postgresql, sqlite
 
-from .database import engine_url, migrate
 from .job_records import CaseRecord, SweepRecord, _case, _sweep
 from .job_tables import STATUSES
-
-logger = logging.getLogger(__name__)
-
-#: Seconds between a replica's heartbeats, and after which a silent replica counts as dead.
-HEARTBEAT = 1.0
-TTL = 10.0
-#: Seconds after which the row of a replica long gone is deleted (by the next replica to start).
-FORGET_AFTER = 86400.0
+from .replicas import Replica
 
 metadata = sa.MetaData()
 cases = sa.Table(
@@ -54,94 +41,13 @@ sweeps = sa.Table("sweeps", metadata, sa.Column("id", sa.Text, primary_key=True)
                   sa.Column("spec", sa.Text), sa.Column("submitted_at", sa.Float))
 sweep_cases = sa.Table("sweep_cases", metadata, sa.Column("sweep_id", sa.Text), sa.Column("position", sa.Integer),
                        sa.Column("case_id", sa.Text))
-replicas = sa.Table("replicas", metadata, sa.Column("id", sa.Text, primary_key=True),
-                    sa.Column("started_at", sa.Float), sa.Column("heartbeat_at", sa.Float))
-leases = sa.Table("leases", metadata, sa.Column("name", sa.Text, primary_key=True), sa.Column("owner", sa.Text),
-                  sa.Column("expires_at", sa.Float))
 
 OPEN = ("queued", "running")
 
 
-class SharedJobStore:
-    """The job records at the SQLAlchemy URL ``url`` (schema migrated by Alembic on opening),
-    as one replica among others: ``replica`` is this process's id (default: a new one)."""
-
-    read_only = False
-
-    def __init__(self, url: str, *, replica: Optional[str] = None, ttl: float = TTL,
-                 heartbeat: float = HEARTBEAT, **_options):
-        self.url = url
-        self.replica = replica or uuid.uuid4().hex[:12]
-        self.ttl = ttl
-        self.engine = sa.create_engine(engine_url(url), pool_pre_ping=True, pool_size=5, max_overflow=10)
-        self._insert = postgresql.insert if self.engine.dialect.name == "postgresql" else sqlite.insert
-        migrate(self.engine)
-        with self.engine.begin() as db:
-            now = time.time()
-            db.execute(replicas.delete().where(replicas.c.heartbeat_at < now - FORGET_AFTER))
-            db.execute(self._insert(replicas).values(id=self.replica, started_at=now, heartbeat_at=now)
-                       .on_conflict_do_update(index_elements=["id"], set_={"heartbeat_at": now}))
-        self._stopping = threading.Event()
-        self._beating = threading.Thread(target=self._beat, args=(heartbeat,), daemon=True,
-                                         name=f"heartbeat {self.replica}")
-        self._beating.start()
-
-    def __repr__(self) -> str:
-        return f"SharedJobStore({self.engine.url.render_as_string(hide_password=True)!r}, replica={self.replica!r})"
-
-    # -- replicas ------------------------------------------------------------------------
-
-    def _beat(self, interval: float) -> None:
-        while not self._stopping.wait(interval):
-            try:
-                self.heartbeat()
-            except sa.exc.SQLAlchemyError as exc:  # the database away for a while: beat again later
-                logger.warning("replica heartbeat failed (%s)", exc)
-
-    def heartbeat(self) -> None:
-        with self.engine.begin() as db:
-            db.execute(replicas.update().where(replicas.c.id == self.replica).values(heartbeat_at=time.time()))
-
-    def _live(self) -> sa.Select:
-        """Ids of the replicas heard from within ``ttl``."""
-        return sa.select(replicas.c.id).where(replicas.c.heartbeat_at > time.time() - self.ttl)
-
-    def close(self) -> None:
-        self._stopping.set()
-        self._beating.join()
-        try:  # leave at once: the other replicas take this one's open cases in their next round
-            with self.engine.begin() as db:
-                db.execute(replicas.update().where(replicas.c.id == self.replica).values(heartbeat_at=0.0))
-                db.execute(leases.delete().where(leases.c.owner == self.replica))
-        except sa.exc.SQLAlchemyError as exc:
-            logger.warning("could not sign replica %s off (%s)", self.replica, exc)
-        self.engine.dispose()
-
-    def writable(self) -> bool:
-        try:
-            with self.engine.begin() as db:
-                db.execute(sa.select(1))
-            return True
-        except sa.exc.SQLAlchemyError:
-            return False
-
-    # -- leases --------------------------------------------------------------------------
-
-    def take_lease(self, name: str, seconds: float | None = None) -> bool:
-        """Hold (or renew) the lease ``name`` for ``seconds`` (default ``ttl``) if it is free,
-        expired or already this replica's; True if this replica holds it now."""
-        now = time.time()
-        until = now + (seconds or self.ttl)
-        statement = (self._insert(leases).values(name=name, owner=self.replica, expires_at=until)
-                     .on_conflict_do_update(index_elements=["name"], set_={"owner": self.replica, "expires_at": until},
-                                            where=(leases.c.owner == self.replica) | (leases.c.expires_at < now)))
-        with self.engine.begin() as db:
-            db.execute(statement)
-            return db.execute(sa.select(leases.c.owner).where(leases.c.name == name)).scalar() == self.replica
-
-    def release_lease(self, name: str) -> None:
-        with self.engine.begin() as db:
-            db.execute(leases.delete().where((leases.c.name == name) & (leases.c.owner == self.replica)))
+class SharedJobStore(Replica):
+    """The job records at the SQLAlchemy URL ``url`` as one replica among others
+    (:class:`service.replicas.Replica`: heartbeat, leases)."""
 
     # -- cases ---------------------------------------------------------------------------
 
@@ -166,7 +72,8 @@ class SharedJobStore:
                  else (cases.c.submitted_at, cases.c.id))
         with self.engine.connect() as db:
             total = db.execute(sa.select(sa.func.count()).select_from(cases).where(where)).scalar()
-            rows = db.execute(sa.select(cases).where(where).order_by(*order).limit(limit).offset(offset)).mappings().all()
+            rows = db.execute(sa.select(cases).where(where).order_by(*order).limit(limit).offset(offset)
+                              ).mappings().all()
         return [_case(r) for r in rows], total
 
     def open_case_ids(self) -> list[str]:
@@ -175,7 +82,7 @@ class SharedJobStore:
         another replica is claiming at this moment is left to it)."""
         claimable = (cases.c.status.in_(OPEN)
                      & (cases.c.claimed_by.is_(None) | (cases.c.claimed_by == self.replica)
-                        | cases.c.claimed_by.not_in(self._live())))
+                        | cases.c.claimed_by.not_in(self.live())))
         with self.engine.begin() as db:
             ids = db.execute(sa.select(cases.c.id).where(claimable).order_by(cases.c.submitted_at, cases.c.id)
                              .with_for_update(skip_locked=True)).scalars().all()

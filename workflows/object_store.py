@@ -240,6 +240,38 @@ class Remote:
 _ETAG_DIR = ".etags"
 
 
+class ObjectCopies:
+    """What a store whose files may be objects offers (mixed into
+    :class:`workflows.store_files.StoreFiles`, whose ``root`` and ``url`` it reads): ``url`` None
+    is a local folder, where publishing does nothing and a file is there or not."""
+
+    root: Path
+    url: Optional[str]
+
+    def __str__(self) -> str:
+        """Where the store is, as every process names it: its URL, else its folder."""
+        return self.url or str(self.root)
+
+    def __fspath__(self) -> str:
+        """The folder the files are worked on in (the cache of a store on object storage)."""
+        return str(self.root)
+
+    @property
+    def remote(self) -> Optional[Remote]:
+        """The objects of a store on object storage; None for a local folder."""
+        return Remote(self.url, self.root) if self.url else None
+
+    def publish(self, path: Path) -> None:
+        """Upload a file just written in the cache folder as its object (nothing for a local store)."""
+        if self.url:
+            self.remote.publish(path)
+
+    def fetched(self, path: Path) -> bool:
+        """Whether ``path`` is there, for a store on object storage after copying its current
+        object into the cache (unchanged copies are not downloaded again)."""
+        return self.remote.fetch(path) if self.url else path.is_file()
+
+
 def etag(info: dict) -> str:
     """What identifies one version of an object: its ETag (else size and time)."""
     tag = info.get("ETag") or info.get("etag") or info.get("md5") or ""

@@ -54,7 +54,7 @@ from solver.geometry.sizing import estimated_elements
 from solver.spec import CaseSpec
 
 from .files import verify, write_atomically
-from .object_store import Remote, cache_folder, is_url, object_key
+from .object_store import ObjectCopies, cache_folder, is_url, object_key
 
 logger = logging.getLogger(__name__)
 #: Every netCDF read and write of this process goes through this lock: the netCDF-C and
@@ -128,7 +128,7 @@ def file_key(stat: os.stat_result) -> FileKey:
 
 
 @dataclass(frozen=True)
-class StoreFiles:
+class StoreFiles(ObjectCopies):
     """The results directory ``root``: where each file lives, and the files read back.
 
     Cheap to create and picklable (it holds only the path), so it can be handed to
@@ -148,28 +148,6 @@ class StoreFiles:
             root = cache_folder(self.url)
         object.__setattr__(self, "root", Path(root))
 
-    def __str__(self) -> str:
-        """Where the store is, as every process names it: its URL, else its folder."""
-        return self.url or str(self.root)
-
-    def __fspath__(self) -> str:
-        """The folder the files are worked on in (the cache of a store on object storage)."""
-        return str(self.root)
-
-    @property
-    def remote(self) -> Remote | None:
-        """The objects of a store on object storage; None for a local folder."""
-        return Remote(self.url, self.root) if self.url else None
-
-    def publish(self, path: Path) -> None:
-        """Upload a file just written in the cache folder as its object (nothing for a local store)."""
-        if self.url:
-            self.remote.publish(path)
-
-    def fetched(self, path: Path) -> bool:
-        """Whether ``path`` is there, for a store on object storage after copying its current
-        object into the cache (unchanged copies are not downloaded again)."""
-        return self.remote.fetch(path) if self.url else path.is_file()
 
     # -- layout ------------------------------------------------------------------------
 
