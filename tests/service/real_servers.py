@@ -17,11 +17,13 @@ import pytest
 
 from service.process import free_port
 
-POSTGRES_BIN = Path("/usr/lib/postgresql/15/bin")
+#: Where Debian's ``postgresql`` package puts its programs (not on PATH), newest version first.
+POSTGRES_BINS = sorted(Path("/usr/lib/postgresql").glob("*/bin"), key=lambda p: int(p.parent.name), reverse=True) \
+    if Path("/usr/lib/postgresql").is_dir() else []
 
 
 def _pg_tool(name: str) -> str:
-    found = shutil.which(name) or (str(POSTGRES_BIN / name) if (POSTGRES_BIN / name).exists() else None)
+    found = shutil.which(name) or next((str(b / name) for b in POSTGRES_BINS if (b / name).exists()), None)
     if found is None:
         pytest.skip(f"PostgreSQL's {name} is not installed (make sysdeps installs Debian's postgresql)")
     return found
