@@ -8,6 +8,8 @@ DEB_LIBS := libglu1-mesa libgl1 libxrender1 libxcursor1 libxfixes3 libxext6 libx
             libfontconfig1 libxinerama1 libx11-6 libgomp1
 # the dashboard's browser tests drive Debian's headless Chromium through its driver.
 DEB_LIBS += chromium chromium-driver
+# the tests of the multi-machine deployment start a PostgreSQL of their own (initdb, pg_ctl).
+DEB_LIBS += postgresql
 
 .PHONY: test demo bench sysdeps venv clean
 

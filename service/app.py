@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import gc
 import logging
-import sqlite3
 from contextlib import asynccontextmanager
 from typing import Optional
 
@@ -16,6 +15,7 @@ from fastapi.exceptions import RequestValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from workflows.files import DamagedFile
+from workflows.result_store import ResultStore
 
 from . import cases, health, pages, searches, studies, sweeps
 from .cluster import cluster_connection
@@ -26,7 +26,8 @@ from .guards import (AllowedHostsMiddleware, BodyLimitMiddleware, SameOriginMidd
 from .jobs import Dispatcher
 from .searches import Searches
 from .settings import Settings, get_settings
-from .job_records import open_job_records
+from .job_stores import open_records
+from .job_tables import DATABASE_ERRORS
 from .views import mount_static
 
 logger = logging.getLogger(__name__)
@@ -36,9 +37,8 @@ logger = logging.getLogger(__name__)
 async def lifespan(app: FastAPI):
     """Open the job records, connect to dask, recover unfinished cases; undo on shutdown."""
     settings: Settings = app.state.settings
-    root = settings.results.resolve()
-    root.mkdir(parents=True, exist_ok=True)
-    store, damage = open_job_records(settings.database, background_checkpoints=True)
+    root = results_root(settings)
+    store, damage = open_records(settings, background_checkpoints=True)
     try:
         async with cluster_connection(settings) as connect:
             jobs = Dispatcher(connect, store, root, poll_interval=settings.poll_interval,
@@ -64,6 +64,18 @@ async def lifespan(app: FastAPI):
         store.close()
 
 
+def results_root(settings: Settings):
+    """The results as the dispatcher hands them on: the resolved folder, or, for object storage,
+    the store itself (its URL goes to the workers, its cache folder serves files here); the
+    folder (cache) is made, and the bucket if missing."""
+    store = ResultStore(settings.results)
+    store.root.mkdir(parents=True, exist_ok=True)
+    if store.url is None:
+        return store.root.resolve()
+    store.remote.make_bucket()
+    return store
+
+
 def create_app(settings: Optional[Settings] = None) -> FastAPI:
     """The service as an ASGI app (``uvicorn --factory service.app:create_app`` works too).
 
@@ -86,7 +98,7 @@ def create_app(settings: Optional[Settings] = None) -> FastAPI:
     app.add_middleware(SameOriginMiddleware)  # a cross-site POST is refused before its body is read
     app.add_middleware(AllowedHostsMiddleware, settings=app.state.settings)  # outermost: a foreign Host, first
     app.add_exception_handler(RequestValidationError, request_validation_handler)
-    for error in (sqlite3.DatabaseError, OSError):  # full, read-only, locked, damaged: 503
+    for error in (*DATABASE_ERRORS, OSError):  # full, read-only, locked, damaged, away: 503
         app.add_exception_handler(error, store_error_handler)
     app.add_exception_handler(OverflowError, overflow_handler)
     app.add_exception_handler(DamagedFile, damaged_file_handler)

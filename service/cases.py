@@ -10,6 +10,7 @@ from fastapi import APIRouter, Depends, Query, Request, Response
 from fastapi.responses import FileResponse
 
 from solver.spec import CaseSpec, content_id
+from workflows.files import DamagedFile
 from workflows.plots import PLOTS, STAGED_PLOTS
 from workflows.result_store import as_store, estimated_result_bytes
 
@@ -18,6 +19,7 @@ from .errors import invalid, responses
 from .guards import check_capacity, require_token
 from .job_records import UNREADABLE
 from .params import NETCDF, CaseId, Offset, jobs_of, not_found, not_ready
+from .results import forget_read
 from .schemas import Case, CaseAccepted, CasePage, FieldError, Status, json_response
 
 router = APIRouter(prefix="/cases", tags=["cases"])
@@ -99,9 +101,17 @@ async def _result_of_done_case(request: Request, case_id: str) -> Path:
         raise not_found("case", case_id)
     if record.status != "done":
         raise not_ready(f"case {case_id}", record.status)
-    if await jobs.recompute_broken(case_id):
+    store = as_store(jobs.root)
+    broken = await jobs.recompute_broken(case_id)
+    if not broken and store.url:  # on object storage: a verified copy of the object to serve
+        try:
+            await asyncio.to_thread(store.verified_copy, case_id)
+        except (FileNotFoundError, DamagedFile):
+            forget_read(case_id)
+            broken = await jobs.recompute_broken(case_id)
+    if broken:
         raise not_ready(f"case {case_id}", "its stored result was missing or unreadable; it is being recomputed")
-    return as_store(jobs.root).case_path(case_id)
+    return store.case_path(case_id)
 
 
 @router.get("/{case_id}/result.nc", response_class=FileResponse, responses={

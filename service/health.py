@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import asyncio
-import sqlite3
 
 from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
@@ -11,6 +10,7 @@ from solver.spec import CaseSpec
 from workflows.files import can_write
 from workflows.result_store import estimated_result_bytes, free_bytes
 
+from .job_tables import DATABASE_ERRORS
 from .params import jobs_of, settings_of
 from .schemas import Health
 
@@ -32,7 +32,7 @@ async def health(request: Request) -> Health | JSONResponse:
     writable = await asyncio.to_thread(can_write, jobs.root) and jobs.store.writable()
     try:
         counts = jobs.store.status_counts()
-    except sqlite3.Error:
+    except DATABASE_ERRORS:
         counts, writable = {"queued": 0, "running": 0}, False
     reasons = [text for ok, text in (
         (reachable, "scheduler unreachable"), (not reachable or workers > 0, "no workers"),

@@ -228,6 +228,16 @@ class JobStore(JobDatabase):
                           (json.dumps(list(case_ids)),))
         return {r["id"]: r["status"] for r in rows}
 
+    # -- leases (one process: always its own) -------------------------------------------------
+
+    def take_lease(self, name: str, seconds: float | None = None) -> bool:
+        """The records of one process: every driver is its own (see
+        :meth:`service.shared_records.SharedJobStore.take_lease`)."""
+        return True
+
+    def release_lease(self, name: str) -> None:
+        pass
+
     # -- sweeps --------------------------------------------------------------------------
 
     def add_sweep(self, sweep_id: str, name: str, spec_json: str, cases: Sequence[tuple[str, str]],

@@ -1,6 +1,6 @@
-"""The SQLite file of the job records: its schema and migrations, the one connection and its
-lock, the checkpoints, and what to do with a damaged file. The records themselves (cases,
-sweeps and the queries over them) are :class:`service.job_records.JobStore`, built on
+"""The SQLite file of the job records: the one connection and its lock (the schema and its
+migrations are Alembic's: :mod:`service.database`), the checkpoints, and what to do with a
+damaged file. The records themselves (cases, sweeps and the queries over them) are :class:`service.job_records.JobStore`, built on
 :class:`JobDatabase`.
 
 One connection, serialised by a lock, is shared by the event loop and worker threads;
@@ -24,6 +24,10 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator, Optional, Sequence
 
+import sqlalchemy as sa
+
+from .database import migrate_sqlite
+
 logger = logging.getLogger(__name__)
 
 #: Seconds between the checkpoints of a store with ``background_checkpoints``.
@@ -34,40 +38,6 @@ WAL_SIZE_LIMIT = 4 << 20
 #: Case states. ``queued`` and ``running`` are open; ``done`` and ``failed`` are final;
 #: ``cancelled`` (a queued case whose sweep was cancelled) is final until submitted again.
 STATUSES = ("queued", "running", "done", "failed", "cancelled")
-
-_CASES_TABLE = """
-CREATE TABLE IF NOT EXISTS {name} (
-    id           TEXT PRIMARY KEY,
-    spec         TEXT NOT NULL,
-    status       TEXT NOT NULL CHECK (status IN ('queued', 'running', 'done', 'failed', 'cancelled')),
-    summary      TEXT,
-    error        TEXT,
-    submitted_at REAL NOT NULL,
-    started_at   REAL,
-    finished_at  REAL,
-    submissions  INTEGER NOT NULL DEFAULT 0,
-    warnings     TEXT,
-    room         INTEGER
-);
-"""
-
-_SCHEMA = _CASES_TABLE.format(name="cases") + """
-CREATE INDEX IF NOT EXISTS cases_by_status ON cases (status, submitted_at);
-CREATE TABLE IF NOT EXISTS sweeps (
-    id           TEXT PRIMARY KEY,
-    name         TEXT NOT NULL,
-    spec         TEXT NOT NULL,
-    submitted_at REAL NOT NULL
-);
-CREATE TABLE IF NOT EXISTS sweep_cases (
-    sweep_id     TEXT NOT NULL REFERENCES sweeps (id),
-    position     INTEGER NOT NULL,
-    case_id      TEXT NOT NULL REFERENCES cases (id),
-    PRIMARY KEY (sweep_id, position)
-);
-"""
-
-
 
 class _Checkpointer(threading.Thread):
     """Checkpoints the WAL of ``path`` every ``interval`` seconds until stopped."""
@@ -132,7 +102,9 @@ class JobDatabase:
                 self._open()
 
     def _open(self) -> None:
-        """Connect (the lock held), create or migrate the schema, start the checkpoints."""
+        """Create or migrate the schema (Alembic, :func:`service.database.migrate_sqlite`),
+        connect (the lock held), start the checkpoints."""
+        migrate_sqlite(self.path)
         self._db = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None, timeout=30)
         self._db.row_factory = sqlite3.Row
         try:
@@ -142,10 +114,7 @@ class JobDatabase:
             # the log file is cut back to this size after each checkpoint (a burst of 10^4
             # cases left a 166 MB log beside an 8.8 MB database when it was not)
             self._db.execute(f"PRAGMA journal_size_limit={WAL_SIZE_LIMIT}")
-            self._migrate_status_check()
-            self._migrate_added_columns()
             self._db.execute("PRAGMA foreign_keys=ON")
-            self._db.executescript(_SCHEMA)
             # a new case's row as the table makes it: every column's default, evaluated by SQLite
             columns = self._db.execute("PRAGMA table_info(cases)").fetchall()
             defaults = self._db.execute("SELECT " + ", ".join(c["dflt_value"] or "NULL" for c in columns)).fetchone()
@@ -172,36 +141,6 @@ class JobDatabase:
                 pass
             move_aside(self.path, problem)
             self._open()
-
-    def _migrate_status_check(self) -> None:
-        """Let a database written before ``cancelled`` existed take that status.
-
-        SQLite cannot alter a CHECK constraint: the table is rebuilt (the documented
-        procedure: foreign keys off, copy, drop, rename) in one transaction.
-        """
-        row = self._db.execute("SELECT sql FROM sqlite_master WHERE type = 'table' AND name = 'cases'").fetchone()
-        if row is None or "'cancelled'" in row[0]:
-            return
-        self._db.execute("PRAGMA foreign_keys=OFF")
-        with self._transaction() as db:
-            db.execute(_CASES_TABLE.format(name="cases_new"))
-            columns = ("id, spec, status, summary, error, submitted_at, started_at, finished_at, submissions"
-                       + (", warnings" if "warnings" in self._case_columns() else ""))
-            db.execute(f"INSERT INTO cases_new ({columns}) SELECT {columns} FROM cases")
-            db.execute("DROP TABLE cases")
-            db.execute("ALTER TABLE cases_new RENAME TO cases")
-
-    def _case_columns(self) -> set[str]:
-        return {r[1] for r in self._db.execute("PRAGMA table_info(cases)").fetchall()}
-
-    def _migrate_added_columns(self) -> None:
-        """Give a database written before a column of ``cases`` existed that column: the case
-        warnings, and the room (bytes) a case's result is expected to take (unknown, NULL,
-        for the cases recorded before)."""
-        columns = self._case_columns()
-        for name, kind in (("warnings", "TEXT"), ("room", "INTEGER")):
-            if columns and name not in columns:
-                self._db.execute(f"ALTER TABLE cases ADD COLUMN {name} {kind}")
 
     def close(self) -> None:
         if self._checkpointer is not None:
@@ -253,6 +192,10 @@ def integrity_problem(store: JobDatabase) -> Optional[str]:
         return str(exc)
     found = [r[0] for r in rows]
     return None if found == ["ok"] else "; ".join(found[:5])
+
+
+#: What a job-record call raises when the database refuses (full, read-only, locked, away).
+DATABASE_ERRORS = (sqlite3.Error, sa.exc.SQLAlchemyError)
 
 
 def is_damage(exc: BaseException) -> bool:

@@ -59,7 +59,7 @@ def stop(process: subprocess.Popen, *, timeout: float = 10.0, sig: int = signal.
     process.wait(timeout=timeout)
 
 
-def api_command(*, port: int, results: Path, scheduler: Optional[str] = None) -> list[str]:
+def api_command(*, port: int, results: Path | str, scheduler: Optional[str] = None) -> list[str]:
     """Command line of ``tunnel-contact -v serve`` on 127.0.0.1:``port`` with this interpreter."""
     args = [sys.executable, "-m", "service.cli", "-v", "serve", "--host", "127.0.0.1", "--port", str(port),
             "--results", str(results)]
@@ -137,7 +137,7 @@ def running_cluster(n_workers: int = 2, *, logs: Optional[Path] = None, nice: in
 
 
 @contextmanager
-def running_service(results: Path, *, scheduler: Optional[str] = None, log: Optional[Path] = None,
+def running_service(results: Path | str, *, scheduler: Optional[str] = None, log: Optional[Path] = None,
                     timeout: float = 90.0, env: Optional[dict] = None, workers: int = 1) -> Iterator[str]:
     """Run the service (embedded cluster unless ``scheduler``) on a free port; yield its URL.
 
@@ -145,7 +145,7 @@ def running_service(results: Path, *, scheduler: Optional[str] = None, log: Opti
     """
     port = free_port()
     url = f"http://127.0.0.1:{port}"
-    process = start(api_command(port=port, results=Path(results), scheduler=scheduler), log=log, env=env)
+    process = start(api_command(port=port, results=results, scheduler=scheduler), log=log, env=env)
     logger.info("service starting at %s (pid %d)", url, process.pid)
     try:
         wait_healthy(url, timeout=timeout, process=process, workers=workers)

@@ -7,19 +7,18 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
-import sqlite3
 from pathlib import Path
 from typing import Awaitable, Callable, Optional
 
 from distributed import Client, Future
 from pydantic import ValidationError
 
-from workflows.result_store import ResultStore, case_warnings
+from workflows.result_store import ResultStore, StoreFiles, case_warnings
 from workflows.summary import summarize
 from workflows.sweep import Sweep, expand_sweep
 
 from .job_records import UNREADABLE, JobStore, SweepRecord
-from .job_tables import integrity_problem, is_damage
+from .job_tables import DATABASE_ERRORS, integrity_problem, is_damage
 from .results import BrokenResult, public_error, stored_outcome
 
 #: The dispatcher's one logger, whichever of its modules logs.
@@ -38,7 +37,7 @@ class RecordKeeper:
                  poll_interval: float = 0.5, reconcile_interval: float = 5.0, batch_delay: float = 0.01):
         self._connect = connect
         self.store = store
-        self.root = Path(root)
+        self.root = root if isinstance(root, StoreFiles) else Path(root)
         self.poll_interval = poll_interval
         self.reconcile_interval = reconcile_interval
         self.batch_delay = batch_delay
@@ -67,7 +66,7 @@ class RecordKeeper:
         while True:
             try:
                 return write(*args, **kwargs)
-            except sqlite3.Error as exc:
+            except DATABASE_ERRORS as exc:
                 logger.warning("job records refuse a write (%s); retrying in %.1f s", exc, pause)
                 if is_damage(exc):
                     await self.recover_records(str(exc))
@@ -134,8 +133,7 @@ class RecordKeeper:
                         found.append((case_id, "done", ds.attrs["case_spec"], summarize(ds), case_warnings(ds), None))
                 except Exception as exc:  # an unreadable file: left for the usual recompute
                     logger.warning("case %s not rebuilt: %s", case_id, exc)
-            for path in results.cases_dir.glob("*.error.json") if results.cases_dir.is_dir() else ():
-                case_id = path.name[:-len(".error.json")]
+            for case_id in results.error_ids():
                 error = results.read_error(case_id)
                 if error and "spec" in error and case_id not in stored:
                     spec = error["spec"] if isinstance(error["spec"], str) else json.dumps(error["spec"])

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Optional
 
 from workflows.files import DamagedFile
-from workflows.result_store import FileKey, ResultStore, as_store, file_key
+from workflows.result_store import FileKey, as_store
 
 logger = logging.getLogger(__name__)
 
@@ -27,13 +27,6 @@ class BrokenResult(Exception):
     """A result file exists but cannot be read."""
 
 
-def _version(path: Path) -> Optional[FileKey]:
-    try:
-        return file_key(path.stat())
-    except FileNotFoundError:
-        return None
-
-
 def stored_outcome(root: Path, case_id: str) -> Optional[tuple[dict[str, float], list[str]]]:
     """Scalars and warnings of the stored result of ``case_id``; None if no file is stored.
 
@@ -42,17 +35,17 @@ def stored_outcome(root: Path, case_id: str) -> Optional[tuple[dict[str, float],
     BrokenResult
         If the file is there but unreadable (truncated, corrupted, not netCDF).
     """
-    path = as_store(root).case_path(case_id)
-    if _version(path) is None:
+    store = as_store(root)
+    version = store.version(case_id)
+    if version is None:
         return None
     try:
-        outcome = ResultStore(root).read_outcome(case_id)  # under the process's netCDF lock
+        outcome = store.read_outcome(case_id)  # under the process's netCDF lock
     except FileNotFoundError:
         return None
     except Exception as exc:
         raise BrokenResult(f"{type(exc).__name__}: {exc}") from None
-    version = _version(path)
-    if version is not None:
+    if version == store.version(case_id):
         _VERIFIED[case_id] = version
     return outcome
 
@@ -73,14 +66,19 @@ def forget(case_id: str) -> None:
 def written(root: Path, case_id: str) -> None:
     """Record the file a worker has just written whole (atomically, its summary taken from the
     result in memory) as read: the first GET of a new result then does not open it."""
-    version = _version(as_store(root).case_path(case_id))
+    version = as_store(root).version(case_id)
     if version is not None:
         _VERIFIED[case_id] = version
 
 
+def forget_read(case_id: str) -> None:
+    """Read the file of ``case_id`` again at its next check (its copy proved unreadable)."""
+    _VERIFIED.pop(case_id, None)
+
+
 def result_state(root: Path, case_id: str) -> str:
     """``"missing"``, ``"readable"`` or ``"broken"`` (reads the file unless this version was read)."""
-    version = _version(as_store(root).case_path(case_id))
+    version = as_store(root).version(case_id)
     if version is None:
         return "missing"
     if _VERIFIED.get(case_id) == version:
@@ -90,7 +88,7 @@ def result_state(root: Path, case_id: str) -> str:
     except BrokenResult as exc:
         logger.warning("stored result of case %s is unreadable: %s", case_id, public_error(str(exc), root))
         return "broken"
-    return "readable" if _version(as_store(root).case_path(case_id)) is not None else "missing"
+    return "readable" if as_store(root).version(case_id) is not None else "missing"
 
 
 def non_finite_text(value):

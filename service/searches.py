@@ -7,6 +7,11 @@ records can be rebuilt without losing a search, and on start-up every search sti
 is resumed. Resuming replays :func:`workflows.studies.next_trial` over the recorded trials;
 the trial in flight when the service stopped is submitted again, and its cases, known to the
 job records or stored, are not computed twice.
+
+With several API replicas on one database (:mod:`service.shared_records`) a search is driven by
+the replica holding its lease (``search:<id>``), renewed at every look at its trial; the others
+look for running searches whose lease has expired every few seconds (:meth:`Searches.adopt`)
+and take over the driving of a replica that died.
 """
 from __future__ import annotations
 
@@ -23,7 +28,7 @@ from fastapi import APIRouter, Depends, Query, Request, Response
 from pydantic import BaseModel
 
 from workflows.files import write_atomically
-from workflows.result_store import estimated_result_bytes
+from workflows.result_store import as_store, estimated_result_bytes
 from workflows.studies import Search, StudyError, expand_trial, grid_cases, next_trial, trial_outcome
 from workflows.sweep import expand_sweep, sweep_size
 
@@ -40,6 +45,8 @@ router = APIRouter(prefix="/searches", tags=["studies"])
 POLL = 0.25
 #: Trials past :func:`max_trials` (its rounding) after which a search is failed rather than go on.
 TRIAL_SLACK = 2
+#: Seconds between looks for searches whose driver (another replica) has gone.
+ADOPT_INTERVAL = 5.0
 
 
 class SearchRecord(BaseModel):
@@ -71,23 +78,30 @@ class Searches:
 
     def __init__(self, jobs):
         self.jobs = jobs
-        self.folder = Path(jobs.root) / "searches"
+        self.results = as_store(jobs.root)
+        self.folder = self.results.root / "searches"
         self.tasks: dict[str, asyncio.Task] = {}
+        self.adopting: Optional[asyncio.Task] = None
 
     def path(self, ident: str) -> Path:
         return self.folder / f"{ident}.json"
 
     def read(self, ident: str) -> Optional[SearchRecord]:
         try:
+            if not self.results.fetched(self.path(ident)):  # on object storage: the current object
+                return None
             return SearchRecord.model_validate_json(self.path(ident).read_text())
         except FileNotFoundError:
             return None
 
     def write(self, record: SearchRecord) -> None:
         write_atomically(self.path(record.id), lambda tmp: tmp.write_text(record.model_dump_json(indent=1)))
+        self.results.publish(self.path(record.id))
 
     def all(self) -> list[SearchRecord]:
         out = []
+        if self.results.url:
+            self.results.remote.sync_folder(self.folder)
         for p in sorted(self.folder.glob("*.json")):
             try:
                 out.append(SearchRecord.model_validate_json(p.read_text()))
@@ -96,18 +110,34 @@ class Searches:
         return sorted(out, key=lambda r: -r.submitted_at)
 
     def start(self, record: SearchRecord) -> None:
-        if record.status == "running" and record.id not in self.tasks:
+        """Drive ``record`` here if it is running, not driven here yet and its lease is free."""
+        if record.status == "running" and record.id not in self.tasks and self.jobs.store.take_lease(_lease(record.id)):
             self.tasks[record.id] = asyncio.get_running_loop().create_task(self._drive(record.id))
 
     def resume(self) -> None:
         for record in self.all():
             self.start(record)
+        if self.adopting is None:
+            self.adopting = asyncio.get_running_loop().create_task(self.adopt())
+
+    async def adopt(self, interval: float = ADOPT_INTERVAL) -> None:
+        """Every ``interval`` s, take over the running searches whose driver has gone (their
+        lease expired: another replica died); errors are logged and the loop goes on."""
+        while True:
+            await asyncio.sleep(interval)
+            try:
+                for record in await asyncio.to_thread(self.all):
+                    self.start(record)
+            except Exception as exc:
+                logger.warning("looking for searches to drive failed (%s: %s)", type(exc).__name__, exc)
 
     async def stop(self) -> None:
-        for task in self.tasks.values():
+        tasks = [*self.tasks.values(), *([self.adopting] if self.adopting else [])]
+        for task in tasks:
             task.cancel()
-        await asyncio.gather(*self.tasks.values(), return_exceptions=True)
+        await asyncio.gather(*tasks, return_exceptions=True)
         self.tasks.clear()
+        self.adopting = None
 
     async def _drive(self, ident: str) -> None:
         jobs = self.jobs
@@ -138,6 +168,9 @@ class Searches:
                     if counts["queued"] == 0 and counts["running"] == 0:
                         break
                     await asyncio.sleep(POLL)
+                    if not await asyncio.to_thread(jobs.store.take_lease, _lease(ident)):
+                        logger.warning("search %s: its lease went to another replica; driven there", ident)
+                        return
                 trial = await asyncio.to_thread(trial_outcome, search, value, jobs.root, ids)
                 record = record.model_copy(update={"trials": record.trials + [trial]})
                 await asyncio.to_thread(self.write, record)
@@ -151,6 +184,14 @@ class Searches:
                                                      "finished_at": time.time()}))
         finally:
             self.tasks.pop(ident, None)
+            try:
+                jobs.store.release_lease(_lease(ident))
+            except Exception as exc:  # expires by itself
+                logger.warning("could not release the lease of search %s (%s)", ident, exc)
+
+
+def _lease(ident: str) -> str:
+    return f"search:{ident}"
 
 
 def searches_of(request: Request) -> Searches:

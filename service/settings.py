@@ -8,7 +8,21 @@ Environment variables
     thread each).
 ``TUNNEL_CONTACT_RESULTS``
     Results directory (default ``./results``): case files, plots, combined
-    sweep files and the job database ``jobs.sqlite``.
+    sweep files and the job database ``jobs.sqlite``. Or an fsspec URL of object storage
+    (``s3://bucket/prefix``): the results are objects there (:mod:`workflows.object_store`;
+    endpoint and keys from ``AWS_ENDPOINT_URL``, ``AWS_ACCESS_KEY_ID``, ``AWS_SECRET_ACCESS_KEY`` or
+    ``TUNNEL_CONTACT_STORAGE_OPTIONS``, JSON), worked on in a local cache folder
+    (``TUNNEL_CONTACT_CACHE``, default under ``~/.cache/tunnel-contact``), where ``jobs.sqlite``
+    then lives unless ``TUNNEL_CONTACT_DATABASE`` says otherwise.
+``TUNNEL_CONTACT_DATABASE``
+    SQLAlchemy URL of the job records (default: the SQLite file ``jobs.sqlite`` in the results
+    directory, one API process). ``postgresql://user:password@host/db``: PostgreSQL, shared by
+    any number of API replicas (:mod:`service.shared_records`).
+``TUNNEL_CONTACT_REPLICA_TTL``
+    Seconds after which a replica that stopped beating counts as gone and its open cases and
+    drivers are taken over by the others (default 10; PostgreSQL only).
+``TUNNEL_CONTACT_RECONCILE_INTERVAL``
+    Seconds between two reconciliations of the open records with the store (default 5).
 ``TUNNEL_CONTACT_HOST`` / ``TUNNEL_CONTACT_PORT``
     Bind address (default ``127.0.0.1:8000``; loopback unless asked otherwise).
 ``TUNNEL_CONTACT_ALLOWED_HOSTS``
@@ -46,17 +60,23 @@ from __future__ import annotations
 import os
 from functools import lru_cache
 from pathlib import Path
-from typing import Mapping, Optional
+from typing import Mapping, Optional, Union
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 #: Host names a service answers to unless told otherwise: this machine's loopback.
 LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
+from workflows.object_store import cache_folder, is_url
+
+from .database import is_sqlite, sqlite_path
 
 #: Environment variable for each settings field.
 ENVIRONMENT = {
     "scheduler": "DASK_SCHEDULER_ADDRESS",
     "results": "TUNNEL_CONTACT_RESULTS",
+    "database_url": "TUNNEL_CONTACT_DATABASE",
+    "replica_ttl": "TUNNEL_CONTACT_REPLICA_TTL",
+    "reconcile_interval": "TUNNEL_CONTACT_RECONCILE_INTERVAL",
     "host": "TUNNEL_CONTACT_HOST",
     "port": "TUNNEL_CONTACT_PORT",
     "allowed_hosts": "TUNNEL_CONTACT_ALLOWED_HOSTS",
@@ -77,7 +97,12 @@ class Settings(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
     scheduler: Optional[str] = Field(None, description="external dask scheduler address; None: embedded cluster")
-    results: Path = Field(Path("results"), description="results directory (case files and job database)")
+    results: Union[Path, str] = Field(Path("results"), description="results directory (case files and job "
+                                                                    "database), or an fsspec URL (s3://bucket/prefix)")
+    database_url: Optional[str] = Field(None, description="SQLAlchemy URL of the job records; None: jobs.sqlite "
+                                                          "in the results directory")
+    replica_ttl: float = Field(10.0, gt=0, description="seconds of silence after which a replica's cases and "
+                                                        "drivers are taken over (shared database only)")
     host: str = Field("127.0.0.1", description="bind address")
     port: int = Field(8000, ge=0, le=65535, description="bind port")
     allowed_hosts: tuple[str, ...] = Field(LOOPBACK_NAMES, description="host names the service answers to "
@@ -104,11 +129,26 @@ class Settings(BaseModel):
         if isinstance(value, str):
             value = value.split(",")
         return tuple(str(v).strip().lower() for v in value if str(v).strip())
+    @field_validator("results", mode="before")
+    @classmethod
+    def _path_unless_url(cls, value):
+        return value if is_url(value) else Path(value)
+
+    @property
+    def results_folder(self) -> Path:
+        """The folder the results are worked on in: the results directory, or the local cache of
+        a store on object storage."""
+        return cache_folder(self.results) if is_url(self.results) else self.results
 
     @property
     def database(self) -> Path:
-        """The SQLite job database inside the results directory."""
-        return self.results / "jobs.sqlite"
+        """The SQLite job database (default: inside the results directory)."""
+        return sqlite_path(self.database_url if is_sqlite(self.database_url) else None, self.results_folder)
+
+    @property
+    def shared_database(self) -> bool:
+        """Whether the job records are in a server database (PostgreSQL) replicas share."""
+        return not is_sqlite(self.database_url)
 
     @classmethod
     def from_env(cls, environ: Mapping[str, str] | None = None, **overrides) -> "Settings":

@@ -14,7 +14,7 @@ from workflows.artifacts import render_sweep_plot
 from workflows.plots import SWEEP_PLOT_NAMES
 from workflows.studies import StudyError, reliability, sensitivity
 
-from .comparison import ComparisonTable, comparison_table, table_csv, table_xlsx
+from .comparison import ComparisonTable, comparison_table, table_csv, table_parquet, table_xlsx
 from .errors import invalid, responses
 from .guards import require_token
 from .params import Offset, SweepId, build_over_results, jobs_of, sweep_or_404
@@ -57,6 +57,25 @@ async def get_sweep_csv(sweep_id: SweepId, request: Request) -> Response:
     table = await get_sweep_table(sweep_id, request)
     return Response(table_csv(table), media_type="text/csv; charset=utf-8",
                     headers={"Content-Disposition": f'attachment; filename="sweep-{sweep_id}.csv"'})
+
+
+PARQUET = "application/vnd.apache.parquet"
+
+
+@router.get("/{sweep_id}/table.parquet", response_class=Response, responses={
+    200: {"content": {PARQUET: {}},
+          "description": "the study table as Parquet, one row per case in sweep order: case_id, status, "
+                         "name (the sweep's), the varied parameters, the result scalars (float64, SI "
+                         "units in each field's metadata; null until the case is done), error, warnings"},
+    **responses(404)})
+async def get_sweep_parquet(sweep_id: SweepId, request: Request) -> Response:
+    """The study table (the columns of ``/sweeps/{id}/table`` and ``name``) as Parquet, for
+    pandas, polars, DuckDB or Spark: ``pandas.read_parquet(url)``."""
+    record = sweep_or_404(request, sweep_id)
+    table = comparison_table(jobs_of(request).store, record)
+    body = await asyncio.to_thread(table_parquet, table, record.name)
+    return Response(body, media_type=PARQUET,
+                    headers={"Content-Disposition": f'attachment; filename="sweep-{sweep_id}.parquet"'})
 
 
 XLSX = "application/vnd.openxmlformats-officedocument.spreadsheetml.sheet"

@@ -61,3 +61,24 @@ def _clients_call_localhost():
     TestClient.__init__.__defaults__ = tuple("http://localhost" if d == "http://testserver" else d for d in defaults)
     yield
     TestClient.__init__.__defaults__ = defaults
+@pytest.fixture(scope="session")
+def s3():
+    """An S3-compatible server for the session: moto's server mode on a free loopback port. Yields
+    the environment a client needs (``AWS_ENDPOINT_URL``, made-up keys); a test sets it with
+    ``monkeypatch`` (or hands it to the processes it starts) and makes its own bucket."""
+    import logging
+    import socket
+
+    from moto.server import ThreadedMotoServer
+
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    logging.getLogger("werkzeug").setLevel(logging.WARNING)  # a line per request otherwise
+    server = ThreadedMotoServer(ip_address="127.0.0.1", port=port, verbose=False)
+    server.start()
+    try:
+        yield {"AWS_ENDPOINT_URL": f"http://127.0.0.1:{port}", "AWS_ACCESS_KEY_ID": "test",
+               "AWS_SECRET_ACCESS_KEY": "test", "AWS_DEFAULT_REGION": "us-east-1"}
+    finally:
+        server.stop()

@@ -114,7 +114,7 @@ def write_combined(root: StoreLike, sweep_id: str, case_ids: Sequence[str]) -> P
     """
     store = as_store(root)
     target = store.combined_path(sweep_id, case_ids)
-    if _intact(target):
+    if _intact(target) or store.url and store.fetched(target) and _intact(target):
         return target
     with _BUILD_LOCK:
         if not _intact(target):
@@ -122,6 +122,7 @@ def write_combined(root: StoreLike, sweep_id: str, case_ids: Sequence[str]) -> P
             with netcdf_lock:
                 write_atomically(target, lambda tmp: for_netcdf(combined).to_netcdf(tmp, engine="netcdf4"),
                                  checksum=True)
+            store.publish(target)  # on object storage: one object, its checksum beside it
             logger.info("combined %d cases of sweep %s into %s", len(case_ids), sweep_id, target.name)
             _remove_superseded(target, f"{sweep_id}-*.nc")
     return target

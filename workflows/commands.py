@@ -210,9 +210,7 @@ def analyse_command(sweep_id: str, results: str, *, sensitivity: str | None = No
 
 def known_case_ids(store: ResultStore) -> list[str]:
     """Every case the store knows: stored results and failed cases (error records), sorted."""
-    failed = {p.name[:-len(".error.json")] for p in store.cases_dir.glob("*.error.json")} \
-        if store.cases_dir.is_dir() else set()
-    return sorted(set(store.case_ids()) | failed)
+    return sorted(set(store.case_ids()) | set(store.error_ids()))
 
 
 def resolve_case_id(store: ResultStore, text: str) -> str:

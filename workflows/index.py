@@ -141,6 +141,7 @@ class ResultIndex:
                 plain.attrs = {}
                 with netcdf_lock:
                     write_atomically(template, lambda tmp: _to_netcdf(plain, tmp))
+                self.store.publish(template)
             header = {"case_id": reduced.attrs["case_id"], "case_spec": reduced.attrs["case_spec"],
                       "software_version": reduced.attrs.get("software_version", ""),
                       "file_key": list(key), "schema": schema}
@@ -148,6 +149,7 @@ class ResultIndex:
             # not fsynced: an entry damaged by a crash fails its checksum and the case file is read
             write_atomically(self.pending_path(header["case_id"]),
                              lambda tmp: tmp.write_bytes(_pack_entry(header, arrays)), durable=False)
+            self.store.publish(self.pending_path(header["case_id"]))
         except Exception:
             logger.warning("could not write the index entry of case %s", ds.attrs.get("case_id"),
                            exc_info=True)
@@ -155,6 +157,13 @@ class ResultIndex:
     def discard(self, case_id: str) -> None:
         """Forget the pending entry of a removed case (its row goes at the next rewrite)."""
         self.pending_path(case_id).unlink(missing_ok=True)
+        if self.store.url:
+            self.store.remote.remove(self.pending_path(case_id))
+
+    def _sync(self) -> None:
+        """A store on object storage: the cached index made the objects' (changed ones fetched)."""
+        if self.store.url:
+            self.store.remote.sync_folder(self.store.index_dir)
 
     # -- readers ---------------------------------------------------------------------
 
@@ -167,12 +176,14 @@ class ResultIndex:
     def update(self) -> int:
         """Rewrite the index file to hold every stored case now; return how many it holds."""
         with netcdf_lock:
+            self._sync()
             keys = self.store.file_keys()
             with self._opened() as index:
                 extra, _ = self._entries(index, sorted(keys), keys)
             return len(self._rewrite(keys, extra).rows)
 
     def _open_results(self, case_ids: Sequence[str] | None) -> xr.Dataset:
+        self._sync()
         keys = self.store.file_keys()
         ids = list(dict.fromkeys(check_case_id(c) for c in case_ids)) if case_ids is not None \
             else sorted(keys)
@@ -195,6 +206,7 @@ class ResultIndex:
         describes as it is now (its key differs: written by something else, truncated,
         replaced). Their files have not been read since; the others were read whole when
         their entry was made."""
+        self._sync()
         keys = self.store.file_keys()
         stored = [c for c in case_ids if c in keys]
         with netcdf_lock, self._opened() as index:
@@ -305,14 +317,19 @@ class ResultIndex:
                 new.add(block, [c for ids, _ in group for c in ids], meta)
             try:
                 write_atomically(self.path, lambda tmp: _write_table(tmp, new), checksum=True)
+                self.store.publish(self.path)
             except OSError as exc:  # e.g. a read-only results folder: answer anyway
                 logger.warning("could not write the index %s: %s", self.path, exc)
                 return new
+            covered = []
             for path, stat in stats.items():  # covered now, a removed case, or an older file's entry
                 key = keys.get(path.stem)
                 if stat is not None and (path.stem in new.rows or key is None or stat[1] < key[2]) \
                         and _stat(path) == stat:
                     path.unlink(missing_ok=True)
+                    covered.append(path)
+            if self.store.url:  # a rewrite elsewhere that missed these falls back to the case files
+                self.store.remote.remove(*covered)
         logger.info("index of %s rewritten: %d cases", self.store.root, len(new.rows))
         return new
 

@@ -182,6 +182,10 @@ class ResultStore(StoreFiles):
 
         write_atomically(target, write, checksum=True)
         key = file_key(target.stat())
+        if self.url:  # the object, checksum first; its key is the object's version
+            self.remote.publish(target)
+            key = self.version(case_id)
+            self.remote.remove(self.error_path(case_id))
         self.error_path(case_id).unlink(missing_ok=True)
         shutil.rmtree(self.plot_dir(case_id), ignore_errors=True)  # figures of an older result
         self.index.add(ds, key)
@@ -199,6 +203,7 @@ class ResultStore(StoreFiles):
         }
         target = self.error_path(spec.case_id)
         write_atomically(target, lambda tmp: tmp.write_text(json.dumps(record, indent=1, sort_keys=True)))
+        self.publish(target)
         logger.warning("case %s failed: %s", spec.case_id, record["error"])
         return target
 
@@ -209,6 +214,9 @@ class ResultStore(StoreFiles):
         self.error_path(case_id).unlink(missing_ok=True)
         shutil.rmtree(self.plot_dir(case_id), ignore_errors=True)
         self.index.discard(case_id)
+        if self.url:
+            path = self.case_path(case_id)
+            self.remote.remove(path.with_name(path.name + ".b2"), path, self.error_path(case_id))
 
     def remove_stale_temporaries(self) -> int:
         """Delete the temporary files of writers that died mid-write, in every folder of the
@@ -224,7 +232,7 @@ def as_store(root: StoreLike) -> ResultStore:
     """``root`` itself if it is a :class:`ResultStore`, else the store at that path (or of those files)."""
     if isinstance(root, ResultStore):
         return root
-    return ResultStore(root.root if isinstance(root, StoreFiles) else root)
+    return ResultStore(root)
 
 
 # -- conveniences of the package (``workflows.run_and_store``, ``workflows.open_case``) -------

@@ -27,6 +27,10 @@ a half-written file under a final name, and a crash leaves at most a temporary t
 writer has gone. Case files carry a checksum, verified before they are read, and the digest of
 their values inside (:data:`CONTENT_DIGEST`), checked when the checksum file is gone: a damaged
 file is treated as missing.
+
+A store on object storage (``root`` an fsspec URL such as ``s3://bucket/prefix``) keeps the same
+layout as objects; its files are worked on in a local cache folder and published object by
+object (:mod:`workflows.object_store`). ``root`` is then the cache folder and ``url`` the URL.
 """
 from __future__ import annotations
 
@@ -52,6 +56,7 @@ from solver.geometry.sizing import estimated_elements
 from solver.spec import CaseSpec
 
 from .files import DamagedFile, verify, write_atomically
+from .object_store import ObjectCopies, cache_folder, is_url, object_key
 
 logger = logging.getLogger(__name__)
 #: Every netCDF read and write of this process goes through this lock: the netCDF-C and
@@ -128,7 +133,7 @@ def file_key(stat: os.stat_result) -> FileKey:
 
 
 @dataclass(frozen=True)
-class StoreFiles:
+class StoreFiles(ObjectCopies):
     """The results directory ``root``: where each file lives, and the files read back.
 
     Cheap to create and picklable (it holds only the path), so it can be handed to
@@ -136,9 +141,18 @@ class StoreFiles:
     """
 
     root: Path
+    url: str | None = None
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "root", Path(self.root))
+        root = self.root
+        if isinstance(root, StoreFiles):
+            object.__setattr__(self, "url", root.url)
+            root = root.root
+        elif is_url(str(root)):
+            object.__setattr__(self, "url", str(root).rstrip("/"))
+            root = cache_folder(self.url)
+        object.__setattr__(self, "root", Path(root))
+
 
     # -- layout ------------------------------------------------------------------------
 
@@ -187,14 +201,21 @@ class StoreFiles:
     def request_cancel(self, case_id: str) -> None:
         """Ask whoever solves ``case_id`` to give it up (seen within half a second)."""
         marker = self.cancel_marker(case_id)
+        if self.url:
+            self.remote.write(marker, b"")
+            return
         marker.parent.mkdir(parents=True, exist_ok=True)
         marker.touch()
 
     def cancel_requested(self, case_id: str) -> bool:
-        return self.cancel_marker(case_id).exists()
+        marker = self.cancel_marker(case_id)
+        return self.remote.exists(marker) if self.url else marker.exists()
 
     def clear_cancel(self, case_id: str) -> None:
-        self.cancel_marker(case_id).unlink(missing_ok=True)
+        if self.url:
+            self.remote.remove(self.cancel_marker(case_id))
+        else:
+            self.cancel_marker(case_id).unlink(missing_ok=True)
 
     @property
     def records_dir(self) -> Path:
@@ -207,15 +228,18 @@ class StoreFiles:
         runs, the service for every sweep it accepts: the service lists the sweeps of either
         and can rebuild its job records from these files and the results."""
         target = self.records_dir / f"{check_case_id(sweep_id)}.json"
-        if not target.is_file():
+        if not (self.remote.exists(target) if self.url else target.is_file()):
             record = {"id": sweep_id, "name": name, "spec": json.loads(spec_json), "case_ids": list(case_ids),
                       "submitted_at": time.time()}
             write_atomically(target, lambda tmp: Path(tmp).write_text(json.dumps(record)))
+            self.publish(target)
         return target
 
     def sweep_records(self, skip: Collection[str] = ()) -> Iterator[dict[str, Any]]:
         """Every readable sweep record of the store but those of the sweeps ``skip`` (not read);
         a damaged one is logged and skipped."""
+        if self.url:
+            self.remote.sync_folder(self.records_dir)
         if not self.records_dir.is_dir():
             return
         for path in sorted(self.records_dir.glob("*.json")):
@@ -240,7 +264,28 @@ class StoreFiles:
 
     def is_stored(self, case_id: str) -> bool:
         """True when the result of ``case_id`` is in the store."""
-        return self.case_path(case_id).is_file()
+        return self.version(case_id) is not None
+
+    def version(self, case_id: str) -> FileKey | None:
+        """The :data:`FileKey` of the stored file of ``case_id`` now (None if there is none): its
+        inode, size and times, or its object's ETag and size."""
+        path = self.case_path(case_id)
+        if self.url:
+            info = self.remote.info(path)
+            return object_key(info) if info is not None else None
+        try:
+            return file_key(path.stat())
+        except FileNotFoundError:
+            return None
+
+    def error_ids(self) -> list[str]:
+        """Ids of the cases with an error record, sorted."""
+        if self.url:
+            names = self.remote.listing(self.cases_dir)
+        else:
+            names = os.listdir(self.cases_dir) if self.cases_dir.is_dir() else []
+        return sorted(n[:-len(".error.json")] for n in names
+                      if n.endswith(".error.json") and _CASE_ID.fullmatch(n[:-len(".error.json")]))
 
     def case_ids(self) -> list[str]:
         """Ids of all stored results, sorted."""
@@ -249,6 +294,12 @@ class StoreFiles:
     def file_keys(self) -> dict[str, FileKey]:
         """``{case_id: FileKey}`` of every stored result file (one directory scan)."""
         keys: dict[str, FileKey] = {}
+        if self.url:
+            for name, info in self.remote.listing(self.cases_dir).items():
+                stem, _, ext = name.partition(".")
+                if ext == "nc" and _CASE_ID.fullmatch(stem):
+                    keys[stem] = object_key(info)
+            return keys
         try:
             entries = os.scandir(self.cases_dir)
         except FileNotFoundError:
@@ -275,11 +326,27 @@ class StoreFiles:
         DamagedFile
             If the file no longer matches its checksum (to be recomputed, never served).
         """
-        path = self.case_path(case_id)
-        verify(path, without_checksum=content_sound)  # no checksum file: the digest inside it
+        path = self.verified_copy(case_id)
         with netcdf_lock, xr.open_dataset(path, **OPEN_OPTIONS) as ds:
             ds.attrs.pop(CONTENT_DIGEST, None)  # the file's, not the result's
             yield ds
+
+    def verified_copy(self, case_id: str) -> Path:
+        """The stored file of ``case_id`` (on object storage: the cached copy of its object,
+        fetched if it changed), checked against its checksum.
+
+        Raises
+        ------
+        FileNotFoundError
+            If the case is not stored.
+        DamagedFile
+            If the file no longer matches its checksum.
+        """
+        path = self.case_path(case_id)
+        if self.url and not self.remote.fetch(path):
+            raise FileNotFoundError(errno.ENOENT, "case is not stored", f"{self.url}/cases/{path.name}")
+        verify(path, without_checksum=content_sound)  # no checksum file: the digest inside it
+        return path
 
     def open_case(self, case_id: str) -> xr.Dataset:
         """Read the stored result of ``case_id`` fully into memory (the file is closed).
@@ -294,6 +361,9 @@ class StoreFiles:
 
     def read_error(self, case_id: str) -> dict[str, Any] | None:
         """The error record of ``case_id``, or None if it has none."""
+        if self.url:
+            data = self.remote.read(self.error_path(case_id))
+            return json.loads(data) if data is not None else None
         try:
             return json.loads(self.error_path(case_id).read_text())
         except FileNotFoundError:

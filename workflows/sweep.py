@@ -296,7 +296,7 @@ def run_sweep(sweep: Sweep | dict[str, Any], root: StoreLike, client=None, *, pr
     logger.info("sweep %r: %d cases, %d to compute", sweep.name, len(ids), len(todo))
     if not todo:
         return ids
-    store = ResultStore(os.path.abspath(store.root))
+    store = store if store.url else ResultStore(os.path.abspath(store.root))
     with _client_or_local(client) as c:
         submitted = submit_cases(c, todo, store, force=force)  # a task computes an unreadable file again
         bar = tqdm(total=len(todo), desc=f"sweep {sweep.name}", unit="case") if progress else None

@@ -83,7 +83,7 @@ def map_cases(client, spec_jsons: Sequence[str], case_ids: Sequence[str], root: 
               force: bool = False) -> list:
     """One :func:`solve_and_store` task per case on dask, under :func:`task_key`: how the
     CLI's sweeps (:func:`submit_cases`) and the service's dispatcher both submit cases, so a
-    case has one task key whoever asks. ``root`` is the store's folder as the workers see it.
+    case has one task key whoever asks. ``root`` is the store's folder as the workers see it, or its URL.
 
     Cases that share a mesh and materials share the solver model built on each worker
     (:func:`solver.model.shared_model`), so no grouping of tasks is needed for that.
@@ -96,7 +96,7 @@ def map_cases(client, spec_jsons: Sequence[str], case_ids: Sequence[str], root: 
 def submit_cases(client, specs: Sequence[CaseSpec], root: StoreLike, *, force: bool = False) -> dict:
     """Submit the cases ``specs`` (:func:`map_cases`); return ``{future: case id}``."""
     futures = map_cases(client, [s.canonical_json() for s in specs], [s.case_id for s in specs],
-                        str(as_store(root).root), force=force)
+                        str(as_store(root)), force=force)
     return {future: spec.case_id for future, spec in zip(futures, specs)}
 
 

@@ -62,7 +62,8 @@ def test_openapi_lists_every_endpoint_with_response_models(client):
     assert set(schema["paths"]) == {
         "/cases", "/cases/{case_id}", "/cases/{case_id}/result.nc", "/cases/{case_id}/plots/{name}.png",
         "/cases/{case_id}/report.pdf", "/sweeps", "/sweeps/{sweep_id}", "/sweeps/{sweep_id}/result.nc", "/health",
-        "/sweeps/{sweep_id}/table", "/sweeps/{sweep_id}/summary.csv", "/sweeps/{sweep_id}/summary.xlsx", "/sweeps/{sweep_id}/plots/{name}.png",
+        "/sweeps/{sweep_id}/table", "/sweeps/{sweep_id}/table.parquet", "/sweeps/{sweep_id}/summary.csv",
+        "/sweeps/{sweep_id}/summary.xlsx", "/sweeps/{sweep_id}/plots/{name}.png",
         "/sweeps/{sweep_id}/cancel", "/sweeps/{sweep_id}/sensitivity", "/sweeps/{sweep_id}/sensitivity.png",
         "/sweeps/{sweep_id}/reliability", "/sweeps/{sweep_id}/reliability.png", "/searches", "/searches/{search_id}",
         "/searches/{search_id}/trials.png"}

@@ -153,3 +153,26 @@ def test_summary_xlsx_opens_in_openpyxl_with_a_units_row(tmp_path):
     assert first[col["max_utilization"]] == "inf"  # no infinity in a spreadsheet cell: text
     assert rows[3][col["max_thrust"]] is None  # the second case is not done
     assert ws.freeze_panes == "A3"
+
+
+def test_the_study_table_as_parquet_reads_back_with_types_and_units(tmp_path):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from service.comparison import table_parquet
+
+    store = JobStore(tmp_path / "jobs.sqlite")
+    cases = specs(2e7, 5e7, 8e7)
+    record, _ = store.add_sweep("0123456789abcdef", "soft grounds", "{}", cases)
+    store.finish(cases[0][0], status="done", summary={"max_contact_pressure": 2.5e5, "max_utilization": math.inf})
+    store.finish(cases[1][0], status="failed", error="boom")
+    read = pq.read_table(io.BytesIO(table_parquet(comparison_table(store, record), record.name)))
+    assert read.column_names[:4] == ["case_id", "status", "name", "ground_young"]
+    assert read.schema.field("max_contact_pressure").type == pa.float64()
+    assert read.schema.field("max_contact_pressure").metadata[b"units"] == b"Pa"
+    assert read.schema.metadata[b"sweep_id"] == b"0123456789abcdef"
+    rows = read.to_pylist()
+    assert [r["case_id"] for r in rows] == [c for c, _ in cases] and {r["name"] for r in rows} == {"soft grounds"}
+    assert [r["ground_young"] for r in rows] == [2e7, 5e7, 8e7]
+    assert rows[0]["max_contact_pressure"] == 2.5e5 and rows[0]["max_utilization"] == math.inf
+    assert rows[1]["max_contact_pressure"] is None and rows[1]["error"] == "boom"

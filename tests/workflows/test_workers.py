@@ -145,8 +145,13 @@ def test_without_the_settings_a_worker_faults_every_array():
 
 def test_compose_workers_and_scheduler_get_the_same_environment():
     compose = yaml.safe_load((ROOT / "docker-compose.yml").read_text())
-    environment = compose["services"]["worker"]["environment"]
+    every = compose["services"]["worker"]["environment"]
+    environment = {k: v for k, v in every.items() if k.startswith("DASK_")}
     assert environment == worker_process_env()
+    # the rest: where the results and the job records are, as the API replicas see them
+    api = compose["services"]["api"]["environment"]
+    assert {k: v for k, v in every.items() if not k.startswith("DASK_")} == {
+        k: v for k, v in api.items() if k.startswith(("TUNNEL_CONTACT_RESULTS", "TUNNEL_CONTACT_DATABASE", "AWS_"))}
     assert compose["services"]["scheduler"]["environment"] == cluster_process_env()
     # and dask reads it as the same mapping
     parsed = dask.config.collect_env(environment)

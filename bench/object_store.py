@@ -1,0 +1,199 @@
+"""The result store on object storage against the local folder, on one machine.
+
+``python -m bench.object_store [--cases 1000] [--sweep 40] [--json]``
+
+Uses the S3 server at ``AWS_ENDPOINT_URL`` if set (MinIO, SeaweedFS), else starts moto's server
+mode on loopback in this process. Two figures:
+
+- ``open_results`` over ``--cases`` cases stored in the bucket (copies of three coarse cases under
+  new ids, as :mod:`bench.index` makes them, each published with its index entry as a worker does;
+  the copies' case objects are 1 KiB placeholders: reading through the index never opens a case
+  object, it lists them, and the listing of a placeholder costs what a 1.3 MB file's does),
+  read by a process with an empty cache: ``first`` (every entry pending: fetched concurrently,
+  merged, the index rewritten and uploaded), ``fresh`` (another empty cache, the index up to date:
+  one index object fetched) and ``warm`` (the same process again: only listings);
+- sweep throughput: ``--sweep`` coarse cases solved by a local dask cluster of two single-threaded
+  workers into a local folder and into the bucket, alternately, twice each (best of two); the
+  ratio is the bucket's cases per minute over the folder's.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+import uuid
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
+from pathlib import Path
+
+COARSE = {"mesh": {"interface_size": 0.25, "far_size": 8.0}}
+
+
+@contextmanager
+def s3_endpoint():
+    """``AWS_*`` pointing at an S3 server: the one configured, else moto's on loopback."""
+    if os.environ.get("AWS_ENDPOINT_URL"):
+        yield
+        return
+    import logging
+    import socket
+
+    from moto.server import ThreadedMotoServer
+
+    logging.getLogger("werkzeug").setLevel(logging.WARNING)
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    server = ThreadedMotoServer(ip_address="127.0.0.1", port=port, verbose=False)
+    server.start()
+    os.environ.update({"AWS_ENDPOINT_URL": f"http://127.0.0.1:{port}", "AWS_ACCESS_KEY_ID": "bench",
+                       "AWS_SECRET_ACCESS_KEY": "bench", "AWS_DEFAULT_REGION": "us-east-1"})
+    try:
+        yield
+    finally:
+        server.stop()
+
+
+def store_at(url: str, cache: Path):
+    """The store at ``url`` as a process with the cache folder ``cache`` sees it."""
+    from workflows.result_store import ResultStore
+
+    os.environ["TUNNEL_CONTACT_CACHE"] = str(cache)
+    try:
+        return ResultStore(url)
+    finally:
+        del os.environ["TUNNEL_CONTACT_CACHE"]
+
+
+def fill(store, n: int) -> float:
+    """Publish ``n`` cases (copies of three solved ones) with their index entries; seconds taken."""
+    from bench.index import SCALED, solve_bases
+    from solver import CaseSpec
+    from workflows.files import write_atomically
+    from workflows.result_store import netcdf_encoding
+
+    bases = solve_bases()
+    start = time.perf_counter()
+
+    def land(case):  # what a worker does once its file is written: the objects, the index entry
+        case_id, copy = case
+        store.remote.publish(store.case_path(case_id))
+        store.index.add(copy, store.version(case_id))
+
+    pool, landing = ThreadPoolExecutor(8), []  # as eight workers would, each writing its own cases
+    for i in range(n):
+        base = bases[i % len(bases)]
+        data = CaseSpec.model_validate_json(base.attrs["case_spec"]).model_dump(mode="json")
+        data["loads"]["surface_load"] = 1e5 + 10.0 * (i + 1)
+        spec = CaseSpec.model_validate(data)
+        ratio = data["loads"]["surface_load"] / 1e5
+        copy = base.copy(deep=False)
+        copy.attrs = {**base.attrs, "case_id": spec.case_id, "case_spec": spec.canonical_json()}
+        for name in SCALED:
+            copy[name] = base[name].copy(data=base[name].values * ratio)
+
+        if i < len(bases):  # real files for the first; placeholders for the copies (below)
+            write_atomically(store.case_path(spec.case_id), lambda tmp: copy.to_netcdf(
+                tmp, engine="netcdf4", format="NETCDF4", encoding=netcdf_encoding(copy)), checksum=True)
+        else:
+            store.case_path(spec.case_id).parent.mkdir(parents=True, exist_ok=True)
+            store.case_path(spec.case_id).write_bytes(spec.case_id.encode() * 64)
+        landing.append(pool.submit(land, (spec.case_id, copy)))
+    for done in landing:
+        done.result()
+    pool.shutdown()
+    return time.perf_counter() - start
+
+
+def measure_open_results(n: int, workdir: Path) -> dict:
+    from workflows import open_results
+
+    url = f"s3://bench-{uuid.uuid4().hex[:8]}/results"
+    writer = store_at(url, workdir / "writer")
+    writer.remote.make_bucket()
+    fill_seconds = fill(writer, n)
+    reader = store_at(url, workdir / "reader")
+    start = time.perf_counter()
+    first = open_results(reader)
+    first_seconds = time.perf_counter() - start
+    fresh = store_at(url, workdir / "fresh")
+    start = time.perf_counter()
+    again = open_results(fresh)
+    fresh_seconds = time.perf_counter() - start
+    start = time.perf_counter()
+    open_results(fresh)
+    warm_seconds = time.perf_counter() - start
+    assert first.sizes["case"] == again.sizes["case"] == n
+    return {"cases": n, "fill_seconds": fill_seconds, "first_seconds": first_seconds,
+            "fresh_seconds": fresh_seconds, "warm_seconds": warm_seconds}
+
+
+def sweep_seconds(client, root, specs) -> float:
+    from distributed import wait
+
+    from workflows.tasks import submit_cases
+
+    start = time.perf_counter()
+    futures = submit_cases(client, specs, root)
+    wait(list(futures))
+    failed = [f.result() for f in futures if f.result()["status"] != "done"]
+    assert not failed, failed[:1]
+    return time.perf_counter() - start
+
+
+def measure_throughput(cases: int, workdir: Path) -> dict:
+    from solver import CaseSpec
+    from workflows.sweep import local_client
+
+    specs = [CaseSpec.model_validate({**COARSE, "ground": {"young": 1.5e7 + 1e6 * i}}) for i in range(cases)]
+    timings: dict[str, list[float]] = {"local": [], "s3": []}
+    os.environ["TUNNEL_CONTACT_CACHE"] = str(workdir / "workers")  # the workers' cache (they inherit it)
+    with local_client(2) as client:
+        client.submit(lambda: None).result()
+        # warm-up: imports and the first mesh in each worker
+        sweep_seconds(client, str(workdir / "warm"), specs[:4])
+        for round_ in range(2):
+            for kind in ("local", "s3"):
+                if kind == "local":
+                    root = str(workdir / f"local-{round_}")
+                else:
+                    root = f"s3://bench-{uuid.uuid4().hex[:8]}/results"
+                    store_at(root, workdir / "api").remote.make_bucket()
+                timings[kind].append(sweep_seconds(client, root, specs))
+    del os.environ["TUNNEL_CONTACT_CACHE"]
+    local, s3 = min(timings["local"]), min(timings["s3"])
+    return {"cases": cases, "local_seconds": timings["local"], "s3_seconds": timings["s3"],
+            "local_cases_per_minute": 60 * cases / local, "s3_cases_per_minute": 60 * cases / s3,
+            "ratio": local / s3}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", type=int, default=1000, help="cases in the bucket for open_results")
+    parser.add_argument("--sweep", type=int, default=40, help="cases of the throughput sweep (0: skip)")
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args(argv)
+    with s3_endpoint(), tempfile.TemporaryDirectory(prefix="bench-object-store-") as folder:
+        out = {"open_results": measure_open_results(args.cases, Path(folder))}
+        if args.sweep:
+            out["throughput"] = measure_throughput(args.sweep, Path(folder))
+    if args.json:
+        json.dump(out, sys.stdout, indent=1)
+        print()
+    else:
+        o = out["open_results"]
+        print(f"open_results over {o['cases']} cases in the bucket: first {o['first_seconds']:.2f} s "
+              f"(entries merged), from the index {o['fresh_seconds']:.2f} s (empty cache), "
+              f"warm {o['warm_seconds']:.2f} s; publishing them took {o['fill_seconds']:.1f} s")
+        if "throughput" in out:
+            t = out["throughput"]
+            print(f"sweep of {t['cases']} coarse cases on two workers: folder {t['local_cases_per_minute']:.0f}, "
+                  f"bucket {t['s3_cases_per_minute']:.0f} cases/min: {100 * t['ratio']:.0f} %")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,83 @@
+"""The result store on object storage (``s3://bucket/prefix``) against a real S3-compatible server
+(moto's server mode on loopback, the ``s3`` fixture): one object per file, written whole, read
+back only when it matches its checksum, the index answering ``open_results`` for a process
+that computed none of the cases, identical to a local store."""
+from __future__ import annotations
+
+import uuid
+
+import pytest
+import xarray as xr
+
+from solver.spec import CaseSpec
+from workflows.files import DamagedFile
+from workflows.result_store import ResultStore, open_results
+
+COARSE = {"mesh": {"interface_size": 0.25, "far_size": 8.0}}
+#: What differs between two solves of one case: how long they took.
+TIMES = ["solve_seconds"]
+SPECS = [CaseSpec.model_validate({**COARSE, "ground": {"young": e}}) for e in (2e7, 4e7, 8e7)]
+
+
+@pytest.fixture
+def bucket(s3, monkeypatch, tmp_path):
+    """A new bucket on the server; the environment set for it. Yields its URL."""
+    for name, value in s3.items():
+        monkeypatch.setenv(name, value)
+    monkeypatch.delenv("TUNNEL_CONTACT_STORAGE_OPTIONS", raising=False)
+    url = f"s3://b{uuid.uuid4().hex[:12]}/studies/one"
+    store_in(url, tmp_path / "setup", monkeypatch).remote.make_bucket()
+    return url
+
+
+def store_in(url: str, cache, monkeypatch) -> ResultStore:
+    """The store at ``url`` as a process with the cache folder ``cache`` sees it (another machine)."""
+    monkeypatch.setenv("TUNNEL_CONTACT_CACHE", str(cache))
+    store = ResultStore(url)
+    monkeypatch.delenv("TUNNEL_CONTACT_CACHE")
+    return store
+
+
+def test_cases_stored_by_one_process_are_read_by_another_as_from_a_local_folder(bucket, monkeypatch, tmp_path):
+    writer = store_in(bucket, tmp_path / "worker", monkeypatch)
+    local = ResultStore(tmp_path / "local")
+    for spec in SPECS:
+        writer.run_and_store(spec)
+        local.run_and_store(spec)
+    ids = sorted(s.case_id for s in SPECS)
+    names = set(writer.remote.listing(writer.cases_dir))
+    assert names == {f"{c}.nc" for c in ids} | {f"{c}.nc.b2" for c in ids}  # one object per file
+    assert str(writer) == bucket and writer.root == tmp_path / "worker"
+
+    reader = store_in(bucket, tmp_path / "api", monkeypatch)  # nothing cached here
+    assert reader.case_ids() == ids and reader.is_stored(ids[0])
+    xr.testing.assert_identical(reader.open_results().drop_vars(TIMES), open_results(local).drop_vars(TIMES))
+    xr.testing.assert_identical(reader.open_case(ids[1]), writer.open_case(ids[1]))  # the object's bytes
+    assert reader.index.update() == 3  # the index rewritten and published
+    assert writer.remote.exists(writer.index_dir / "results.nc")
+    fresh = store_in(bucket, tmp_path / "third", monkeypatch)
+    xr.testing.assert_identical(fresh.open_results(ids[:2]).drop_vars(TIMES),
+                                open_results(local, ids[:2]).drop_vars(TIMES))
+
+
+def test_a_damaged_object_is_never_served_and_a_failure_is_recorded_there(bucket, monkeypatch, tmp_path):
+    writer = store_in(bucket, tmp_path / "worker", monkeypatch)
+    case_id = writer.run_and_store(SPECS[0])
+    reader = store_in(bucket, tmp_path / "api", monkeypatch)
+    reader.read_summary(case_id)  # a good copy cached
+    key = writer.remote.key(writer.case_path(case_id))
+    data = bytearray(writer.remote.fs.cat_file(key))
+    data[len(data) // 2] ^= 0xFF  # one flipped bit in the middle of the object
+    writer.remote.fs.pipe_file(key, bytes(data))
+    with pytest.raises(DamagedFile):
+        reader.read_summary(case_id)  # the new version is fetched and fails its checksum
+    assert reader.unreadable([case_id]) == [case_id]
+    writer.write_error(SPECS[1], RuntimeError("no convergence"))
+    assert reader.read_error(SPECS[1].case_id)["error"] == "RuntimeError: no convergence"
+    assert reader.error_ids() == [SPECS[1].case_id]
+    reader.write_sweep_record("0123456789abcdef", "s", "{}", [case_id])
+    assert [r["id"] for r in writer.sweep_records()] == ["0123456789abcdef"]
+    reader.request_cancel(case_id)
+    assert writer.cancel_requested(case_id)
+    writer.clear_cancel(case_id)
+    assert not reader.cancel_requested(case_id)
