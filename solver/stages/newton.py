@@ -1,0 +1,145 @@
+"""Newton's method with a line search on a preconditioned residual, its linear systems solved by
+GMRES (SPEC §9.1).
+
+The plastic equilibrium of an increment is ``F(x) = x - K⁻¹(f + p(x) - …) = 0`` (the elastic
+stiffness ``K``, factorized once per model, as the preconditioner: ``F`` is the residual ``K x -
+f - p(x)`` premultiplied by ``K⁻¹``). Its Jacobian ``I - K⁻¹ P′`` differs from the identity only
+through the points that yield, so GMRES resolves a Newton step in a few Krylov steps, each one
+triangular solve pair on the factor the model already holds (Knoll & Keyes 2004, Newton–Krylov;
+the forcing terms are Eisenstat & Walker's 1996 second choice). The step is damped by a
+backtracking line search on ``‖F‖`` (Armijo), which GMRES's step decreases whenever it solved its
+system to better than ``‖F‖``.
+"""
+from __future__ import annotations
+
+import logging
+from typing import Callable
+
+import numpy as np
+
+from ..limits import check_time
+
+log = logging.getLogger(__name__)
+
+#: Newton iterations allowed per (sub-)increment.
+NEWTON_ITERATIONS = 25
+#: Krylov steps allowed per Newton step (one restart-free GMRES cycle).
+KRYLOV_STEPS = 120
+#: Forcing terms: the first Newton step's and the bounds of the later ones' (Eisenstat–Walker).
+ETA_FIRST, ETA_MIN, ETA_MAX = 0.1, 1e-6, 0.1
+#: Line search: sufficient decrease (Armijo) and the least step tried.
+ARMIJO, LEAST_STEP = 1e-4, 1.0 / 64
+#: The regularizations θ tried in turn where Newton's step fails (:func:`newton`).
+REGULARIZATION = (0.0, 0.05, 0.3, 1.0)
+
+
+class Stalled(Exception):
+    """Newton's iteration of one (sub-)increment stopped short of equilibrium: its least
+    out-of-balance force, the tolerance and the residual evaluations it took."""
+
+    def __init__(self, force: float, atol: float, iterations: int, reason: str):
+        super().__init__(force, atol, iterations, reason)
+        self.force, self.atol, self.iterations, self.reason = force, atol, iterations, reason
+
+
+def gmres(apply: Callable[[np.ndarray], np.ndarray], b: np.ndarray, rtol: float, limit: int = KRYLOV_STEPS):
+    """GMRES from zero for ``A x = b`` (``A`` as ``apply``), to ``‖b - A x‖ ≤ rtol ‖b‖`` or ``limit``
+    steps (modified Gram–Schmidt, Givens rotations). Returns ``x``, the relative residual and the
+    steps taken."""
+    beta = float(np.linalg.norm(b))
+    if beta == 0.0:
+        return np.zeros_like(b), 0.0, 0
+    V = np.empty((limit + 1, b.size))
+    V[0] = b / beta
+    H = np.zeros((limit + 1, limit))
+    cs, sn = np.zeros(limit), np.zeros(limit)
+    g = np.zeros(limit + 1)
+    g[0] = beta
+    k = 0
+    for k in range(limit):
+        w = apply(V[k])
+        for i in range(k + 1):
+            H[i, k] = float(V[i] @ w)
+            w -= H[i, k] * V[i]
+        h_next = float(np.linalg.norm(w))
+        H[k + 1, k] = h_next
+        if h_next > 1e-300:
+            V[k + 1] = w / h_next
+        for i in range(k):  # the earlier rotations on the new column
+            H[i, k], H[i + 1, k] = cs[i] * H[i, k] + sn[i] * H[i + 1, k], -sn[i] * H[i, k] + cs[i] * H[i + 1, k]
+        r = np.hypot(H[k, k], H[k + 1, k])
+        cs[k], sn[k] = (H[k, k] / r, H[k + 1, k] / r) if r > 0 else (1.0, 0.0)
+        H[k, k], H[k + 1, k] = r, 0.0
+        g[k + 1], g[k] = -sn[k] * g[k], cs[k] * g[k]
+        if abs(g[k + 1]) <= rtol * beta or h_next <= 1e-300:
+            break
+    k += 1
+    diag = np.diag(H[:k, :k])
+    y = np.linalg.solve(np.triu(H[:k, :k]) + np.diag(np.where(diag == 0.0, 1.0, 0.0)), g[:k])
+    return V[:k].T @ y, abs(g[k]) / beta, k
+
+
+def newton(residual, jacobian, x: np.ndarray, atol: float, limit: int = NEWTON_ITERATIONS):
+    """Solve ``F(x) = 0`` from ``x`` until the out-of-balance force is at most ``atol``.
+
+    ``residual(x, tangent)`` returns ``(F, force, state)``: the preconditioned residual, the
+    out-of-balance force (N/m) the stop test measures and the state of ``x`` (with its tangent if
+    asked); ``jacobian(state, F)`` the Jacobian's action ``v ↦ F′ v = v - M v`` at a state.
+
+    Where the line search finds no decrease along Newton's step (the tangent's linearization
+    holds only very near ``x``: points crossing the yield surface, a nearly singular tangent where
+    flow far from associated localizes) the step is regularized towards the constant-stiffness
+    one: ``(I - (1 - θ) M) δ = -F`` for θ in :data:`REGULARIZATION` (θ = 1 is the elastic
+    stiffness' step ``δ = -F``), and relaxed again after a success. Returns ``x``, its state, the
+    residual evaluations and the Krylov steps taken; raises :class:`Stalled` when no θ gives a
+    decrease, the force is not finite or after ``limit`` steps."""
+    F, force, state = residual(x, True)
+    evaluations, krylov = 1, 0
+    norm = float(np.linalg.norm(F))
+    eta, last, level = ETA_FIRST, None, 0
+    for step in range(limit + 1):
+        check_time("plastic iteration", evaluations)
+        if force <= atol:
+            return x, state, evaluations, krylov
+        if not np.isfinite(force) or step == limit:
+            break
+        if last is not None:  # Eisenstat–Walker, choice 2, with its safeguard
+            eta = min(ETA_MAX, max(0.9 * (norm / last) ** 2, 0.9 * eta**2, ETA_MIN, 0.5 * atol / force))
+        J = jacobian(state, F)
+        while True:
+            theta = REGULARIZATION[level]
+            apply = J if theta == 0.0 else (lambda v, th=theta: th * v + (1.0 - th) * J(v))
+            dx, rel, its = gmres(apply, -F, eta) if theta < 1.0 else (-F, 0.0, 0)
+            krylov += its
+            found, alpha, trial, used = _line_search(residual, x, dx, norm, rel)
+            evaluations += used
+            if found or level == len(REGULARIZATION) - 1:
+                break
+            level += 1
+        if not found:
+            raise Stalled(force, atol, evaluations, "no step decreased the residual")
+        F_new, force_new, state_new = trial
+        log.debug("newton %d: force %.3g -> %.3g (atol %.3g), step %.3g, θ %g, gmres %d steps to %.2g", step,
+                  force, force_new, atol, alpha, theta, its, rel)
+        level = max(level - 1, 0)
+        x, F, force, state = x + alpha * dx, F_new, force_new, state_new
+        last, norm = norm, float(np.linalg.norm(F_new))
+    raise Stalled(force, atol, evaluations, f"{limit} Newton steps")
+
+
+def _line_search(residual, x, dx, norm: float, rel: float):
+    """Backtracking along ``dx`` from ``x`` (``‖F(x)‖ = norm``, the linear solve's relative
+    residual ``rel``) until Armijo's decrease of ``‖F‖``: whether found, the step, the
+    residual at it and the evaluations used."""
+    alpha, used = 1.0, 0
+    slope = -2.0 * (1.0 - min(rel, 1.0)) * norm**2  # of ‖F‖² along dx at α = 0
+    while alpha >= LEAST_STEP:
+        trial = residual(x + alpha * dx, True)
+        used += 1
+        norm_new = float(np.linalg.norm(trial[0]))
+        if np.isfinite(norm_new) and norm_new <= (1.0 - ARMIJO * alpha * (1.0 - min(rel, 1.0))) * norm:
+            return True, alpha, trial, used
+        # the least of the quadratic model along the step, kept within [α/10, α/2]
+        q = -slope * alpha**2 / (2.0 * (norm_new**2 - norm**2 - slope * alpha)) if np.isfinite(norm_new) else 0.0
+        alpha = min(max(q, 0.1 * alpha), 0.5 * alpha)
+    return False, 0.0, None, used
