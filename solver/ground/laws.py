@@ -1,10 +1,12 @@
 """The ground's constitutive laws as the plastic driver sees them: callables of trial stresses.
 
-A law is ``law(trial (4, n), tangent: bool) -> (stress (4, n), plastic strain (3, n), at_yield
-(n,), returned (r,), C (r, 4, 4))``: the return from elastic trial stresses (plane strain,
-tension positive, (xx, yy, xy, zz)), the plastic strain increment in principal axes, the points
-at or beyond the surface, the points it returned and, if ``tangent``, their algorithmic tangent
-(strain increments (dεxx, dεyy, dγxy, dεzz) to stress increments; the elastic matrix elsewhere).
+A law is ``law(trial (4, n), tangent: bool, frozen=None) -> (stress (4, n), plastic strain (3, n),
+at_yield (n,), returned (r,), C (r, 4, 4))``: the return from elastic trial stresses (plane
+strain, tension positive, (xx, yy, xy, zz)), the plastic strain increment in principal axes, the
+points at or beyond the surface, the points it returned and, if ``tangent``, their algorithmic
+tangent (strain increments (dεxx, dεyy, dγxy, dεzz) to stress increments; the elastic matrix
+elsewhere). ``frozen`` (n,) bool fixes which points flow (a smooth return: an active-set step of
+the equilibrium iteration, see :func:`.mohr_coulomb.consistent_tangent`).
 The FE loop (:mod:`solver.stages.points`) knows nothing else of the law.
 """
 from __future__ import annotations
@@ -24,9 +26,9 @@ FLAG_TOLERANCE = 1e-3
 
 def mohr_coulomb_law(material: mohr_coulomb.Material, flag_tolerance: float = FLAG_TOLERANCE) -> Law:
     """Mohr–Coulomb with tension cut-off (:mod:`.mohr_coulomb`) of per-point constants ``material``."""
-    def law(trial: np.ndarray, tangent: bool):
-        if tangent:
-            return mohr_coulomb.consistent_tangent(trial, material, flag_tolerance)
+    def law(trial: np.ndarray, tangent: bool, frozen: np.ndarray | None = None):
+        if tangent or frozen is not None:
+            return mohr_coulomb.consistent_tangent(trial, material, flag_tolerance, frozen)
         stress, dep, at_yield = mohr_coulomb.return_stress(trial, material, flag_tolerance)
         return stress, dep, at_yield, None, None
 

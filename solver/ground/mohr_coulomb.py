@@ -99,18 +99,24 @@ def return_stress(trial: np.ndarray, mat: Material, flag_tolerance: float = YIEL
     return _stress(trial, mat, flag_tolerance, False)[:3]
 
 
-def consistent_tangent(trial: np.ndarray, mat: Material, flag_tolerance: float = YIELD_TOL):
+def consistent_tangent(trial: np.ndarray, mat: Material, flag_tolerance: float = YIELD_TOL,
+                       frozen: np.ndarray | None = None):
     """The return (as :func:`return_stress`) and its algorithmic tangent at the returned points:
     ``(stress, plastic_strain, at_yield, returned (r,) indices, tangent (r, 4, 4))``, the tangent
     mapping strain increments (dεxx, dεyy, dγxy, dεzz) to stress increments (the layout of
     :mod:`.tangent`; the elastic matrix everywhere else). Each returned point's principal Jacobian
     is that of its active set (:func:`.tangent.active_set_jacobian`: one plane, an edge's two, a
     point of principal space for three or more), in the trial's axes, with the spin of its in-plane
-    directions (:func:`.tangent.full_tangent`)."""
-    return _stress(trial, mat, flag_tolerance, True)
+    directions (:func:`.tangent.full_tangent`).
+
+    ``frozen`` (n,) bool, if given, fixes which points flow: the others stay elastic even outside
+    the surface, and those inside are returned onto the main plane all the same (a negative
+    multiplier). The return is then smooth in the trial (an active-set step of the equilibrium
+    iteration, :mod:`solver.stages.newton`); ``at_yield`` flags the points outside."""
+    return _stress(trial, mat, flag_tolerance, True, frozen)
 
 
-def _stress(trial: np.ndarray, mat: Material, flag_tolerance: float, tangent: bool):
+def _stress(trial: np.ndarray, mat: Material, flag_tolerance: float, tangent: bool, frozen=None):
     n = trial.shape[1]
     c, sp, cp, t = mat.c, mat.sin_phi, mat.cos_phi, mat.tensile
     # a cheap screen of every point: the largest and least principal stresses without sorting
@@ -140,7 +146,12 @@ def _stress(trial: np.ndarray, mat: Material, flag_tolerance: float, tangent: bo
     s1 -= t
     np.maximum(fmax, s1, out=fmax)
     at_yield = fmax > -flag_tolerance * scale
-    todo = np.flatnonzero(fmax > YIELD_TOL * scale)
+    outside = fmax > YIELD_TOL * scale
+    forced = np.zeros(0, np.int64)
+    if frozen is not None:
+        forced = np.flatnonzero(frozen & ~outside)
+        outside &= frozen
+    todo = np.flatnonzero(outside)
     stress = np.array(trial, dtype=float)  # a state inside stays exactly as it was
     dep = np.zeros((3, n))
     C = np.zeros((0, 4, 4))
@@ -152,9 +163,34 @@ def _stress(trial: np.ndarray, mat: Material, flag_tolerance: float, tangent: bo
         at_yield[todo] = True
         if tangent:
             C = _tangent(trial[:, todo], ret, active, m, scale[todo])
+    if forced.size:
+        m = mat.at(forced)
+        ret, dep_f = _main_plane(trial[:, forced], m)
+        stress[:, forced], dep[:, forced] = ret, dep_f
+        if tangent:
+            C = np.concatenate([C, _tangent(trial[:, forced], ret, np.zeros(forced.size, np.int64), m,
+                                            scale[forced])])
+        todo = np.concatenate([todo, forced])
     if tangent:
         return stress, dep, at_yield, todo, C
     return stress, dep, at_yield
+
+
+def _main_plane(trial, m: Material):
+    """The return onto the main plane (σ1, σ3) whatever the multiplier's sign (a frozen active
+    set): stress (4, r) and principal plastic strain increments (3, r) in the trial's axes."""
+    major, minor, angle, szz = principal(trial)
+    vals = np.stack([major, minor, szz])
+    order = np.argsort(-vals, axis=0, kind="stable")
+    st = np.take_along_axis(vals, order, axis=0)  # (3, r) sorted
+    sp, sq = m.sin_phi, m.sin_psi
+    b = np.stack([1.0 + sq, np.zeros_like(sq), -(1.0 - sq)])  # (3, r)
+    Db = 2.0 * m.lam * sq + 2.0 * m.mu * b
+    gam = ((1.0 + sp) * st[0] - (1.0 - sp) * st[2] - 2.0 * m.c * m.cos_phi) / ((1.0 + sp) * Db[0] - (1.0 - sp) * Db[2])
+    back, dep = np.empty_like(st), np.empty_like(st)
+    np.put_along_axis(back, order, st - gam * Db, axis=0)
+    np.put_along_axis(dep, order, gam * b, axis=0)
+    return from_principal(back[0], back[1], angle, back[2]), dep
 
 
 def _tangent(trial, stress, active, m: Material, scale):

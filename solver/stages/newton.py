@@ -22,13 +22,20 @@ from ..limits import check_time
 log = logging.getLogger(__name__)
 
 #: Newton iterations allowed per (sub-)increment.
-NEWTON_ITERATIONS = 25
+NEWTON_ITERATIONS = 12
 #: Krylov steps allowed per Newton step (one restart-free GMRES cycle).
-KRYLOV_STEPS = 120
+KRYLOV_STEPS = 80
+#: Newton's iteration has stalled when the force has not halved in this many steps: the increment
+#: is then better split (:func:`solver.stages.plastic._follow`) than iterated on.
+STALL_STEPS = 3
 #: Forcing terms: the first Newton step's and the bounds of the later ones' (Eisenstat–Walker).
 ETA_FIRST, ETA_MIN, ETA_MAX = 0.1, 1e-6, 0.1
 #: Line search: sufficient decrease (Armijo) and the least step tried.
 ARMIJO, LEAST_STEP = 1e-4, 1.0 / 64
+#: Active-set steps (frozen sets of flowing points) allowed to finish an increment.
+ACTIVE_SET_STEPS = 8
+#: Residual norms the non-monotone line search compares with (:func:`_line_search`).
+MEMORY = 4
 #: The regularizations θ tried in turn where Newton's step fails (:func:`newton`).
 REGULARIZATION = (0.0, 0.05, 0.3, 1.0)
 
@@ -37,9 +44,11 @@ class Stalled(Exception):
     """Newton's iteration of one (sub-)increment stopped short of equilibrium: its least
     out-of-balance force, the tolerance and the residual evaluations it took."""
 
-    def __init__(self, force: float, atol: float, iterations: int, reason: str):
+    def __init__(self, force: float, atol: float, iterations: int, reason: str, best=None, krylov: int = 0):
         super().__init__(force, atol, iterations, reason)
         self.force, self.atol, self.iterations, self.reason = force, atol, iterations, reason
+        #: the iterate of least force and its state, and the Krylov steps spent
+        self.best, self.krylov = best, krylov
 
 
 def gmres(apply: Callable[[np.ndarray], np.ndarray], b: np.ndarray, rtol: float, limit: int = KRYLOV_STEPS):
@@ -97,12 +106,20 @@ def newton(residual, jacobian, x: np.ndarray, atol: float, limit: int = NEWTON_I
     evaluations, krylov = 1, 0
     norm = float(np.linalg.norm(F))
     eta, last, level = ETA_FIRST, None, 0
+    history, norms = [force], [norm]
+    best = (force, x, state)
+
+    def stalled(reason):
+        return Stalled(best[0], atol, evaluations, reason, best[1:], krylov)
+
     for step in range(limit + 1):
         check_time("plastic iteration", evaluations)
         if force <= atol:
             return x, state, evaluations, krylov
         if not np.isfinite(force) or step == limit:
             break
+        if len(history) > STALL_STEPS and force > 0.5 * history[-1 - STALL_STEPS]:
+            raise stalled(f"the force did not halve in {STALL_STEPS} Newton steps")
         if last is not None:  # Eisenstat–Walker, choice 2, with its safeguard
             eta = min(ETA_MAX, max(0.9 * (norm / last) ** 2, 0.9 * eta**2, ETA_MIN, 0.5 * atol / force))
         J = jacobian(state, F)
@@ -111,35 +128,77 @@ def newton(residual, jacobian, x: np.ndarray, atol: float, limit: int = NEWTON_I
             apply = J if theta == 0.0 else (lambda v, th=theta: th * v + (1.0 - th) * J(v))
             dx, rel, its = gmres(apply, -F, eta) if theta < 1.0 else (-F, 0.0, 0)
             krylov += its
-            found, alpha, trial, used = _line_search(residual, x, dx, norm, rel)
+            found, alpha, trial, used = _line_search(residual, x, dx, norm, max(norms[-MEMORY:]), rel)
             evaluations += used
             if found or level == len(REGULARIZATION) - 1:
                 break
             level += 1
         if not found:
-            raise Stalled(force, atol, evaluations, "no step decreased the residual")
+            raise stalled("no step decreased the residual")
         F_new, force_new, state_new = trial
         log.debug("newton %d: force %.3g -> %.3g (atol %.3g), step %.3g, θ %g, gmres %d steps to %.2g", step,
                   force, force_new, atol, alpha, theta, its, rel)
         level = max(level - 1, 0)
         x, F, force, state = x + alpha * dx, F_new, force_new, state_new
+        history.append(force)
+        if force < best[0]:
+            best = (force, x, state)
         last, norm = norm, float(np.linalg.norm(F_new))
-    raise Stalled(force, atol, evaluations, f"{limit} Newton steps")
+        norms.append(norm)
+    raise stalled(f"{limit} Newton steps")
 
 
-def _line_search(residual, x, dx, norm: float, rel: float):
+def _line_search(residual, x, dx, norm: float, ref: float, rel: float):
     """Backtracking along ``dx`` from ``x`` (``‖F(x)‖ = norm``, the linear solve's relative
-    residual ``rel``) until Armijo's decrease of ``‖F‖``: whether found, the step, the
-    residual at it and the evaluations used."""
+    residual ``rel``) until Armijo's decrease of ``‖F‖`` from ``ref`` (the largest of the last
+    :data:`MEMORY` norms: non-monotone, Grippo, Lampariello & Lucidi 1986, so that a step past
+    points crossing the yield surface is not refused for a passing rise): whether found, the
+    step, the residual at it and the evaluations used."""
     alpha, used = 1.0, 0
     slope = -2.0 * (1.0 - min(rel, 1.0)) * norm**2  # of ‖F‖² along dx at α = 0
     while alpha >= LEAST_STEP:
         trial = residual(x + alpha * dx, True)
         used += 1
         norm_new = float(np.linalg.norm(trial[0]))
-        if np.isfinite(norm_new) and norm_new <= (1.0 - ARMIJO * alpha * (1.0 - min(rel, 1.0))) * norm:
+        if np.isfinite(norm_new) and norm_new <= ref - ARMIJO * alpha * (1.0 - min(rel, 1.0)) * norm:
             return True, alpha, trial, used
         # the least of the quadratic model along the step, kept within [α/10, α/2]
         q = -slope * alpha**2 / (2.0 * (norm_new**2 - norm**2 - slope * alpha)) if np.isfinite(norm_new) else 0.0
         alpha = min(max(q, 0.1 * alpha), 0.5 * alpha)
     return False, 0.0, None, used
+
+
+def solve_increment(residual, jacobian, flowing, x: np.ndarray, atol: float, endgame: float):
+    """:func:`newton` on ``residual(x, tangent, frozen=None)``, finished, where it stalls with a
+    force below ``endgame``, by active-set steps: the points that flow at the best iterate
+    (``flowing(state)``, (P,) bool) are frozen, so the return is smooth and Newton converges on
+    it; then the true state is checked and the set updated (the primal–dual active-set method of
+    contact problems, Hintermüller, Ito & Kunisch 2002). Where points cross the yield surface from
+    one iterate to the next (flow far from associated, the tangent nearly singular), the
+    semismooth iteration cycles among them; with the set frozen it cannot. Returns as
+    :func:`newton`."""
+    try:
+        return newton(residual, jacobian, x, atol)
+    except Stalled as stall:
+        if stall.force > endgame:
+            raise
+        evaluations, krylov = stall.iterations, stall.krylov
+        x, state = stall.best
+        seen = []
+        for _ in range(ACTIVE_SET_STEPS):
+            frozen = flowing(state)
+            if any(np.array_equal(frozen, s) for s in seen):
+                break
+            seen.append(frozen)
+            try:
+                x, _, its, kry = newton(lambda y, tangent: residual(y, tangent, frozen), jacobian, x, 0.5 * atol)
+            except Stalled as inner:
+                evaluations += inner.iterations
+                break
+            evaluations, krylov = evaluations + its + 1, krylov + kry
+            F, force, state = residual(x, True)
+            log.debug("active set %d: %d points flow, force %.3g (atol %.3g)", len(seen), int(frozen.sum()), force,
+                      atol)
+            if force <= atol:
+                return x, state, evaluations, krylov
+        raise Stalled(stall.force, atol, evaluations, stall.reason + ", nor active-set steps", stall.best, krylov)

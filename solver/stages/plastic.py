@@ -38,7 +38,7 @@ from ..errors import GroundCollapseError
 from ..results.post import mean_convergence
 from .contact import contact_tractions
 from .loads import stage_loads
-from .newton import Stalled, newton
+from .newton import Stalled, solve_increment
 from .points import Points, first_yield
 from .recovery import finish
 from .state import Forward, StageLoads
@@ -49,6 +49,9 @@ log = logging.getLogger(__name__)
 #: out-of-balance force relative to the increment's load; rounding in the force of a case at
 #: 60k unknowns is about 1e-10 of it).
 MIN_TOLERANCE = 1e-6
+#: Newton's iteration that stalls below this fraction of the increment's load is finished by
+#: active-set steps (:func:`.newton.solve_increment`); above it the increment is split.
+ENDGAME = 1e-2
 #: A failing increment is halved at most this many times (sub-increments of 1/256 of it).
 MAX_SPLITS = 8
 #: A sub-increment that converged in at most this many residual evaluations is followed by one
@@ -124,8 +127,8 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: P
     atol = tol * ld / steps * float(np.linalg.norm(release))  # the increment's load
 
     def solve1(frac, guess):
-        def residual(x, tangent):
-            state = gauss.state(x, tangent)
+        def residual(x, tangent, frozen=None):
+            state = gauss.state(x, tangent, frozen)
             p = gauss.plastic_load(state.tau)
             F = x - ground.backward(frac * y_r + ground.forward(p, rows), rows)
             return F, float(np.linalg.norm(K @ F)), (state, p)
@@ -134,7 +137,7 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: P
             soften = gauss.softening(at[0])
             return lambda v: v - ground.backward(ground.forward(soften(v), rows), rows)
 
-        return newton(residual, jacobian, guess, atol)
+        return solve_increment(residual, jacobian, lambda at: gauss.flowing(at[0]), guess, atol, ENDGAME * atol / tol)
 
     size = 2**MAX_SPLITS
     for k in range(elastic + 1, steps + 1):
@@ -147,7 +150,7 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: P
     return u1, p1, counts, curve
 
 
-def _stage_two(model, spec, rows, loads, steps: int, atol: float, u1, p1, gauss: Points, commit):
+def _stage_two(model, spec, rows, loads, steps: int, tol: float, atol: float, u1, p1, gauss: Points, commit):
     """Stage 2: the rest with the lining and contact, in ``steps`` increments. Returns the
     stage's displacement, its last plastic load and the residual evaluations and Krylov steps."""
     ground, lining = model.ground, model.lining
@@ -158,8 +161,8 @@ def _stage_two(model, spec, rows, loads, steps: int, atol: float, u1, p1, gauss:
     w = model.w
 
     def solve2(a, guess):
-        def residual(x, tangent):
-            state = gauss.state(u1 + x, tangent)
+        def residual(x, tangent, frozen=None):
+            state = gauss.state(u1 + x, tangent, frozen)
             p = gauss.plastic_load(state.tau)
             y = a * y_g + ground.forward(p - p1, rows)
             d = ground.jumps(y, rows) + lining.jumps(a * y_l, rows)
@@ -183,7 +186,8 @@ def _stage_two(model, spec, rows, loads, steps: int, atol: float, u1, p1, gauss:
 
             return apply
 
-        return newton(residual, jacobian, guess, atol)
+        return solve_increment(residual, jacobian, lambda at: gauss.flowing(at[0]), guess, atol,
+                               ENDGAME * atol / tol)
 
     u2 = u2_prev = np.zeros(ground.body.n)
     h_prev, size, p, counts = 1.0 / steps, 2**MAX_SPLITS, p1, np.zeros(2, int)
@@ -222,7 +226,7 @@ def solve_staged(model, spec, rows, t0: float):
     ref1 = ld / steps * float(np.linalg.norm(loads.release)) if loads.release is not None else 0.0
     full = StageLoads(loads.ground, loads.lining, None, loads.seepage)
     atol2 = tol * _stage_two_load(full, steps, model.mode_loads(full.lining), ref1)
-    u2, p, counts2 = _stage_two(model, spec, rows, loads, steps, atol2, u1, p1, gauss, commit)
+    u2, p, counts2 = _stage_two(model, spec, rows, loads, steps, tol, atol2, u1, p1, gauss, commit)
     counts = counts + counts2
     # the whole contact stage (both bodies, the checks) of the last increment's converged iterate
     extra = p - p1

@@ -88,9 +88,10 @@ class Points:
         """The displacement gradient (2, 2, E, Q) of the ground's unknowns ``u_free``."""
         return (self.G @ u_free).reshape((2, 2) + self.shape)
 
-    def state(self, u_free: np.ndarray, tangent: bool = False) -> State:
+    def state(self, u_free: np.ndarray, tangent: bool = False, frozen: np.ndarray | None = None) -> State:
         """The state of a displacement since excavation, returned from the last converged
-        increment; with ``tangent``, ``D - C`` at the returned points."""
+        increment; with ``tangent``, ``D - C`` at the returned points; ``frozen`` (E·Q,) bool
+        fixes which points flow (:mod:`solver.ground.laws`)."""
         grad = self.gradient(u_free)
         trial = self.hooke(grad - self.grad, onto=self.sigma)
         flat = trial.reshape(4, -1)
@@ -99,7 +100,8 @@ class Points:
         flags = np.zeros(flat.shape[1], bool)
         returned, soft = [], []
         for at, law in self.laws:
-            stress[:, at], dep[:, at], flags[at], r, C = law(flat[:, at], tangent)
+            stress[:, at], dep[:, at], flags[at], r, C = law(flat[:, at], tangent,
+                                                              None if frozen is None else frozen[at])
             if tangent and r.size:
                 returned.append(at[r])
                 soft.append(elastic_matrix(self.lam.ravel()[at[r]], self.mu.ravel()[at[r]]) - C)
@@ -111,6 +113,12 @@ class Points:
             returned = soft = None
         return State(u_free, grad, stress, dep, flags.reshape(self.shape), self.tau + (trial - stress),
                      returned, soft)
+
+    def flowing(self, state: State) -> np.ndarray:
+        """(E·Q,) bool: the points ``state`` returned (it must have its tangent)."""
+        mask = np.zeros(self.shape[0] * self.shape[1], bool)
+        mask[state.returned] = True
+        return mask
 
     def commit(self, state: State) -> None:
         """Make ``state`` the last converged one."""
