@@ -33,7 +33,7 @@ ETA_FIRST, ETA_MIN, ETA_MAX = 0.1, 1e-6, 0.1
 #: Line search: sufficient decrease (Armijo) and the least step tried.
 ARMIJO, LEAST_STEP = 1e-4, 1.0 / 64
 #: Active-set steps (frozen sets of flowing points) allowed to finish an increment.
-ACTIVE_SET_STEPS = 8
+ACTIVE_SET_STEPS = 12
 #: Residual norms the non-monotone line search compares with (:func:`_line_search`).
 MEMORY = 4
 #: The regularizations θ tried in turn where Newton's step fails (:func:`newton`).
@@ -88,7 +88,7 @@ def gmres(apply: Callable[[np.ndarray], np.ndarray], b: np.ndarray, rtol: float,
     return V[:k].T @ y, abs(g[k]) / beta, k
 
 
-def newton(residual, jacobian, x: np.ndarray, atol: float, limit: int = NEWTON_ITERATIONS):
+def newton(residual, jacobian, x: np.ndarray, atol: float, limit: int | None = None):
     """Solve ``F(x) = 0`` from ``x`` until the out-of-balance force is at most ``atol``.
 
     ``residual(x, tangent)`` returns ``(F, force, state)``: the preconditioned residual, the
@@ -102,6 +102,7 @@ def newton(residual, jacobian, x: np.ndarray, atol: float, limit: int = NEWTON_I
     stiffness' step ``δ = -F``), and relaxed again after a success. Returns ``x``, its state, the
     residual evaluations and the Krylov steps taken; raises :class:`Stalled` when no θ gives a
     decrease, the force is not finite or after ``limit`` steps."""
+    limit = NEWTON_ITERATIONS if limit is None else limit
     F, force, state = residual(x, True)
     evaluations, krylov = 1, 0
     norm = float(np.linalg.norm(F))
@@ -184,14 +185,18 @@ def solve_increment(residual, jacobian, flowing, x: np.ndarray, atol: float, end
             raise
         evaluations, krylov = stall.iterations, stall.krylov
         x, state = stall.best
-        seen = []
+        force, seen = stall.force, []  # the sets tried, and whether solved to the tolerance
         for _ in range(ACTIVE_SET_STEPS):
             frozen = flowing(state)
-            if any(np.array_equal(frozen, s) for s in seen):
-                break
-            seen.append(frozen)
+            again = [tight for s, tight in seen if np.array_equal(frozen, s)]
+            if any(again):
+                break  # a cycle of sets
+            # each new set only as far as it is right (a tenth of the true force), then checked; a
+            # set met again to the tolerance
+            target = 0.5 * atol if again else max(0.5 * atol, 0.1 * force)
+            seen.append((frozen, target == 0.5 * atol))
             try:
-                x, _, its, kry = newton(lambda y, tangent: residual(y, tangent, frozen), jacobian, x, 0.5 * atol)
+                x, _, its, kry = newton(lambda y, tangent: residual(y, tangent, frozen), jacobian, x, target)
             except Stalled as inner:
                 evaluations += inner.iterations
                 break

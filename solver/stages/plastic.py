@@ -51,7 +51,7 @@ log = logging.getLogger(__name__)
 MIN_TOLERANCE = 1e-6
 #: Newton's iteration that stalls below this fraction of the increment's load is finished by
 #: active-set steps (:func:`.newton.solve_increment`); above it the increment is split.
-ENDGAME = 1e-2
+ENDGAME = 5e-2
 #: A failing increment is halved at most this many times (sub-increments of 1/256 of it).
 MAX_SPLITS = 8
 #: A sub-increment that converged in at most this many residual evaluations is followed by one
