@@ -29,7 +29,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .mohr_coulomb import from_principal, principal
-from .tangent import active_set_jacobian, elastic_matrix, full_tangent
+from .tangent import active_set_jacobian, elastic_matrix, full_tangent, unsort
 
 #: Relative tolerance of "on or inside a surface" (to the stresses' scale).
 YIELD_TOL = 1e-9
@@ -82,6 +82,18 @@ def default_tensile_strength(ucs, gsi, mi, disturbance):
     """The criterion's apex s σci / m_b (Pa): the default tension cut-off."""
     mb, s, _ = constants(gsi, mi, disturbance)
     return s * np.asarray(ucs, dtype=float) / mb
+
+
+def hoek_brown_excess(s_major: float, s_minor: float, ucs: float, gsi: float, mi: float, disturbance: float,
+                      tensile_strength: float | None = None) -> float:
+    """How far a state with major and minor principal stresses (Pa, compression positive) lies outside
+    the Hoek–Brown surface with its tension cut-off (Pa; ≤ 0 inside), as
+    :func:`solver.strata.mohr_coulomb_excess` (for the geostatic check)."""
+    mb, s, a = (float(v) for v in constants(gsi, mi, disturbance))
+    apex = s * ucs / mb
+    t = apex if tensile_strength is None else min(tensile_strength, apex)
+    shear = (s_major - s_minor) - ucs * max(mb * s_minor / ucs + s, 0.0) ** a
+    return float(max(shear, -s_minor - t))
 
 
 class HBMaterial(NamedTuple):
@@ -292,12 +304,8 @@ def _return(trial, m: HBMaterial, scale, jacobian: bool):
     np.put_along_axis(back, order, res.T, axis=0)
     dep = np.empty((3, k))
     np.put_along_axis(dep, order, strain.T, axis=0)
-    if jacobian:  # to the trial's axes: J_axes[order_i, order_j] = J_sorted[i, j]
-        Ja = np.empty_like(J)
-        idx = order.T  # (k, 3)
-        rows = np.arange(k)[:, None, None]
-        Ja[rows, idx[:, :, None], idx[:, None, :]] = J
-        J = Ja
+    if jacobian:
+        J = unsort(J, order)
     return from_principal(back[0], back[1], angle, back[2]), dep, J
 
 
@@ -332,7 +340,7 @@ def _linear_returns(st, m: HBMaterial, scale, left, res, strain, J):
         mp, sr = m.at(p), st[p]
         lam, mu, sq = mp.lam, mp.mu, mp.sin_psi
         A, B, kc = [], [], []
-        st_t = strength(mp.tensile, mp)
+        st_t = _cutoff_strength(mp)[1]
         for c in cand:
             a = np.zeros((p.size, 3))
             if c < 3:
@@ -365,6 +373,14 @@ def _linear_returns(st, m: HBMaterial, scale, left, res, strain, J):
         left[hit] = False
 
 
+def _cutoff_strength(m: HBMaterial):
+    """Whether the cut-off is at the apex and σci x(σt)^a: the apex judged on x and its strength taken
+    as exactly 0, since x^a magnifies the rounding of x = s - m_b σt/σci there (1e-20 of s gives
+    σci 1e-10, mPa)."""
+    at_apex = m.s - m.mb * m.tensile / m.ucs <= 1e-12 * m.s
+    return at_apex, np.where(at_apex, 0.0, strength(m.tensile, m))
+
+
 def _corner_returns(st, m: HBMaterial, scale, left, res, strain, J):
     """Returns to the corner σ1 = σ2 = σt, σ3 = σt - σci x(σt)^a (the apex when the cut-off is
     there), where more surfaces meet than principal space has dimensions (the cut-offs of σ1 and
@@ -374,14 +390,13 @@ def _corner_returns(st, m: HBMaterial, scale, left, res, strain, J):
     p = np.flatnonzero(left)
     mp, sr = m.at(p), st[p]
     lam, mu, sq = mp.lam, mp.mu, mp.sin_psi
-    gap = strength(mp.tensile, mp)
+    at_apex, gap = _cutoff_strength(mp)  # b12 and e3 join at the apex
     corner = np.stack([mp.tensile, mp.tensile, mp.tensile - gap], axis=1)
     drop = sr - corner  # D Δεp
     dep = (drop - (lam / (3.0 * lam + 2.0 * mu))[:, None] * drop.sum(axis=1, keepdims=True)) / (2.0 * mu[:, None])
     e = np.eye(3)
     flows = np.stack([_flow(0, 2, sq), _flow(1, 2, sq), *(np.broadcast_to(v, (p.size, 3)) for v in e[:2]),
                       _flow(0, 1, sq), np.broadcast_to(e[2], (p.size, 3))], axis=1)  # (P, 6, 3)
-    at_apex = gap <= YIELD_TOL * scale[p]  # b12 and e3 join there
     found = np.zeros(p.size, bool)
     for triple in itertools.combinations(range(6), 3):
         Bt = np.swapaxes(flows[:, list(triple)], 1, 2)  # (P, 3, 3), columns b_l

@@ -55,6 +55,15 @@ def active_set_jacobian(normals: np.ndarray, flows: np.ndarray, lam, mu) -> np.n
     return J - DB @ np.linalg.solve(M, normals)
 
 
+def unsort(J: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """A principal Jacobian (m, 3, 3) in sorted axes (σ1 ≥ σ2 ≥ σ3) back to the trial's axes, where
+    ``order`` (3, m) lists, per point, the trial's axis of each sorted one: J_axes[o_i, o_j] = J[i, j]."""
+    out = np.empty_like(J)
+    idx = order.T
+    out[np.arange(J.shape[0])[:, None, None], idx[:, :, None], idx[:, None, :]] = J
+    return out
+
+
 def full_tangent(trial: np.ndarray, stress: np.ndarray, J: np.ndarray, lam, mu,
                  scale: np.ndarray | None = None) -> np.ndarray:
     """The consistent tangent (m, 4, 4) (layout in the module's docstring) of a return with
