@@ -25,7 +25,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .principal import from_principal, principal
-from .tangent import active_set_jacobian, full_tangent
+from .tangent import active_set_jacobian, full_tangent, unsort
 
 #: Relative tolerance of "on or inside a surface" (to the stresses' scale).
 YIELD_TOL = 1e-9
@@ -210,11 +210,7 @@ def _tangent(trial, stress, active, m: Material, scale):
         at = np.flatnonzero(active == k)
         cs = list(CANDIDATES[k])
         J[at] = active_set_jacobian(a_all[at][:, cs], b_all[at][:, cs], m.lam[at], m.mu[at])
-    # sorted axes → the trial's (major in-plane, minor in-plane, zz): J_axes[o_i, o_j] = J[i, j]
-    Jx = np.empty_like(J)
-    rows = np.arange(r)[:, None, None]
-    Jx[rows, order.T[:, :, None], order.T[:, None, :]] = J
-    return full_tangent(trial, stress, Jx, m.lam, m.mu, scale)
+    return full_tangent(trial, stress, unsort(J, order), m.lam, m.mu, scale)
 
 
 def _return(trial, lam, mu, c, sp, cp, sq, t, scale):
