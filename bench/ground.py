@@ -12,7 +12,15 @@ them alike; ``paired`` is the median over the rounds of each case's time over th
 in the same round. ``--weak`` also solves, once on its built model, issue 25's weak ground
 (c 15 kPa, φ 25°, ψ 0: increments that stall and are split) and reports its iterations.
 
-    python -m bench.ground [--repeat N] [--json] [--weak]
+``--sample N`` instead solves a seeded Sobol' sample (scipy.stats.qmc) of N weak soft-ground cases
+(c′ 1–15 kPa, φ′ 20–32°, ψ 0–5°, λd 0.2–0.6, K0 0.4–0.7, E 30–150 MPa log-uniform, default
+geometry; issue 36) and N of a wider range (c′ 5–50 kPa, φ′ 20–38°), each ``run_case`` timed
+back to back with its elastic twin (the same case with elastic ground): the share that
+converged (a collapse is named, with the deconfinement held), and the cost ratios' median, 95th
+percentile and maximum; then issue 36's default Mohr–Coulomb case (c 10 kPa, φ 28°, ψ 0) against
+the default, and a next case of it on its built model.
+
+    python -m bench.ground [--repeat N] [--json] [--weak] [--sample N]
 """
 from __future__ import annotations
 
@@ -53,12 +61,98 @@ def _least(fn, repeat: int) -> float:
     return best
 
 
+#: issue 36's default Mohr–Coulomb case
+MC_DEFAULT = {"ground": {"model": "mohr-coulomb", "cohesion": 1.0e4, "friction_angle": 28.0, "dilatancy": 0.0}}
+#: the sampled families: (c′ kPa, φ′ deg) ranges; ψ 0–5°, λd 0.2–0.6, K0 0.4–0.7, E 30–150 MPa for both
+FAMILIES = {"weak": ((1.0, 15.0), (20.0, 32.0)), "wide": ((5.0, 50.0), (20.0, 38.0))}
+
+
+def sample_cases(n: int, family: str, seed: int = 36) -> list[dict]:
+    """``n`` cases of a family from a scrambled Sobol' sequence (seeded: the same cases every run)."""
+    from scipy.stats import qmc
+
+    (c0, c1), (p0, p1) = FAMILIES[family]
+    u = qmc.Sobol(d=6, scramble=True, seed=seed).random(n)
+    lo, hi = [c0, p0, 0.0, 0.2, 0.4, 3.0e7], [c1, p1, 5.0, 0.6, 0.7, 1.5e8]
+    cases = []
+    for c, phi, psi, ld, k0, logE in qmc.scale(u, lo[:5] + [0.0], hi[:5] + [1.0]):
+        young = lo[5] * (hi[5] / lo[5]) ** logE
+        cases.append({"ground": {"young": round(young, -5), "model": "mohr-coulomb", "cohesion": round(c * 1e3, 1),
+                                 "friction_angle": round(phi, 2), "dilatancy": round(min(psi, phi), 2)},
+                      "loads": {"lateral_ratio": round(k0, 3)}, "excavation": {"deconfinement": round(ld, 3)}})
+    return cases
+
+
+def _twin(case: dict) -> dict:
+    twin = json.loads(json.dumps(case))
+    twin["ground"] = {"young": case["ground"]["young"]} if "young" in case["ground"] else {}
+    return twin
+
+
+def _timed(case: dict):
+    t0 = time.perf_counter()
+    try:
+        run_case(CaseSpec.model_validate(case))
+        outcome = "converged"
+    except SolverError as e:
+        outcome = "collapse" if type(e).__name__ == "GroundCollapseError" else f"failed: {e}"
+    return time.perf_counter() - t0, outcome
+
+
+def sample_study(n: int) -> dict:
+    """Per family: outcomes and the cost over the elastic twin (see the module's docstring)."""
+    import numpy as np
+
+    run_case(CaseSpec.model_validate({}))  # warm the imports
+    out = {}
+    for family in FAMILIES:
+        rows = []
+        for case in sample_cases(n, family):
+            elastic, _ = _timed(_twin(case))
+            plastic, outcome = _timed(case)
+            rows.append({"case": case, "outcome": outcome, "ratio": plastic / elastic, "seconds": plastic})
+        ratios = np.array([r["ratio"] for r in rows])
+        out[family] = {"cases": rows, "converged_or_collapse": float(np.mean([not r["outcome"].startswith("failed")
+                                                                             for r in rows])),
+                       "collapses": sum(r["outcome"] == "collapse" for r in rows),
+                       "median": float(np.median(ratios)), "p95": float(np.percentile(ratios, 95)),
+                       "max": float(ratios.max())}
+    elastic, _ = _timed({})
+    plastic, outcome = _timed(MC_DEFAULT)
+    spec = CaseSpec.model_validate(MC_DEFAULT)
+    model = TunnelModel(spec)
+    model.solve(spec)
+    other = spec.model_copy(update={"loads": spec.loads.model_copy(update={"lateral_ratio": 0.6})})
+    t0 = time.perf_counter()
+    model.solve(other)
+    t_next = time.perf_counter() - t0
+    out["mc_default"] = {"ratio": plastic / elastic, "outcome": outcome, "next_case_on_model_s": t_next}
+    return out
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--weak", action="store_true", help="also solve issue 25's weak ground once")
+    ap.add_argument("--sample", type=int, default=0, help="solve a seeded sample of this many cases per family")
     args = ap.parse_args(argv)
+    if args.sample:
+        study = sample_study(args.sample)
+        if args.json:
+            print(json.dumps(study, indent=2))
+            return
+        for family in FAMILIES:
+            r = study[family]
+            print(f"{family}: {100 * r['converged_or_collapse']:.0f} % converged or named collapse "
+                  f"({r['collapses']} collapses); cost / elastic twin: median {r['median']:.2f}, "
+                  f"95th percentile {r['p95']:.2f}, max {r['max']:.2f}")
+            for row in r["cases"]:
+                print(f"  {json.dumps(row['case'])}: {row['outcome'][:120]}, {row['ratio']:.2f}x")
+        d = study["mc_default"]
+        print(f"default Mohr-Coulomb (c 10 kPa, phi 28, psi 0): {d['ratio']:.2f}x elastic ({d['outcome'][:80]}); "
+              f"next case on its built model {d['next_case_on_model_s']:.3f} s")
+        return
     specs = {name: CaseSpec.model_validate(d) for name, d in CASES.items()}
     whole = {name: float("inf") for name in specs}
     rounds = []

@@ -43,11 +43,14 @@ def _near(ds: xr.Dataset) -> np.ndarray:
     return np.any((x < 1.05 * view) & (np.abs(y - cy) < 1.05 * view), axis=1)
 
 
-def _yielded_outline(ax, ds: xr.Dataset, tri: np.ndarray, x: np.ndarray, y: np.ndarray) -> bool:
-    """Outline the yielded zone (edges between a plastic and an elastic face); True if drawn."""
-    if "plastic" not in ds or not np.any(ds["plastic"].values > 0):
+def _yielded_outline(ax, ds: xr.Dataset, tri: np.ndarray, x: np.ndarray, y: np.ndarray, name: str = "plastic",
+                     color: str = "magenta", label: str = "yielded zone", style: str = "-") -> bool:
+    """Outline the zone where the face flag ``name`` is set (edges between a flagged and an
+    unflagged face): the yielded zone at the end, or before the lining (``stage1_plastic``);
+    True if drawn."""
+    if name not in ds or not np.any(ds[name].values > 0):
         return False
-    plastic = ds["plastic"].values > 0
+    plastic = ds[name].values > 0
     edges = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
     owner = np.tile(np.arange(tri.shape[0]), 3)
     keys, inverse = np.unique(edges, axis=0, return_inverse=True)
@@ -56,7 +59,7 @@ def _yielded_outline(ax, ds: xr.Dataset, tri: np.ndarray, x: np.ndarray, y: np.n
     border = state == 1  # on the zone's boundary: exactly one plastic face beside the edge
     segs = np.stack([np.column_stack([x[keys[border, 0]], y[keys[border, 0]]]),
                      np.column_stack([x[keys[border, 1]], y[keys[border, 1]]])], axis=1)
-    ax.add_collection(LineCollection(segs, colors="magenta", linewidths=1.2, label="yielded zone"))
+    ax.add_collection(LineCollection(segs, colors=color, linewidths=1.2, linestyles=style, label=label))
     return True
 
 
@@ -87,6 +90,7 @@ def _panel(fig, ax, ds, tri, near, values, *, label: str, cmap: str, faces: bool
     _lining(ax, ds, tri, x, y)
     joint_plots.draw_on_mesh(ax, ds)
     _yielded_outline(ax, ds, tri, x, y)
+    _yielded_outline(ax, ds, tri, x, y, "stage1_plastic", "darkorange", "yielded before the lining", "--")
     _ground_lines(ax, ds)
     _window(ax, ds)
     bar = fig.colorbar(art, ax=ax, shrink=0.85)

@@ -18,7 +18,7 @@ DIAGNOSTICS = ("bolt_theta", "bolt_trials", "iterations", "converged", "kkt_resi
 #: Dimensionless results shown in per cent.
 PERCENT = ("ground_loss", "volume_loss")
 #: Lengths read in metres (sizes of zones), not millimetres (displacements).
-METRES = ("max_plastic_extent",)
+METRES = ("max_plastic_extent", "stage1_max_plastic_extent")
 
 
 def display_unit(units: str, name: str | None = None) -> tuple[str, float]:

@@ -24,24 +24,11 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .principal import from_principal, principal
+from .tangent import active_set_jacobian, full_tangent, unsort
+
 #: Relative tolerance of "on or inside a surface" (to the stresses' scale).
 YIELD_TOL = 1e-9
-
-
-def principal(stress: np.ndarray):
-    """Principal values of plane-strain stresses (4, ...) = (xx, yy, xy, zz): the in-plane pair
-    (major, minor), the angle of the major direction and σzz."""
-    sxx, syy, sxy, szz = stress
-    c = 0.5 * (sxx + syy)
-    r = np.hypot(0.5 * (sxx - syy), sxy)
-    angle = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)
-    return c + r, c - r, angle, szz
-
-
-def from_principal(major, minor, angle, szz) -> np.ndarray:
-    """Plane-strain stress components (4, ...) from in-plane principal values along ``angle``."""
-    c, s = np.cos(angle), np.sin(angle)
-    return np.stack([major * c * c + minor * s * s, major * s * s + minor * c * c, (major - minor) * s * c, szz])
 
 
 def yield_values(s: np.ndarray, cohesion, sin_phi, cos_phi, tensile) -> np.ndarray:
@@ -109,6 +96,27 @@ class Material(NamedTuple):
 
 def return_stress(trial: np.ndarray, mat: Material, flag_tolerance: float = YIELD_TOL):
     """:func:`return_map` with the material's constants prepared once (:class:`Material`)."""
+    return _stress(trial, mat, flag_tolerance, False)[:3]
+
+
+def consistent_tangent(trial: np.ndarray, mat: Material, flag_tolerance: float = YIELD_TOL,
+                       frozen: np.ndarray | None = None):
+    """The return (as :func:`return_stress`) and its algorithmic tangent at the returned points:
+    ``(stress, plastic_strain, at_yield, returned (r,) indices, tangent (r, 4, 4))``, the tangent
+    mapping strain increments (dεxx, dεyy, dγxy, dεzz) to stress increments (the layout of
+    :mod:`.tangent`; the elastic matrix everywhere else). Each returned point's principal Jacobian
+    is that of its active set (:func:`.tangent.active_set_jacobian`: one plane, an edge's two, a
+    point of principal space for three or more), in the trial's axes, with the spin of its in-plane
+    directions (:func:`.tangent.full_tangent`).
+
+    ``frozen`` (n,) bool, if given, fixes which points flow: the others stay elastic even outside
+    the surface, and those inside are returned onto the main plane all the same (a negative
+    multiplier). The return is then smooth in the trial (an active-set step of the equilibrium
+    iteration, :mod:`solver.stages.newton`); ``at_yield`` flags the points outside."""
+    return _stress(trial, mat, flag_tolerance, True, frozen)
+
+
+def _stress(trial: np.ndarray, mat: Material, flag_tolerance: float, tangent: bool, frozen=None):
     n = trial.shape[1]
     c, sp, cp, t = mat.c, mat.sin_phi, mat.cos_phi, mat.tensile
     # a cheap screen of every point: the largest and least principal stresses without sorting
@@ -138,16 +146,71 @@ def return_stress(trial: np.ndarray, mat: Material, flag_tolerance: float = YIEL
     s1 -= t
     np.maximum(fmax, s1, out=fmax)
     at_yield = fmax > -flag_tolerance * scale
-    todo = np.flatnonzero(fmax > YIELD_TOL * scale)
+    outside = fmax > YIELD_TOL * scale
+    forced = np.zeros(0, np.int64)
+    if frozen is not None:
+        forced = np.flatnonzero(frozen & ~outside)
+        outside &= frozen
+    todo = np.flatnonzero(outside)
     stress = np.array(trial, dtype=float)  # a state inside stays exactly as it was
     dep = np.zeros((3, n))
+    C = np.zeros((0, 4, 4))
     if todo.size:
         m = mat.at(todo)
-        ret, dep_t = _return(trial[:, todo], m.lam, m.mu, m.c, m.sin_phi, m.cos_phi, m.sin_psi, m.tensile,
-                             scale[todo])
+        ret, dep_t, active = _return(trial[:, todo], m.lam, m.mu, m.c, m.sin_phi, m.cos_phi, m.sin_psi,
+                                     m.tensile, scale[todo])
         stress[:, todo], dep[:, todo] = ret, dep_t
         at_yield[todo] = True
+        if tangent:
+            C = _tangent(trial[:, todo], ret, active, m, scale[todo])
+    if forced.size:
+        m = mat.at(forced)
+        ret, dep_f = _main_plane(trial[:, forced], m)
+        stress[:, forced], dep[:, forced] = ret, dep_f
+        if tangent:
+            C = np.concatenate([C, _tangent(trial[:, forced], ret, np.zeros(forced.size, np.int64), m,
+                                            scale[forced])])
+        todo = np.concatenate([todo, forced])
+    if tangent:
+        return stress, dep, at_yield, todo, C
     return stress, dep, at_yield
+
+
+def _main_plane(trial, m: Material):
+    """The return onto the main plane (σ1, σ3) whatever the multiplier's sign (a frozen active
+    set): stress (4, r) and principal plastic strain increments (3, r) in the trial's axes."""
+    major, minor, angle, szz = principal(trial)
+    vals = np.stack([major, minor, szz])
+    order = np.argsort(-vals, axis=0, kind="stable")
+    st = np.take_along_axis(vals, order, axis=0)  # (3, r) sorted
+    sp, sq = m.sin_phi, m.sin_psi
+    b = np.stack([1.0 + sq, np.zeros_like(sq), -(1.0 - sq)])  # (3, r)
+    Db = 2.0 * m.lam * sq + 2.0 * m.mu * b
+    gam = ((1.0 + sp) * st[0] - (1.0 - sp) * st[2] - 2.0 * m.c * m.cos_phi) / ((1.0 + sp) * Db[0] - (1.0 - sp) * Db[2])
+    back, dep = np.empty_like(st), np.empty_like(st)
+    np.put_along_axis(back, order, st - gam * Db, axis=0)
+    np.put_along_axis(dep, order, gam * b, axis=0)
+    return from_principal(back[0], back[1], angle, back[2]), dep
+
+
+def _tangent(trial, stress, active, m: Material, scale):
+    """The algorithmic tangent (r, 4, 4) of returns onto the candidate sets ``active`` (r,) (indices
+    into :data:`CANDIDATES`, in sorted principal axes; ``order`` of the trial's)."""
+    major, minor, _, szz = principal(trial)
+    order = np.argsort(-np.stack([major, minor, szz]), axis=0, kind="stable")  # as _return sorted them
+    r = trial.shape[1]
+    J = np.empty((r, 3, 3))
+    a_all, b_all = np.empty((r, 6, 3)), np.empty((r, 6, 3))
+    for j, (i1, i2) in enumerate(((0, 2), (1, 2), (0, 1))):
+        a_all[:, j], b_all[:, j] = 0.0, 0.0
+        a_all[:, j, i1], a_all[:, j, i2] = 1.0 + m.sin_phi, -(1.0 - m.sin_phi)
+        b_all[:, j, i1], b_all[:, j, i2] = 1.0 + m.sin_psi, -(1.0 - m.sin_psi)
+    a_all[:, 3:] = b_all[:, 3:] = np.eye(3)
+    for k in np.unique(active):
+        at = np.flatnonzero(active == k)
+        cs = list(CANDIDATES[k])
+        J[at] = active_set_jacobian(a_all[at][:, cs], b_all[at][:, cs], m.lam[at], m.mu[at])
+    return full_tangent(trial, stress, unsort(J, order), m.lam, m.mu, scale)
 
 
 def _return(trial, lam, mu, c, sp, cp, sq, t, scale):
@@ -160,6 +223,7 @@ def _return(trial, lam, mu, c, sp, cp, sq, t, scale):
     st = np.take_along_axis(vals, order, axis=0).T  # (m, 3) sorted σ1 ≥ σ2 ≥ σ3
     res = np.empty((m, 3))
     gam_strain = np.zeros((m, 3))
+    active = np.zeros(m, np.int64)  # the candidate set each point returned onto
     # isotropic elasticity in principal axes: D = λ 1 1ᵀ + 2μ I. The main plane alone (most
     # returns) in closed form: a = (1 + sin φ, 0, -(1 - sin φ)), b likewise with ψ, D b, Δγ
     b_main = np.stack([1.0 + sq, np.zeros(m), -(1.0 - sq)], axis=1)  # (m, 3)
@@ -188,7 +252,7 @@ def _return(trial, lam, mu, c, sp, cp, sq, t, scale):
         k_const[:, :3] = (2.0 * c * cp)[:, None]
         k_const[:, 3:] = t[:, None]
         left = np.ones(r, bool)
-        for cand in CANDIDATES[1:]:
+        for number, cand in enumerate(CANDIDATES[1:], start=1):
             p = np.flatnonzero(left)
             if p.size == 0:
                 break
@@ -206,6 +270,7 @@ def _return(trial, lam, mu, c, sp, cp, sq, t, scale):
             ok = _admissible(gam, sig, c[p], sp[p], cp[p], t[p], scale[p])
             hit = p[ok]
             res[rest[hit]] = sig[ok]
+            active[rest[hit]] = number
             gam_strain[rest[hit]] = np.einsum("pl,plx->px", gam[ok], b[ok])
             left[hit] = False
         pending[rest] = left
@@ -216,7 +281,7 @@ def _return(trial, lam, mu, c, sp, cp, sq, t, scale):
     np.put_along_axis(back, order, res.T, axis=0)
     dep = np.empty((3, m))
     np.put_along_axis(dep, order, gam_strain.T, axis=0)
-    return from_principal(back[0], back[1], angle, back[2]), dep
+    return from_principal(back[0], back[1], angle, back[2]), dep, active
 
 
 def _admissible(gam, sig, c, sp, cp, t, scale) -> np.ndarray:

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .mohr_coulomb import principal
+from .principal import principal
 
 
 def elastic_matrix(lam, mu) -> np.ndarray:

@@ -62,6 +62,9 @@ SCALARS = {
     "max_surface_heave": ("m", "largest upward displacement of the FE ground surface (>= 0)"),
     "plastic_area": ("m2", "area of yielded ground around the whole tunnel"),
     "max_plastic_extent": ("m", "largest distance of a yielded face from the tunnel axis (0 if none)"),
+    "stage1_plastic_area": ("m2", "area of ground at yield at the end of stage 1, before the lining was placed"),
+    "stage1_max_plastic_extent": ("m", "largest distance from the tunnel axis of a face at yield at the end of "
+                                  "stage 1 (0 if none)"),
     "water_inflow": ("m3 s-1", "steady water inflow into the whole tunnel per metre (0 unless the lining drains)"),
     "max_joint_opening": ("m", "largest opening of the segmental lining's joints (0 for a monolithic lining)"),
     "max_joint_rotation": ("rad", "largest absolute rotation across a joint (0 for a monolithic lining)"),
@@ -137,15 +140,20 @@ def _ground_state(model: TunnelModel, sol: Solution) -> dict:
 
 
 def _plastic_scalars(sol: Solution, node_xy: np.ndarray, ground_faces: np.ndarray, center) -> dict:
-    """``plastic_area`` (m², both halves) and ``max_plastic_extent`` (m from the tunnel axis)."""
-    if sol.plastic is None or not sol.plastic["at_yield"].any():
-        return {"plastic_area": 0.0, "max_plastic_extent": 0.0}
-    on = sol.plastic["at_yield"]
-    xy = node_xy[:, ground_faces[on]]  # (2, F, 3)
-    e1, e2 = xy[:, :, 1] - xy[:, :, 0], xy[:, :, 2] - xy[:, :, 0]
-    area = 0.5 * np.abs(e1[0] * e2[1] - e1[1] * e2[0])
-    reach = np.hypot(xy[0] - center[0], xy[1] - center[1]).mean(axis=1)
-    return {"plastic_area": float(2.0 * area.sum()), "max_plastic_extent": float(reach.max())}
+    """``plastic_area`` (m², both halves) and ``max_plastic_extent`` (m from the tunnel axis) of
+    the final state, and ``stage1_…`` of the state before the lining was placed."""
+    out = {}
+    for prefix, key in (("", "at_yield"), ("stage1_", "stage1_at_yield")):
+        on = None if sol.plastic is None else sol.plastic.get(key)
+        if on is None or not on.any():
+            out.update({f"{prefix}plastic_area": 0.0, f"{prefix}max_plastic_extent": 0.0})
+            continue
+        xy = node_xy[:, ground_faces[on]]  # (2, F, 3)
+        e1, e2 = xy[:, :, 1] - xy[:, :, 0], xy[:, :, 2] - xy[:, :, 0]
+        area = 0.5 * np.abs(e1[0] * e2[1] - e1[1] * e2[0])
+        reach = np.hypot(xy[0] - center[0], xy[1] - center[1]).mean(axis=1)
+        out.update({f"{prefix}plastic_area": float(2.0 * area.sum()), f"{prefix}max_plastic_extent": float(reach.max())})
+    return out
 
 
 def volume_loss(x: np.ndarray, settlement: np.ndarray, hole_radius: float) -> float:
@@ -231,8 +239,10 @@ def _mesh_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict, dict
     effective = np.concatenate([state["effective"], lining_stress], axis=1)
     pore = np.r_[state["pore"], np.zeros(n_fl)]
     layer = np.r_[np.repeat(model.band, 4), np.full(n_fl, -1)].astype(np.int16)
+    stage1 = np.zeros(n_fg, np.int8)
     if sol.plastic is not None:
         plastic, eqps = sol.plastic["at_yield"].astype(np.int8), sol.plastic["eqps"]
+        stage1 = sol.plastic["stage1_at_yield"].astype(np.int8)
     else:
         plastic, eqps = np.zeros(n_fg, np.int8), np.zeros(n_fg)
     on_node = {"mesh": "mesh", "location": "node"}
@@ -265,6 +275,8 @@ def _mesh_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict, dict
         "effective_stress_zz": _var("face", effective[3], "Pa", "effective out-of-plane normal stress zz", **on_face),
         "layer": _var("face", layer, "1", "index of the ground layer of the face (into ground.layers; -1 in the lining)", **on_face),
         "plastic": _var("face", np.r_[plastic, np.zeros(n_fl, np.int8)], "1", "1 where the ground is at yield at the end", **on_face),
+        "stage1_plastic": _var("face", np.r_[stage1, np.zeros(n_fl, np.int8)], "1",
+                               "1 where the ground was at yield at the end of stage 1 (before the lining)", **on_face),
         "equivalent_plastic_strain": _var("face", np.r_[eqps, np.zeros(n_fl)], "1",
                                           "accumulated equivalent plastic strain sqrt(2/3 dep:dep)", **on_face),
     }

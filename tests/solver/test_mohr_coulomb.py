@@ -53,3 +53,32 @@ def test_hydrostatic_tension_returns_to_the_apex_or_the_cut_off():
         stress, _, _ = return_map(trial, LAM, MU, c, phi, 0, t)
         np.testing.assert_allclose(stress[[0, 1, 3]], expected, rtol=1e-12, atol=1e-6)
         np.testing.assert_allclose(stress[2], 0.0, atol=1e-6)
+
+
+@pytest.mark.parametrize("c, phi, psi, t", [(2e4, 30, 0, 0), (1e4, 25, 10, 5e3), (5e4, 0, 0, 2e4),
+                                             (1e4, 35, 35, 1e4 / np.tan(np.radians(35)))])
+def test_the_consistent_tangent_is_the_derivative_of_the_return(c, phi, psi, t):
+    """The algorithmic tangent (main plane, edges, cut-offs, apex; the spin of the in-plane
+    directions) against central differences of the return, strain by strain; and a frozen set
+    returns inside points onto the main plane with the same tangent (a smooth continuation)."""
+    from solver.ground.mohr_coulomb import Material, consistent_tangent, return_stress
+    from solver.ground.tangent import elastic_matrix
+
+    rng = np.random.default_rng(11)
+    trial = rng.normal(0, 2e5, (4, 3000)) - np.array([1e5, 1e5, 0, 1e5])[:, None]
+    mat = Material.of(trial.shape[1], LAM, MU, c, phi, psi, t)
+    stress, _, _, returned, C = consistent_tangent(trial, mat)
+    np.testing.assert_array_equal(stress, return_stress(trial, mat)[0])
+    assert 0.3 < returned.size / trial.shape[1] < 1
+    D, h = elastic_matrix(LAM, MU)[0], 1e-9
+    worst = 0.0
+    for q in range(4):
+        dt = D[:, q:q + 1] * h
+        fd = (return_stress(trial + dt, mat)[0] - return_stress(trial - dt, mat)[0]) / (2 * h)
+        err = np.abs(fd[:, returned] - C[:, :, q].T).max(axis=0) / np.abs(D).max()
+        worst = max(worst, float(np.percentile(err, 99.5)))  # a few points sit on a kink within h
+    assert worst < 1e-6
+    frozen = np.ones(trial.shape[1], bool)
+    sf, _, _, rf, Cf = consistent_tangent(trial, mat, frozen=frozen)
+    assert rf.size == trial.shape[1]
+    np.testing.assert_allclose(sf[:, returned], stress[:, returned], rtol=0, atol=1e-9 * 2e5)
