@@ -111,70 +111,184 @@ def effective_release(body, ring: np.ndarray, center, table: float | None, unit_
 
 @dataclass(frozen=True)
 class Seepage:
-    """Steady seepage towards a drained excavation.
+    """Steady unconfined seepage towards a drained excavation (SPEC §1.4, §9.2).
 
     head : (N,) m, the hydraulic head at the ground's nodes (elevation + p/γw);
-    pore : (N,) Pa, pore pressure (≥ 0; zero on the excavation boundary and above the table);
-    inflow : m³/s per metre, into the whole tunnel (both halves).
+    pore : (N,) Pa, pore pressure: γw (h - y) where the ground is saturated, zero where it is dry
+        (above the phreatic surface, where the solve's pressure is a suction) and on the drain;
+    inflow : m³/s per metre, into the whole tunnel (both halves);
+    outflow : m³/s per metre, what enters the model across its held boundaries (both halves):
+        equal to ``inflow`` at steady state;
+    iterations : Picard iterations of the relative permeability.
     """
 
     head: np.ndarray
     pore: np.ndarray
     inflow: float
+    outflow: float
+    iterations: int
+
+
+#: Relative permeability of dry ground (above the phreatic surface), reached log-linearly over
+#: :data:`SUCTION_RANGE` of suction head (PLAXIS's saturated-flow default: 1e-4 over 0.7 m).
+DRY_PERMEABILITY = 1e-4
+SUCTION_RANGE = 0.7  # m
+
+#: Picard iterations stop when no saturated node's pressure head changes by more than this (m,
+#: about 1 Pa) and the drain's set of discharging nodes is unchanged; each iterate is relaxed
+#: (without, the phreatic surface flips between elements from one iteration to the next).
+HEAD_TOLERANCE = 1e-4
+RELAXATION = 0.6
+MAX_ITERATIONS = 200
+
+
+def relative_permeability(suction_head: np.ndarray) -> np.ndarray:
+    """k_r of pressure head ``ψ = h - y`` (m): 1 where ψ ≥ 0, log-linear down to
+    :data:`DRY_PERMEABILITY` at ``ψ = -SUCTION_RANGE`` and below."""
+    psi = np.minimum(np.asarray(suction_head, dtype=float), 0.0)
+    return np.maximum(10.0 ** (-np.log10(1.0 / DRY_PERMEABILITY) * (-psi) / SUCTION_RANGE), DRY_PERMEABILITY)
 
 
 class SeepageModel:
-    """The head problem ``div(k grad h) = 0`` on the ground's P2 mesh for one table depth and
-    set of permeabilities (its factorization kept for reuse).
+    """Unconfined steady seepage ``div(k k_r(ψ) grad h) = 0`` on the ground's P2 mesh for one
+    table depth and set of permeabilities (solved once, on first use, and kept).
 
-    Fixed head: the water table's ``h = -table`` at every node at or above the table (the
-    table line bounds the saturated ground; the ground above it is dry) and on the model's
-    side below it (hydrostatic far field); ``h = y`` (zero pore pressure) on the excavation
-    boundary. No flow across the bottom and the symmetry line.
+    Held head ``h = -table`` on the model's side below the table (the undisturbed far field)
+    and, for a table at the surface, on the surface (ponded ground). The drain is a seepage
+    face: ``h = y`` (zero pressure) where water leaves the ground into the tunnel, no flow
+    where it would enter (there the ground is dry, ψ ≤ 0). No flow across the bottom, the
+    symmetry line and the rest of the side and surface. The phreatic surface is where
+    ``ψ = 0``: above it ``k_r`` (:func:`relative_permeability`) all but stops the flow, so no
+    water crosses it and the ground there is dry. Picard iterations on ``k_r``, each a
+    Cholesky solve of the head Laplacian scaled per quadrature point.
     """
 
     def __init__(self, mesh, hole_nodes: np.ndarray, conductivity: np.ndarray, table: float, width: float,
                  height: float):
-        from skfem import Basis, BilinearForm, ElementTriP2
+        from skfem import Basis, ElementTriP2
 
         m = mesh.skfem_mesh()
         self.basis = Basis(m, ElementTriP2(), intorder=4)
-        k = np.asarray(conductivity, dtype=float)[:, None]
-
-        @BilinearForm
-        def darcy(u, v, w):
-            return k * (u.grad[0] * v.grad[0] + u.grad[1] * v.grad[1])
-
-        A = darcy.assemble(self.basis).tocsr()
         x, y = mesh.p
         scale = max(width, height)
-        self.table, self.hole = table, np.asarray(hole_nodes)
-        fixed = np.zeros(x.size, bool)
-        fixed[self.hole] = True
-        fixed |= y >= -table - 1e-12 * scale
-        fixed |= np.abs(x - width) <= 1e-9 * scale
-        self.fixed_head = np.where(np.isin(np.arange(x.size), self.hole), y, -table)
-        self.fixed = fixed
-        self.free = np.flatnonzero(~fixed)
-        self.A = A
-        A_ff = A[self.free][:, self.free].tocsr()
-        self._coupling = A[self.free][:, np.flatnonzero(fixed)].tocsr()
-        order = nested_dissection(m, self.free)
-        self._factor = Cholesky(A_ff, order)
-        self.y = y
+        self.table, self.hole, self.y = table, np.asarray(hole_nodes), y
+        held = (np.abs(x - width) <= 1e-9 * scale) & (y <= -table + 1e-12 * scale)
+        if table <= 0.0:
+            held |= y >= -1e-12 * scale
+        self.held = np.flatnonzero(held)
+        self.unknown = np.flatnonzero(~held)
+        self._conductivity = np.asarray(conductivity, dtype=float)
+        self._local, self._rows, self._cols = _local_matrices(self.basis)
+        self._order = nested_dissection(m, self.unknown)
+        self._y_q = self.basis.global_coordinates().value[1]
+        self._solution = None
+
+    def matrix(self, kr: np.ndarray):
+        """The conductivity matrix (CSR, all nodes) with relative permeability ``kr`` (E, Q)."""
+        import scipy.sparse as sp
+
+        data = np.einsum("eq,eqij->ije", self._conductivity[:, None] * kr, self._local)
+        n = self.y.size
+        return sp.csr_matrix((data.ravel(), (self._rows, self._cols)), shape=(n, n))
+
+    def kr_of(self, head: np.ndarray) -> np.ndarray:
+        """(E, Q) relative permeability of the head field ``head``."""
+        return relative_permeability(self.basis.interpolate(head).value - self._y_q)
 
     def solve(self, unit_weight: float) -> Seepage:
-        h = self.fixed_head.copy()
-        rhs = -(self._coupling @ h[self.fixed])
-        f = self._factor
-        z = f.solve(_SYS_LT, f.solve(_SYS_L, rhs[f.perm]))
-        h[self.free[f.perm]] = z
-        # the flux into the tunnel: the discrete reactions at the excavation's fixed nodes
-        reaction = self.A[self.hole] @ h
-        inflow = -2.0 * float(np.sum(reaction))
+        if self._solution is None:
+            self._solution = self._picard()
+        h, inflow, outflow, iterations = self._solution
         pore = np.maximum(unit_weight * (h - self.y), 0.0)
         pore[self.hole] = 0.0
-        return Seepage(head=h, pore=pore, inflow=inflow)
+        return Seepage(head=h, pore=pore, inflow=inflow, outflow=outflow, iterations=iterations)
+
+    def _picard(self):
+        h = np.full(self.y.size, -self.table, dtype=float)
+        drain = np.ones(self.hole.size, bool)  # discharging (held at h = y) drain nodes
+        kr = np.ones_like(self._y_q)
+        for it in range(1, MAX_ITERATIONS + 1):
+            A = self.matrix(kr)
+            new = self._linear(A, drain)
+            reaction = A[self.hole] @ new
+            # the saturated ground's pressure head: what the result keeps (the dry ground's is zero)
+            change = float(np.max(np.abs(np.maximum(new - self.y, 0.0) - np.maximum(h - self.y, 0.0))))
+            h = new if it == 1 else h + RELAXATION * (new - h)
+            # seepage face: release held nodes that would feed the ground, hold free ones under pressure
+            now = np.where(drain, reaction <= 0.0, h[self.hole] >= self.y[self.hole])
+            if change <= HEAD_TOLERANCE and np.array_equal(now, drain) and it > 1:
+                h = new
+                break
+            drain, kr = now, self.kr_of(h)
+        else:
+            from ..errors import SolverError
+
+            raise SolverError(f"water: the unconfined seepage did not converge in {MAX_ITERATIONS} iterations")
+        inflow = -2.0 * float(np.sum(reaction[drain]))
+        outflow = 2.0 * float(np.sum(A[self.held] @ h))
+        return h, inflow, outflow, it
+
+    def _linear(self, A, drain: np.ndarray) -> np.ndarray:
+        """Heads with ``A``: held on the far field, ``h = y`` at the discharging drain nodes."""
+        import scipy.sparse as sp
+
+        n = self.y.size
+        fixed = np.zeros(n, bool)
+        fixed[self.held] = True
+        fixed[self.hole[drain]] = True
+        h = np.zeros(n)
+        h[self.held] = -self.table
+        h[self.hole[drain]] = self.y[self.hole[drain]]
+        rhs = -(A @ np.where(fixed, h, 0.0))
+        u = self.unknown
+        keep = sp.diags((~fixed[u]).astype(float))
+        K = (keep @ A[u][:, u] @ keep + sp.diags(fixed[u].astype(float))).tocsr()
+        b = np.where(fixed[u], h[u], rhs[u])
+        f = Cholesky(K, self._order)
+        h[u[f.perm]] = f.solve(_SYS_LT, f.solve(_SYS_L, b[f.perm]))
+        return h
+
+
+def _local_matrices(basis):
+    """(E, Q, 6, 6) per-quadrature-point element matrices ``w |J| ∇φi·∇φj`` of a P2 basis, and the
+    global row and column of each (6, 6, E) entry."""
+    grads = np.stack([basis.basis[i][0].grad for i in range(basis.Nbfun)])  # (6, 2, E, Q)
+    local = np.einsum("ideq,jdeq,eq->eqij", grads, grads, basis.dx)
+    dofs = basis.element_dofs  # (6, E)
+    rows = np.broadcast_to(dofs[:, None, :], (dofs.shape[0],) * 2 + dofs.shape[1:]).ravel()
+    cols = np.broadcast_to(dofs[None, :, :], (dofs.shape[0],) * 2 + dofs.shape[1:]).ravel()
+    return local, rows, cols
+
+
+def phreatic_depth(mesh, head: np.ndarray, x: np.ndarray, *, height: float, center, radius: float,
+                   step: float) -> np.ndarray:
+    """Depth (m below the surface) of the phreatic surface above each ``x`` (m): the topmost point of
+    the vertical at x where the pressure head ``h - y`` of the P2 field ``head`` is ≥ 0 (linear
+    between samples ``step`` m apart; the excavation, ``radius`` about ``center``, is dry). NaN
+    where the vertical is dry to the model's bottom. ``mesh``: the ground's
+    :class:`~solver.geometry.mesh.BodyMesh` (its straight-sided triangles locate the samples, which
+    keep clear of the curved excavation edges)."""
+    from skfem import Basis, ElementTriP2, MeshTri1
+
+    nv = mesh.n_vertices
+    basis = Basis(MeshTri1(mesh.p[:, :nv], mesh.t[:3].copy(), sort_t=False, validate=False), ElementTriP2())
+    z = np.linspace(0.0, height, max(2, int(np.ceil(height / step)) + 1))
+    X, Z = np.meshgrid(np.asarray(x, dtype=float), z, indexing="ij")  # (columns, samples)
+    inside = np.hypot(X - center[0], -Z - center[1]) < radius + 0.5 * step
+    psi = np.full(X.shape, -np.inf)
+    pts = np.stack([X[~inside], -Z[~inside]])
+    psi[~inside] = basis.probes(pts) @ head + Z[~inside]
+    out = np.full(X.shape[0], np.nan)
+    for i, col in enumerate(psi):
+        wet = np.flatnonzero(col >= 0.0)
+        if wet.size == 0:
+            continue
+        k = wet[0]
+        if k == 0 or not np.isfinite(col[k - 1]):
+            out[i] = z[k]
+        else:  # between the last dry sample and the first wet one
+            out[i] = z[k - 1] + (z[k] - z[k - 1]) * (-col[k - 1]) / (col[k] - col[k - 1])
+    return out
 
 
 def seepage_load(vector_basis, scalar_basis, delta_p: np.ndarray) -> np.ndarray:
