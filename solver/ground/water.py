@@ -271,7 +271,9 @@ def phreatic_depth(mesh, head: np.ndarray, x: np.ndarray, *, height: float, cent
     from skfem import Basis, ElementTriP2, MeshTri1
 
     nv = mesh.n_vertices
-    basis = Basis(MeshTri1(mesh.p[:, :nv], mesh.t[:3].copy(), sort_t=False, validate=False), ElementTriP2())
+    vertices = MeshTri1(np.ascontiguousarray(mesh.p[:, :nv]), np.ascontiguousarray(mesh.t[:3]), sort_t=False,
+                        validate=False)
+    basis = Basis(vertices, ElementTriP2())
     z = np.linspace(0.0, height, max(2, int(np.ceil(height / step)) + 1))
     X, Z = np.meshgrid(np.asarray(x, dtype=float), z, indexing="ij")  # (columns, samples)
     inside = np.hypot(X - center[0], -Z - center[1]) < radius + 0.5 * step
