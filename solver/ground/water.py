@@ -187,7 +187,8 @@ class SeepageModel:
         """The conductivity matrix (CSR, all nodes) with relative permeability ``kr`` (E, Q)."""
         import scipy.sparse as sp
 
-        data = np.einsum("eq,eqij->ije", self._conductivity[:, None] * kr, self._local)
+        w = self._conductivity[:, None] * kr
+        data = np.matmul(w[:, None, :], self._local)[:, 0, :].T  # (36, E): entry (i, j) of each element
         n = self.y.size
         return sp.csr_matrix((data.ravel(), (self._rows, self._cols)), shape=(n, n))
 
@@ -250,10 +251,11 @@ class SeepageModel:
 
 
 def _local_matrices(basis):
-    """(E, Q, 6, 6) per-quadrature-point element matrices ``w |J| ∇φi·∇φj`` of a P2 basis, and the
-    global row and column of each (6, 6, E) entry."""
+    """(E, Q, 36) per-quadrature-point element matrices ``w |J| ∇φi·∇φj`` of a P2 basis (entry
+    ``6 i + j``), and the global row and column of each (6, 6, E) entry."""
     grads = np.stack([basis.basis[i][0].grad for i in range(basis.Nbfun)])  # (6, 2, E, Q)
-    local = np.einsum("ideq,jdeq,eq->eqij", grads, grads, basis.dx)
+    local = np.einsum("ideq,jdeq,eq->eqij", grads, grads, basis.dx, optimize=True)
+    local = np.ascontiguousarray(local.reshape(local.shape[0], local.shape[1], -1))
     dofs = basis.element_dofs  # (6, E)
     rows = np.broadcast_to(dofs[:, None, :], (dofs.shape[0],) * 2 + dofs.shape[1:]).ravel()
     cols = np.broadcast_to(dofs[None, :, :], (dofs.shape[0],) * 2 + dofs.shape[1:]).ravel()
@@ -263,34 +265,47 @@ def _local_matrices(basis):
 def phreatic_depth(mesh, head: np.ndarray, x: np.ndarray, *, height: float, center, radius: float,
                    step: float) -> np.ndarray:
     """Depth (m below the surface) of the phreatic surface above each ``x`` (m): the topmost point of
-    the vertical at x where the pressure head ``h - y`` of the P2 field ``head`` is ≥ 0 (linear
-    between samples ``step`` m apart; the excavation, ``radius`` about ``center``, is dry). NaN
-    where the vertical is dry to the model's bottom. ``mesh``: the ground's
-    :class:`~solver.geometry.mesh.BodyMesh` (its straight-sided triangles locate the samples, which
-    keep clear of the curved excavation edges)."""
-    from skfem import Basis, ElementTriP2, MeshTri1
-
-    nv = mesh.n_vertices
-    vertices = MeshTri1(np.ascontiguousarray(mesh.p[:, :nv]), np.ascontiguousarray(mesh.t[:3]), sort_t=False,
-                        validate=False)
-    basis = Basis(vertices, ElementTriP2())
+    the vertical at x where the pressure head ``h - y`` of the P2 field ``head`` on ``mesh`` (the
+    ground's :class:`~solver.geometry.mesh.BodyMesh`) is ≥ 0, linear between samples ``step`` m
+    apart; the excavation (``radius`` about ``center``) is dry. NaN where the vertical is dry to the
+    model's bottom. The samples are located in the straight-sided triangles and keep clear of the
+    curved excavation edges."""
     z = np.linspace(0.0, height, max(2, int(np.ceil(height / step)) + 1))
-    X, Z = np.meshgrid(np.asarray(x, dtype=float), z, indexing="ij")  # (columns, samples)
-    inside = np.hypot(X - center[0], -Z - center[1]) < radius + 0.5 * step
-    psi = np.full(X.shape, -np.inf)
-    pts = np.stack([X[~inside], -Z[~inside]])
-    psi[~inside] = basis.probes(pts) @ head + Z[~inside]
-    out = np.full(X.shape[0], np.nan)
-    for i, col in enumerate(psi):
-        wet = np.flatnonzero(col >= 0.0)
+    out = np.full(np.size(x), np.nan)
+    for i, xc in enumerate(np.asarray(x, dtype=float)):
+        psi = _column_pressure_head(mesh, head, xc, z)
+        psi[np.hypot(xc - center[0], -z - center[1]) < radius + 0.5 * step] = -np.inf
+        wet = np.flatnonzero(psi >= 0.0)
         if wet.size == 0:
             continue
         k = wet[0]
-        if k == 0 or not np.isfinite(col[k - 1]):
+        if k == 0 or not np.isfinite(psi[k - 1]):
             out[i] = z[k]
         else:  # between the last dry sample and the first wet one
-            out[i] = z[k - 1] + (z[k] - z[k - 1]) * (-col[k - 1]) / (col[k] - col[k - 1])
+            out[i] = z[k - 1] + (z[k] - z[k - 1]) * (-psi[k - 1]) / (psi[k] - psi[k - 1])
     return out
+
+
+def _column_pressure_head(mesh, head: np.ndarray, xc: float, z: np.ndarray) -> np.ndarray:
+    """Pressure head ``h - y`` of the P2 field at the points ``(xc, -z)`` (-inf outside every triangle)."""
+    p, t = mesh.p, mesh.t
+    xv = p[0, t[:3]]  # (3, E)
+    near = np.flatnonzero((xv.min(axis=0) <= xc + 1e-12) & (xv.max(axis=0) >= xc - 1e-12))
+    P = p[:, t[:3, near]]  # (2, 3, e)
+    d1, d2 = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
+    det = d1[0] * d2[1] - d1[1] * d2[0]
+    rx, ry = xc - P[0, 0][:, None], -z[None, :] - P[1, 0][:, None]  # (e, K)
+    l1 = (d2[1][:, None] * rx - d2[0][:, None] * ry) / det[:, None]
+    l2 = (-d1[1][:, None] * rx + d1[0][:, None] * ry) / det[:, None]
+    l0 = 1.0 - l1 - l2
+    inside = (l0 >= -1e-10) & (l1 >= -1e-10) & (l2 >= -1e-10)
+    found = inside.any(axis=0)
+    e = np.argmax(inside, axis=0)  # the first triangle holding each sample
+    k = np.arange(z.size)
+    a, b, c = l0[e, k], l1[e, k], l2[e, k]
+    shape = np.stack([a * (2 * a - 1), b * (2 * b - 1), c * (2 * c - 1), 4 * a * b, 4 * b * c, 4 * a * c])
+    values = np.sum(shape * head[t[:, near[e]]], axis=0) + z
+    return np.where(found, values, -np.inf)
 
 
 def seepage_load(vector_basis, scalar_basis, delta_p: np.ndarray) -> np.ndarray:
