@@ -178,8 +178,10 @@ class SeepageModel:
         self.held = np.flatnonzero(held)
         self.unknown = np.flatnonzero(~held)
         self._conductivity = np.asarray(conductivity, dtype=float)
-        self._local, self._rows, self._cols = _local_matrices(self.basis)
+        self._local, rows, cols = _local_matrices(self.basis)
+        self._pattern = _Pattern(rows, cols, y.size, self.unknown)
         self._order = nested_dissection(m, self.unknown)
+        self._factor: Cholesky | None = None
         self._y_q = self.basis.global_coordinates().value[1]
         self._solution = None
 
@@ -189,8 +191,9 @@ class SeepageModel:
 
         w = self._conductivity[:, None] * kr
         data = np.matmul(w[:, None, :], self._local)[:, 0, :].T  # (36, E): entry (i, j) of each element
-        n = self.y.size
-        return sp.csr_matrix((data.ravel(), (self._rows, self._cols)), shape=(n, n))
+        q, n = self._pattern, self.y.size
+        return sp.csr_matrix((np.bincount(q.position, weights=data.ravel(), minlength=q.indices.size), q.indices,
+                              q.indptr), shape=(n, n))
 
     def kr_of(self, head: np.ndarray) -> np.ndarray:
         """(E, Q) relative permeability of the head field ``head``."""
@@ -211,7 +214,7 @@ class SeepageModel:
         for it in range(1, MAX_ITERATIONS + 1):
             A = self.matrix(kr)
             new = self._linear(A, drain)
-            reaction = A[self.hole] @ new
+            reaction = (A @ new)[self.hole]
             # the saturated ground's pressure head: what the result keeps (the dry ground's is zero)
             change = float(np.max(np.abs(np.maximum(new - self.y, 0.0) - np.maximum(h - self.y, 0.0))))
             h = new if it == 1 else h + RELAXATION * (new - h)
@@ -226,7 +229,7 @@ class SeepageModel:
 
             raise SolverError(f"water: the unconfined seepage did not converge in {MAX_ITERATIONS} iterations")
         inflow = -2.0 * float(np.sum(reaction[drain]))
-        outflow = 2.0 * float(np.sum(A[self.held] @ h))
+        outflow = 2.0 * float(np.sum((A @ h)[self.held]))
         return h, inflow, outflow, it
 
     def _linear(self, A, drain: np.ndarray) -> np.ndarray:
@@ -242,12 +245,47 @@ class SeepageModel:
         h[self.hole[drain]] = self.y[self.hole[drain]]
         rhs = -(A @ np.where(fixed, h, 0.0))
         u = self.unknown
-        keep = sp.diags((~fixed[u]).astype(float))
-        K = (keep @ A[u][:, u] @ keep + sp.diags(fixed[u].astype(float))).tocsr()
+        K = self._pattern.unknown_block(A, fixed[u])
         b = np.where(fixed[u], h[u], rhs[u])
-        f = Cholesky(K, self._order)
+        if self._factor is None:  # the one pattern: ordered and analysed once, refactorized after
+            self._factor = Cholesky(K, self._order)
+        else:
+            self._factor.refactor(K)
+        f = self._factor
         h[u[f.perm]] = f.solve(_SYS_LT, f.solve(_SYS_L, b[f.perm]))
         return h
+
+
+class _Pattern:
+    """The CSR pattern of the conductivity matrix (each element entry's ``position`` in it) and of
+    its block on the ``unknown`` nodes (held at one pattern whichever drain nodes are held: a
+    held node's row and column are zeroed but kept, its diagonal set to 1)."""
+
+    def __init__(self, rows: np.ndarray, cols: np.ndarray, n: int, unknown: np.ndarray):
+        import scipy.sparse as sp
+
+        keys, self.position = np.unique(rows.astype(np.int64) * n + cols, return_inverse=True)
+        r, c = keys // n, keys % n
+        self.indices = c.astype(np.int32)
+        self.indptr = np.r_[0, np.cumsum(np.bincount(r, minlength=n))].astype(np.int32)
+        local = np.full(n, -1)
+        local[unknown] = np.arange(unknown.size)
+        self.block = np.flatnonzero((local[r] >= 0) & (local[c] >= 0))  # sorted by (row, column) still
+        self.block_row, self.block_col = local[r[self.block]], local[c[self.block]]
+        self.block_shape = (unknown.size, unknown.size)
+        self._block = sp.csr_matrix((np.zeros(self.block.size), self.block_col,
+                                     np.r_[0, np.cumsum(np.bincount(self.block_row, minlength=unknown.size))]),
+                                    shape=self.block_shape)
+
+    def unknown_block(self, A, fixed: np.ndarray):
+        """``A``'s block on the unknown nodes, the ``fixed`` ones' rows and columns replaced by identity."""
+        data = A.data[self.block].copy()
+        touched = fixed[self.block_row] | fixed[self.block_col]
+        data[touched] = 0.0
+        data[touched & (self.block_row == self.block_col)] = 1.0
+        K = self._block.copy()
+        K.data = data
+        return K
 
 
 def _local_matrices(basis):
