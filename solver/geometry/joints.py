@@ -1,6 +1,7 @@
-"""The joints of a segmental lining in its mesh (SPEC §1.6): their angles, the lining's layer
-count that puts the contact strip's ends on nodes, the cut along each joint's radial line and
-the faces and segments the cut makes."""
+"""The joints of a segmental lining in its mesh (SPEC §1.6, §9.2): their angles, the lining's
+grading towards them (through the thickness, with the contact strip's ends on nodes, and along the
+ring: :func:`radial_pieces`, :func:`graded_zones`, :func:`hoop_divisions`), the cut along each
+joint's radial line and the faces and segments the cut makes."""
 from __future__ import annotations
 
 import math
@@ -99,7 +100,7 @@ def radial_pieces(spec: CaseSpec) -> list[RadialPiece]:
     mid = a + 0.5 * t
     edge = min(joint_edge(spec), height / 4.0)
     if height >= t * (1.0 - 1e-9):
-        bounds, fine = [a, mid, b], [True, False]  # fine at the piece's inner end?
+        bounds, fine = [a, mid, b], [True, False]  # per piece: whether its fine end is its inner one
     else:
         lo, hi = mid - 0.5 * height, mid + 0.5 * height
         bounds, fine = [a, lo, mid, hi, b], [False, True, False, True]

@@ -3,7 +3,9 @@
 Both bodies live in one gmsh model, meshed with 3-node triangles; each edge gets its
 quadratic node here (:func:`_body_mesh`), on the circle for the edges on the circular
 arcs (isoparametric 6-node triangles, curved interface). The lining is a structured (transfinite) half
-annulus with ``lining_layers`` element layers and alternating diagonals, so every
+annulus with ``lining_layers`` element layers and alternating diagonals (a segmental lining's
+graded towards its joints, through the thickness and along the ring:
+:mod:`solver.geometry.joints`), so every
 interface node has a radial line of lining nodes below it (the sections where the
 lining forces are evaluated). The ground is unstructured, graded by a distance
 threshold field from ``interface_size`` at the tunnel to ``far_size``. With
