@@ -12,7 +12,11 @@ segments and the strip height, beside Muir Wood's reduced-stiffness rule of prac
 monolithic ring's moment times the ratio of Einstein & Schwartz's full-slip moments with
 I_e = I (4/n)² and with I).
 
-    python -m bench.joints [--repeat N] [--json] [--study]
+With ``--convergence`` (issue 37): the joint forces, eccentricities and the ring's max |M| of three
+patterns at the default mesh against a joint refinement four times finer (``JOINT_EDGE / 4``) and
+a mesh of every size divided by four (``interface_size / 4``, the joints' refinement with it).
+
+    python -m bench.joints [--repeat N] [--json] [--study] [--convergence]
 """
 from __future__ import annotations
 
@@ -103,15 +107,67 @@ def study() -> dict:
     return {"monolithic_max_abs_moment_kNm": mono / 1e3, "rows": rows}
 
 
+PATTERNS = {"6, 0°, a = t/2": {"count": 6, "offset": 0.0, "contact_height": 0.15},
+            "6, 30°, a = t/2": {"count": 6, "offset": 30.0, "contact_height": 0.15},
+            "6, 0°, a = t": {"count": 6, "offset": 0.0, "contact_height": 0.3}}
+
+
+def _joint_values(joints: dict, interface_size: float = 0.1) -> dict:
+    ds = run_case(CaseSpec.model_validate({"lining": {"joints": joints}, "mesh": {"interface_size": interface_size}}))
+    return {"theta": ds["joint_theta"].values.tolist(), "moment_kNm": (ds["joint_moment"].values / 1e3).tolist(),
+            "thrust_kN": (ds["joint_thrust"].values / 1e3).tolist(),
+            "eccentricity": ds["joint_eccentricity"].values.tolist(),
+            "max_abs_moment_kNm": float(ds["max_abs_moment"]) / 1e3, "seconds": float(ds["solve_seconds"])}
+
+
+def convergence() -> dict:
+    """Each pattern at the default mesh, with JOINT_EDGE / 4 and with interface_size / 4."""
+    import solver.geometry.joints as joint_mesh
+
+    out = {}
+    for name, joints in PATTERNS.items():
+        row = {"default": _joint_values(joints)}
+        edge = joint_mesh.JOINT_EDGE
+        joint_mesh.JOINT_EDGE = edge / 4.0
+        try:
+            row["joint_edge/4"] = _joint_values(joints)
+        finally:
+            joint_mesh.JOINT_EDGE = edge
+        row["interface_size/4"] = _joint_values(joints, 0.025)
+        out[name] = row
+    return out
+
+
+def _print_convergence(conv: dict) -> None:
+    print("\njoint M (kN·m/m) and e/(a/2) at the default mesh; relative change to the finer meshes")
+    for name, row in conv.items():
+        d = row["default"]
+        print(f"{name}: run_case {d['seconds']:.1f} s (joint_edge/4 {row['joint_edge/4']['seconds']:.1f} s, "
+              f"interface_size/4 {row['interface_size/4']['seconds']:.1f} s)")
+        for j, theta in enumerate(d["theta"]):
+            cells = [f"{theta:5.0f}°  M {d['moment_kNm'][j]:8.2f}  e {d['eccentricity'][j]:.4f}"]
+            for ref in ("joint_edge/4", "interface_size/4"):
+                r = row[ref]
+                cells.append(f"{ref}: M {r['moment_kNm'][j]:8.2f} ({d['moment_kNm'][j] / r['moment_kNm'][j] - 1:+.2%})"
+                             f" e {r['eccentricity'][j]:.4f} ({d['eccentricity'][j] / r['eccentricity'][j] - 1:+.2%})")
+            print("   " + "   ".join(cells))
+        for ref in ("joint_edge/4", "interface_size/4"):
+            print(f"   max |M| {d['max_abs_moment_kNm']:.2f} vs {ref} {row[ref]['max_abs_moment_kNm']:.2f} "
+                  f"({d['max_abs_moment_kNm'] / row[ref]['max_abs_moment_kNm'] - 1:+.2%})")
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--study", action="store_true", help="also the moment study over segments and strip height")
+    ap.add_argument("--convergence", action="store_true", help="also the joints against finer meshes (issue 37)")
     args = ap.parse_args(argv)
     out = {"timings": timings(args.repeat)}
     if args.study:
         out["study"] = study()
+    if args.convergence:
+        out["convergence"] = convergence()
     if args.json:
         print(json.dumps(out, indent=2))
         return
@@ -126,6 +182,8 @@ def main(argv=None) -> None:
         for r in s["rows"]:
             print(f"{r['segments']:3d} {r['offset_deg']:7.1f} {r['strip_m']:5.2f} {r['max_abs_moment_kNm']:12.1f}"
                   f" {r['ratio_to_monolithic']:7.2f} {r['muir_wood_ratio']:10.2f} {r['max_opening_mm']:11.2f}")
+    if args.convergence:
+        _print_convergence(out["convergence"])
 
 
 if __name__ == "__main__":

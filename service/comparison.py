@@ -47,8 +47,8 @@ from .job_records import JobStore, SweepRecord
 SCALAR_ORDER: tuple[str, ...] = (
     "max_contact_pressure", "contact_extent", "crown_settlement", "max_thrust", "max_abs_moment",
     "max_utilization", "ground_loss", "gaussian_max_settlement", "axis_settlement", "max_surface_heave",
-    "max_surface_settlement", "volume_loss", "ground_crown_settlement", "water_inflow", "plastic_area",
-    "max_plastic_extent", "stage1_plastic_area", "stage1_max_plastic_extent", "max_joint_opening",
+    "max_surface_settlement", "volume_loss", "ground_crown_settlement", "water_inflow", "phreatic_drawdown",
+    "plastic_area", "max_plastic_extent", "stage1_plastic_area", "stage1_max_plastic_extent", "max_joint_opening",
     "max_joint_rotation", "max_joint_eccentricity", "max_joint_utilization",
     "lining_weight", "bolt_theta", "bolt_trials", "iterations", "converged", "kkt_residual",
     "solve_seconds",

@@ -35,7 +35,7 @@ from .geometry.bodies import TunnelMesh
 from .geometry.mesh import build_mesh
 from .ground import water
 from .ground.loads import load_shapes, moduli
-from .ground.strata import strata
+from .ground.strata import strata, table_line
 from .lining import joints
 from .spec import CaseSpec
 
@@ -58,6 +58,9 @@ def model_key(spec: CaseSpec) -> str:
         "strata": [[s.top, s.bottom, s.young / e0, s.poisson, s.young_gradient / e0] for s in layers],
         "lining": {"young": spec.lining.young, "poisson": spec.lining.poisson},
     }
+    table = table_line(spec)
+    if table is not None:  # a drained case's table is a line of the mesh
+        shared["table_line"] = table
     j = spec.lining.joints
     if j.count:  # the joints cut the mesh; their shear law is the contact problem's
         shared["joints"] = [j.count, j.offset, j.contact_height]

@@ -5,9 +5,11 @@ import time
 from collections.abc import Callable
 from importlib.metadata import PackageNotFoundError, version
 
+import numpy as np
 import xarray as xr
 
 from .results.dataset import to_dataset
+from .results.mesh_check import add_mesh_check, mesh_changes, refined
 from .limits import time_limit
 from .model import TunnelModel
 from .spec import CaseSpec
@@ -24,7 +26,8 @@ def run_case(spec: CaseSpec, *, model: TunnelModel | None = None,
 
     ``model`` reuses a :class:`TunnelModel` built for a case with the same
     :func:`~solver.model.model_key` (mesh, stiffness and factorizations are then not rebuilt);
-    the result is the same as without it. The solve stops with a :class:`SolverError` past
+    the result is the same as without it. With ``solver.mesh_check`` the case is also solved on a
+    mesh refined once (:mod:`solver.results.mesh_check`) and the changes are reported. The solve stops with a :class:`SolverError` past
     ``time_limit_seconds`` (default :data:`solver.limits.CASE_TIME_LIMIT`), and with
     :class:`solver.limits.CaseCancelled` once ``stop()`` (asked twice a second) is true.
     """
@@ -32,4 +35,11 @@ def run_case(spec: CaseSpec, *, model: TunnelModel | None = None,
     with time_limit(time_limit_seconds, stop):
         if model is None or not model.accepts(spec):
             model = TunnelModel(spec)
-        return to_dataset(model, model.solve(spec), software_version=SOFTWARE_VERSION, started=t0)
+        ds = to_dataset(model, model.solve(spec), software_version=SOFTWARE_VERSION, started=t0)
+        if spec.solver.mesh_check:
+            fine_spec = refined(spec)
+            fine_model = TunnelModel(fine_spec)
+            fine = to_dataset(fine_model, fine_model.solve(fine_spec), software_version=SOFTWARE_VERSION)
+            ds = add_mesh_check(ds, mesh_changes(ds, fine))
+            ds["solve_seconds"].values = np.float64(time.perf_counter() - t0)
+        return ds

@@ -338,7 +338,15 @@ def _ground_lines(ax, ds: xr.Dataset) -> None:
         depth += float(layer.get("thickness", 0.0))
         ax.axhline(-depth, color="tab:brown", lw=1.0, ls="-.", label="layer line" if i == 0 else None)
     table = (spec.get("water") or {}).get("table")
-    if table is not None:
+    if table is None:
+        return
+    drawdown = float(ds["phreatic_drawdown"]) if "phreatic_drawdown" in ds else 0.0
+    if "phreatic_depth" in ds and np.isfinite(drawdown) and drawdown != 0.0:
+        # a drained lining draws the table down: the computed phreatic surface, the undisturbed table thin
+        ax.axhline(-float(table), color=_WATER_COLOR, lw=0.8, ls=":", label=f"undisturbed table ({table:g} m)")
+        ax.plot(ds["surface_x"].values, -ds["phreatic_depth"].values, color=_WATER_COLOR, lw=1.2, ls="--",
+                label=f"phreatic surface (drawdown {drawdown:.3g} m above the axis)")
+    else:
         ax.axhline(-float(table), color=_WATER_COLOR, lw=1.2, ls="--", label=f"water table ({table:g} m)")
 
 

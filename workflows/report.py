@@ -144,6 +144,9 @@ def _summary_page(ds: xr.Dataset, spec: dict, page: int, pages: int, title: dict
     rows = [(SCALARS.get(name, ("", name))[1], shown_value(ds[name].values, SCALARS[name][0], name), name)
             for name in SCALARS if name in ds and name not in DIAGNOSTICS
             and (joints or not name.startswith("max_joint_"))]  # a monolithic lining has none
+    # solver.mesh_check: each key result's change on a mesh refined once
+    rows += [(f"change of {name[len('mesh_change_'):]} on a mesh refined once", f"{100 * float(ds[name]):+.2f} %", name)
+             for name in ds.data_vars if name.startswith("mesh_change_")]
     y = _table(fig, bottom - 0.03, rows, title="Results (engineering units; settlements downward positive)")
     warnings = case_warnings(ds)
     fig.text(0.06, y, "Warnings", fontsize=11.5, weight="bold", va="top")

@@ -176,6 +176,17 @@ def _csr(K: sp.spmatrix) -> sp.csr_matrix:
     return K if sp.isspmatrix_csr(K) else sp.csr_matrix(K)
 
 
+def _sparse(K: sp.csr_matrix):
+    """CHOLMOD's view of a canonical CSR ``K`` (its CSC transpose, the lower triangle used) and the
+    arrays it points to (keep them alive while CHOLMOD reads)."""
+    n = K.shape[0]
+    indptr, indices = K.indptr.astype(np.int64), K.indices.astype(np.int64)
+    data = np.ascontiguousarray(K.data, dtype=float)
+    A = _Sparse(n, n, K.nnz, indptr.ctypes.data, indices.ctypes.data, None, data.ctypes.data, None,
+                -1, _LONG, _REAL, _DOUBLE, 1, 1)
+    return A, (indptr, indices, data)
+
+
 def _view(address: int, size: int, ctype) -> np.ndarray:
     return np.ctypeslib.as_array(ctypes.cast(address, ctypes.POINTER(ctype)), (size,))
 
@@ -195,10 +206,7 @@ class Cholesky:
         K = _csr(K)
         K.sum_duplicates()  # canonical: sorted, no duplicates (a no-op when already so)
         n = K.shape[0]
-        indptr, indices = K.indptr.astype(np.int64), K.indices.astype(np.int64)
-        data = np.ascontiguousarray(K.data, dtype=float)
-        A = _Sparse(n, n, K.nnz, indptr.ctypes.data, indices.ctypes.data, None, data.ctypes.data, None,
-                    -1, _LONG, _REAL, _DOUBLE, 1, 1)
+        A, keep = _sparse(K)
         P = np.ascontiguousarray(perm, dtype=np.int64)
         c = _common()
         c.postorder = int(postorder)
@@ -209,15 +217,28 @@ class Cholesky:
             raise _failure(c, "analysis")
         self._L, self.n = L, n
         weakref.finalize(self, _free_factor, ctypes.addressof(L.contents))
-        ok = _lib.cholmod_l_factorize(ctypes.byref(A), L, ctypes.byref(c))
+        self._numeric(A, c)
         self.seconds = {"symbolic": t1 - t0, "numeric": time.perf_counter() - t1}
+        #: the unknown at each factor position
+        self.perm = _view(self._struct.Perm, n, ctypes.c_int64).copy()
+        del keep
+
+    def refactor(self, K: sp.spmatrix) -> None:
+        """Factorize ``K``, whose pattern is the one analysed at construction (other values), into
+        this factor: the ordering and symbolic analysis are reused, :attr:`perm` stays."""
+        K = _csr(K)
+        K.sum_duplicates()
+        A, keep = _sparse(K)
+        self._numeric(A, _common())
+        del keep
+
+    def _numeric(self, A, c) -> None:
+        ok = _lib.cholmod_l_factorize(ctypes.byref(A), self._L, ctypes.byref(c))
         f = self._struct
-        if c.status == _NOT_POSDEF or f.minor < n:
-            raise FactorizationError(f"the stiffness matrix is not positive definite (pivot {f.minor} of {n})")
+        if c.status == _NOT_POSDEF or f.minor < self.n:
+            raise FactorizationError(f"the stiffness matrix is not positive definite (pivot {f.minor} of {self.n})")
         if not ok or c.status < 0:
             raise _failure(c, "factorization")
-        #: the unknown at each factor position
-        self.perm = _view(f.Perm, n, ctypes.c_int64).copy()
 
     @property
     def _struct(self) -> _Factor:

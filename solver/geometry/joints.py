@@ -1,15 +1,17 @@
-"""The joints of a segmental lining in its mesh (SPEC §1.6): their angles, the lining's layer
-count that puts the contact strip's ends on nodes, the cut along each joint's radial line and
-the faces and segments the cut makes."""
+"""The joints of a segmental lining in its mesh (SPEC §1.6, §9.2): their angles, the lining's
+grading towards them (through the thickness, with the contact strip's ends on nodes, and along the
+ring: :func:`radial_pieces`, :func:`graded_zones`, :func:`hoop_divisions`), the cut along each
+joint's radial line and the faces and segments the cut makes."""
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..spec import CaseSpec
 from .bodies import BodyMesh, Joints
-from .sizing import lining_layers
+from .sizing import interface_segments, lining_layers
 
 def polar_angle(p: np.ndarray, center) -> np.ndarray:
     """Angle at the tunnel axis in degrees, 0 at the crown, 180 at the invert (x >= 0)."""
@@ -27,33 +29,164 @@ def joint_angles(spec: CaseSpec) -> list[float]:
     return sorted(round(float(t), 9) for t in angles if t <= 180.0 + 1e-9)
 
 
-#: Node spacings across a joint's contact strip, at least: an open joint carries its thrust on a
-#: zone near the strip's edge that the strip's nodes must resolve (with 2, the default mesh put the
-#: whole thrust of every open joint on the edge node).
-STRIP_SPACINGS = 8
+#: The radial element size at the edges of a joint's contact strip, as a fraction of
+#: ``interface_size``: an opening joint carries its thrust on a zone near the strip's edge (7.5 mm
+#: to 5 cm in the default segmental case) that the faces' nodes must resolve.
+JOINT_EDGE = 0.05
+
+#: Growth of successive radial elements away from the strip's edges, at most.
+RADIAL_GROWTH = 1.3
 
 
-#: Element layers through a segmental lining, at most.
-MAX_JOINT_LAYERS = 24
+@dataclass(frozen=True)
+class RadialPiece:
+    """A piece of the lining's thickness between radii ``inner`` and ``outer`` (m), meshed with
+    ``elements`` radial elements in geometric progression (``growth`` outwards)."""
+
+    inner: float
+    outer: float
+    elements: int
+    growth: float
+
+
+def radial_pieces(spec: CaseSpec) -> list[RadialPiece]:
+    """The lining's thickness in pieces with their radial element counts.
+
+    A monolithic ring: one piece of :func:`~solver.geometry.sizing.lining_layers` uniform layers.
+    A segmental one: pieces bounded by the faces, the mid-surface and the edges of the joints'
+    contact strip, each graded (at most :data:`RADIAL_GROWTH`) from :data:`JOINT_EDGE` times
+    ``interface_size`` at the strip's edges, so that the strip ends at nodes and the zone an
+    opening joint bears on is resolved."""
+    g, j = spec.geometry, spec.lining.joints
+    a, b = g.inner_radius, g.outer_radius
+    if not j.count:
+        return [RadialPiece(a, b, lining_layers(spec), 1.0)]
+    t = g.thickness
+    height = min(j.contact_height or t, t)
+    mid = a + 0.5 * t
+    edge = min(joint_edge(spec), height / 4.0)
+    if height >= t * (1.0 - 1e-9):
+        bounds, fine = [a, mid, b], [True, False]  # per piece: whether its fine end is its inner one
+    else:
+        lo, hi = mid - 0.5 * height, mid + 0.5 * height
+        bounds, fine = [a, lo, mid, hi, b], [False, True, False, True]
+    pieces = []
+    for r0, r1, at_inner in zip(bounds[:-1], bounds[1:], fine):
+        n, q = _progression(r1 - r0, edge, RADIAL_GROWTH)
+        pieces.append(RadialPiece(r0, r1, n, q if at_inner else 1.0 / q))
+    return pieces
+
+
+def joint_edge(spec: CaseSpec) -> float:
+    """The radial element size at a joint's strip edges (m): :data:`JOINT_EDGE` × ``interface_size``."""
+    return JOINT_EDGE * spec.mesh.interface_size
+
+
+def _progression(length: float, first: float, growth: float) -> tuple[int, float]:
+    """Elements and ratio of a geometric progression over ``length`` whose first element is at
+    most ``first`` and whose ratio is at most ``growth`` (the ratio that fits exactly)."""
+    n = max(1, math.ceil(math.log(1.0 + length * (growth - 1.0) / first) / math.log(growth) - 1e-9))
+    if n * first >= length:  # uniform elements no longer than the first
+        return n, 1.0
+    lo, hi = 1.0, growth
+    for _ in range(60):  # first · (q^n - 1)/(q - 1) = length, increasing in q
+        q = 0.5 * (lo + hi)
+        lo, hi = (q, hi) if first * (q**n - 1.0) / (q - 1.0) < length else (lo, q)
+    return n, 0.5 * (lo + hi)
 
 
 def joint_layers(spec: CaseSpec) -> int:
-    """Element layers through the lining: :func:`~solver.geometry.sizing.lining_layers`; for a segmental
-    lining at least enough for :data:`STRIP_SPACINGS` node spacings across the joints' strip
-    (the radial lines carry 2L + 1 equally spaced nodes), and the least such count for which the
-    strip ends at nodes (``L a / t`` whole) if one is below :data:`MAX_JOINT_LAYERS`; else the
-    strip is the nodes within ``a`` (:func:`solver.lining.joints.joint_rows`)."""
-    layers = lining_layers(spec)
-    j, t = spec.lining.joints, spec.geometry.thickness
-    if not j.count:
-        return layers
-    a = j.contact_height or t
-    least = max(layers, math.ceil(STRIP_SPACINGS * t / (2.0 * a) - 1e-9))
-    for n in range(least, MAX_JOINT_LAYERS + 1):
-        ratio = n * a / t
-        if abs(ratio - round(ratio)) <= 1e-6:
-            return n
-    return min(least, MAX_JOINT_LAYERS)
+    """Element layers through the lining (the sum over :func:`radial_pieces`)."""
+    return sum(p.elements for p in radial_pieces(spec))
+
+
+#: A joint's hoop element size (along the excavation), as a fraction of the radial one at the
+#: strip's edges (:func:`joint_edge`).
+JOINT_SIZE = 1.0
+
+#: Growth of successive hoop elements away from a joint, at most (to the ring's uniform size).
+JOINT_GROWTH = 1.3
+
+
+@dataclass(frozen=True)
+class GradedZone:
+    """The lining's hoop elements graded away from a joint: from the joint's angle ``start`` to
+    ``end`` (deg; on either side), ``elements`` elements growing by ``growth`` each away from the
+    joint (the first ``first`` deg long)."""
+
+    start: float
+    end: float
+    elements: int
+    growth: float
+
+    @property
+    def first(self) -> float:
+        q, n = self.growth, self.elements
+        return abs(self.end - self.start) * (q - 1.0) / (q**n - 1.0)
+
+
+def graded_zones(spec: CaseSpec) -> list[GradedZone]:
+    """Hoop grading of a segmental lining's mesh towards each joint (empty for a monolithic ring).
+
+    At a joint the hoop element is :data:`JOINT_SIZE` times the radial one at the strip's edges
+    (:func:`joint_edge`); away from it the elements grow geometrically (at most
+    :data:`JOINT_GROWTH`, exactly so that the next one is the ring's uniform element of
+    ``interface_size``), over about one lining thickness. A zone never reaches past half the way
+    to the next sector angle (a joint, the springline, a layer line): there it is cut short."""
+    joints = joint_angles(spec)
+    if not joints:
+        return []
+    g = spec.geometry
+    uniform = 90.0 / interface_segments(spec)  # deg
+    size = math.degrees(JOINT_SIZE * joint_edge(spec) / g.hole_radius)
+    if size >= uniform:
+        return []
+    n = max(1, math.ceil(math.log(uniform / size) / math.log(JOINT_GROWTH) - 1e-9))
+    q = (uniform / size) ** (1.0 / n)
+    others = sorted({0.0, 90.0, 180.0, *joints, *line_angles(spec)})
+    zones = []
+    for t in joints:
+        for side in (-1.0, 1.0):
+            if not 0.0 <= t + side * 1e-9 <= 180.0:
+                continue
+            room = min(abs(a - t) for a in others if (a - t) * side > 1e-9)
+            m = n
+            while m > 1 and size * (q**m - 1.0) / (q - 1.0) > 0.5 * room:
+                m -= 1
+            length = size * (q**m - 1.0) / (q - 1.0)
+            if length > 0.5 * room:
+                continue
+            zones.append(GradedZone(start=t, end=round(t + side * length, 9), elements=m, growth=q))
+    return zones
+
+
+def line_angles(spec: CaseSpec) -> list[float]:
+    """Angles (deg) where the ground's mesh lines meet the excavation boundary."""
+    from ..ground.strata import mesh_lines
+
+    g = spec.geometry
+    out = []
+    for z in mesh_lines(spec):
+        c = (g.depth - z) / g.hole_radius
+        if -1.0 < c < 1.0:
+            out.append(float(np.degrees(np.arccos(c))))
+    return out
+
+
+def hoop_divisions(spec: CaseSpec, angles: list[float]) -> list[tuple[int, float]]:
+    """Elements and growth (gmsh's geometric progression, along increasing θ) of each sector of the
+    ring between consecutive ``angles`` (:func:`solver.geometry.mesh.sector_angles`): a graded zone's
+    (:func:`graded_zones`), else uniform at ``interface_size``."""
+    per_quarter = interface_segments(spec)
+    zones = {(min(z.start, z.end), max(z.start, z.end)): z for z in graded_zones(spec)}
+    out = []
+    for lo, hi in zip(angles[:-1], angles[1:]):
+        z = zones.get((lo, hi))
+        if z is None:
+            out.append((max(1, round((hi - lo) / 90.0 * per_quarter)), 1.0))
+        else:
+            out.append((z.elements, z.growth if z.end > z.start else 1.0 / z.growth))
+    return out
 
 
 def cut_along(p: np.ndarray, t: np.ndarray, angles, center) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -3,7 +3,9 @@
 Both bodies live in one gmsh model, meshed with 3-node triangles; each edge gets its
 quadratic node here (:func:`_body_mesh`), on the circle for the edges on the circular
 arcs (isoparametric 6-node triangles, curved interface). The lining is a structured (transfinite) half
-annulus with ``lining_layers`` element layers and alternating diagonals, so every
+annulus with ``lining_layers`` element layers and alternating diagonals (a segmental lining's
+graded towards its joints, through the thickness and along the ring:
+:mod:`solver.geometry.joints`), so every
 interface node has a radial line of lining nodes below it (the sections where the
 lining forces are evaluated). The ground is unstructured, graded by a distance
 threshold field from ``interface_size`` at the tunnel to ``far_size``. With
@@ -19,6 +21,7 @@ scalar DOF ``j`` of its P2 basis.
 from __future__ import annotations
 
 import threading
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -28,9 +31,19 @@ from .sizing import (
     size_field_distances,
 )
 from ..spec import CaseSpec
-from ..ground.strata import layer_lines
+from ..ground.strata import band_layers, mesh_lines
 from .bodies import BodyMesh, Interface, TunnelMesh
-from .joints import cut_along, joint_angles, joint_faces, joint_layers, polar_angle as _theta
+from .joints import (
+    cut_along,
+    graded_zones,
+    hoop_divisions,
+    joint_angles,
+    joint_faces,
+    joint_layers,
+    line_angles,
+    polar_angle as _theta,
+    radial_pieces,
+)
 
 # gmsh keeps global state: one meshing at a time per process.
 _GMSH_LOCK = threading.Lock()
@@ -58,21 +71,17 @@ def build_mesh(spec: CaseSpec) -> TunnelMesh:
             gmsh.finalize()
     check_mesh_size(ground.t.shape[1] + lining.t.shape[1])
     joints = joint_faces(lining, joint_angles(spec), center) if spec.lining.joints.count else None
+    band = band_layers(spec)[band]  # a band between a table line and a layer line is in that layer
     return TunnelMesh(ground, lining, _interface(ground, lining, ground_ring, lining_ring, center),
                       center, joint_layers(spec), band, joints)
 
 
 def sector_angles(spec: CaseSpec) -> list[float]:
     """Angles (deg from the crown) where the lining is cut into structured sectors: crown,
-    springline, invert, where a layer line meets the excavation boundary (the interface
-    nodes of ground and lining then meet there too) and at the joints of a segmental lining."""
-    g = spec.geometry
-    angles = {0.0, 90.0, 180.0, *joint_angles(spec)}
-    for z in layer_lines(spec):
-        c = (g.depth - z) / g.hole_radius
-        if -1.0 < c < 1.0:
-            angles.add(float(np.degrees(np.arccos(c))))
-    return sorted(angles)
+    springline, invert, where a mesh line of the ground meets the excavation boundary (the
+    interface nodes of ground and lining then meet there too), at the joints of a segmental
+    lining and where the hoop grading towards each joint ends (:func:`graded_zones`)."""
+    return sorted({0.0, 90.0, 180.0, *joint_angles(spec), *line_angles(spec), *(z.end for z in graded_zones(spec))})
 
 
 def _geometry(spec: CaseSpec):
@@ -80,40 +89,14 @@ def _geometry(spec: CaseSpec):
 
     g, m = spec.geometry, spec.mesh
     geo = gmsh.model.geo
-    a, b, rh, d = g.inner_radius, g.outer_radius, g.hole_radius, g.depth
     angles = sector_angles(spec)
     per_quarter = interface_segments(spec)
-    segments = [max(1, round((hi - lo) / 90.0 * per_quarter)) for lo, hi in zip(angles[:-1], angles[1:])]
-    n_rad = joint_layers(spec) + 1
-
-    c = geo.addPoint(0, -d, 0)
-
-    def ring(r):
-        return tuple(geo.addPoint(r * np.sin(np.radians(t)), -d + r * np.cos(np.radians(t)), 0)
-                     if t not in (0.0, 90.0, 180.0) else
-                     geo.addPoint({0.0: 0, 90.0: r, 180.0: 0}[t], {0.0: -d + r, 90.0: -d, 180.0: -d - r}[t], 0)
-                     for t in angles)
-
-    def arcs(pts):
-        return tuple(geo.addCircleArc(p, c, q) for p, q in zip(pts[:-1], pts[1:]))
-
-    inner_pts, outer_pts = ring(a), ring(b)
-    inner, outer = arcs(inner_pts), arcs(outer_pts)
-    if g.gap > 0:
-        hole_pts = ring(rh)
-        hole = arcs(hole_pts)
-    else:
-        hole_pts, hole = outer_pts, outer
-    radial = [geo.addLine(inner_pts[k], outer_pts[k]) for k in range(len(angles))]
-
-    lining_surfs = []
-    for q in range(len(angles) - 1):
-        loop = geo.addCurveLoop([outer[q], -radial[q + 1], -inner[q], radial[q]])
-        lining_surfs.append(geo.addPlaneSurface([loop]))
-
+    c = geo.addPoint(0, -g.depth, 0)
+    lining = _lining(geo, spec, c, angles)
+    hole_pts, hole = lining.hole_pts, lining.hole
     p_tl, p_tr = geo.addPoint(0, 0, 0), geo.addPoint(g.width, 0, 0)
     p_br, p_bl = geo.addPoint(g.width, -g.height, 0), geo.addPoint(0, -g.height, 0)
-    lines = layer_lines(spec)
+    lines = mesh_lines(spec)
     if not lines:
         border = [geo.addLine(p_tl, p_tr), geo.addLine(p_tr, p_br), geo.addLine(p_br, p_bl),
                   geo.addLine(p_bl, hole_pts[-1]), *(-arc for arc in reversed(hole)),
@@ -124,12 +107,13 @@ def _geometry(spec: CaseSpec):
     geo.synchronize()
 
     mesh = gmsh.model.mesh
-    for group in (inner, outer, hole):
-        for arc, n in zip(group, segments):
-            mesh.setTransfiniteCurve(arc, n + 1)
-    for line in radial:
-        mesh.setTransfiniteCurve(line, n_rad)
-    for s in lining_surfs:
+    for group in (*lining.rings, *([hole] if g.gap > 0 else [])):
+        for arc, (n, growth) in zip(group, lining.divisions):
+            _transfinite(arc, n, growth)
+    for lines_k, (n, growth) in zip(lining.radial, lining.pieces):
+        for line in lines_k:
+            _transfinite(line, n, growth)
+    for s in lining.surfaces:
         mesh.setTransfiniteSurface(s, "Alternate")
 
     d_min, d_max = size_field_distances(spec)
@@ -148,7 +132,63 @@ def _geometry(spec: CaseSpec):
     gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
     gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
     gmsh.option.setNumber("Mesh.Algorithm", 6)
-    return ground_surfs, lining_surfs, hole, outer, inner
+    return ground_surfs, lining.surfaces, hole, lining.rings[-1], lining.rings[0]
+
+
+def _transfinite(curve: int, elements: int, growth: float) -> None:
+    """``elements`` on a gmsh curve, uniform or in geometric progression (``growth`` along it)."""
+    import gmsh
+
+    if growth == 1.0:
+        gmsh.model.mesh.setTransfiniteCurve(curve, elements + 1)
+    else:
+        gmsh.model.mesh.setTransfiniteCurve(curve, elements + 1, "Progression", growth)
+
+
+@dataclass(frozen=True)
+class _LiningGeometry:
+    """The lining's gmsh entities: arcs of each ring (intrados first, extrados last), the
+    excavation's points and arcs, radial lines per piece of the thickness, the structured
+    surfaces, the hoop ``divisions`` of the sectors and the radial ``pieces``' (elements, growth)."""
+
+    rings: list
+    hole_pts: tuple
+    hole: tuple
+    radial: list
+    surfaces: list
+    divisions: list
+    pieces: list
+
+
+def _lining(geo, spec: CaseSpec, c: int, angles: list[float]) -> _LiningGeometry:
+    """The structured lining: a quadrilateral per sector (between consecutive ``angles``) and piece
+    of its thickness (:func:`~solver.geometry.joints.radial_pieces`), and the excavation's arcs."""
+    g, d = spec.geometry, spec.geometry.depth
+    pieces = radial_pieces(spec)
+
+    def ring(r):
+        return tuple(geo.addPoint(r * np.sin(np.radians(t)), -d + r * np.cos(np.radians(t)), 0)
+                     if t not in (0.0, 90.0, 180.0) else
+                     geo.addPoint({0.0: 0, 90.0: r, 180.0: 0}[t], {0.0: -d + r, 90.0: -d, 180.0: -d - r}[t], 0)
+                     for t in angles)
+
+    def arcs(pts):
+        return tuple(geo.addCircleArc(p, c, q) for p, q in zip(pts[:-1], pts[1:]))
+
+    points = [ring(r) for r in [p.inner for p in pieces] + [g.outer_radius]]
+    rings = [arcs(pts) for pts in points]
+    if g.gap > 0:
+        hole_pts = ring(g.hole_radius)
+        hole = arcs(hole_pts)
+    else:
+        hole_pts, hole = points[-1], rings[-1]
+    radial = [[geo.addLine(points[i][k], points[i + 1][k]) for k in range(len(angles))] for i in range(len(pieces))]
+    surfaces = [geo.addPlaneSurface([geo.addCurveLoop([rings[i + 1][q], -radial[i][q + 1], -rings[i][q],
+                                                        radial[i][q]])])
+                for q in range(len(angles) - 1) for i in range(len(pieces))]
+    return _LiningGeometry(rings=rings, hole_pts=hole_pts, hole=hole, radial=radial, surfaces=surfaces,
+                           divisions=hoop_divisions(spec, angles),
+                           pieces=[(p.elements, p.growth) for p in pieces])
 
 
 def _bands(geo, g, lines: list[float], angles: list[float], hole_pts, hole, corners) -> list[int]:

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Stratum", "strata", "layer_lines", "moved_lines", "layer_at", "geostatic_state", "geostatic_profile"]
+__all__ = ["Stratum", "strata", "layer_lines", "table_line", "mesh_lines", "moved_lines", "layer_at", "geostatic_state", "geostatic_profile"]
 
 
 @dataclass(frozen=True)
@@ -73,6 +73,43 @@ def layer_lines(spec) -> list[float]:
                 "level are moved to that distance)")
         lines.append(z_mesh)
     return lines
+
+
+def table_line(spec) -> float | None:
+    """Depth (m) of a drained case's water table as a mesh line (SPEC §9.2), or None.
+
+    The hydrostatic pore pressure has a kink at the table and a drained lining's seepage starts
+    from it: a line of the mesh there puts the kink on element edges. None for other cases
+    (their mesh is the layers' alone), for a table at the surface or below the model, on a
+    layer line already, or within :data:`TANGENT_CLEARANCE` interface sizes of the excavation's
+    crown or invert level or of a layer line (a wedge of vanishing angle): there the kink stays
+    inside the elements it crosses."""
+    w, g = spec.water, spec.geometry
+    if w.table is None or w.lining != "drained" or not 0.0 < w.table < g.height:
+        return None
+    clear = TANGENT_CLEARANCE * spec.mesh.interface_size
+    near = [g.depth - g.hole_radius, g.depth + g.hole_radius, *layer_lines(spec)]
+    if any(abs(w.table - z) < clear for z in near):
+        return None
+    return float(w.table)
+
+
+def mesh_lines(spec) -> list[float]:
+    """Depths (m) of every horizontal line of the ground's mesh, from the surface down: the layer
+    lines (:func:`layer_lines`) and a drained case's water table (:func:`table_line`)."""
+    lines = layer_lines(spec)
+    table = table_line(spec)
+    return lines if table is None else sorted([*lines, table])
+
+
+def band_layers(spec) -> np.ndarray:
+    """The layer of each band of the ground's mesh between consecutive :func:`mesh_lines`."""
+    lines = mesh_lines(spec)
+    edges = np.r_[0.0, lines, spec.geometry.height]
+    middle = 0.5 * (edges[:-1] + edges[1:])
+    if not spec.ground.layers:
+        return np.zeros(middle.size, np.int64)
+    return layer_at(strata(spec), middle)
 
 
 def moved_lines(spec) -> list[tuple[int, float, float]]:

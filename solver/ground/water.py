@@ -111,70 +111,237 @@ def effective_release(body, ring: np.ndarray, center, table: float | None, unit_
 
 @dataclass(frozen=True)
 class Seepage:
-    """Steady seepage towards a drained excavation.
+    """Steady unconfined seepage towards a drained excavation (SPEC §1.4, §9.2).
 
     head : (N,) m, the hydraulic head at the ground's nodes (elevation + p/γw);
-    pore : (N,) Pa, pore pressure (≥ 0; zero on the excavation boundary and above the table);
-    inflow : m³/s per metre, into the whole tunnel (both halves).
+    pore : (N,) Pa, pore pressure: γw (h - y) where the ground is saturated, zero where it is dry
+        (above the phreatic surface, where the solve's pressure is a suction) and on the drain;
+    inflow : m³/s per metre, into the whole tunnel (both halves);
+    outflow : m³/s per metre, what enters the model across its held boundaries (both halves):
+        equal to ``inflow`` at steady state;
+    iterations : Picard iterations of the relative permeability.
     """
 
     head: np.ndarray
     pore: np.ndarray
     inflow: float
+    outflow: float
+    iterations: int
+
+
+#: Relative permeability of dry ground (above the phreatic surface), reached log-linearly over
+#: :data:`SUCTION_RANGE` of suction head (PLAXIS's saturated-flow default: 1e-4 over 0.7 m).
+DRY_PERMEABILITY = 1e-4
+SUCTION_RANGE = 0.7  # m
+
+#: Picard iterations stop when no saturated node's pressure head changes by more than this (m,
+#: about 1 Pa) and the drain's set of discharging nodes is unchanged; each iterate is relaxed
+#: (without, the phreatic surface flips between elements from one iteration to the next).
+HEAD_TOLERANCE = 1e-4
+RELAXATION = 0.6
+MAX_ITERATIONS = 200
+
+
+def relative_permeability(suction_head: np.ndarray) -> np.ndarray:
+    """k_r of pressure head ``ψ = h - y`` (m): 1 where ψ ≥ 0, log-linear down to
+    :data:`DRY_PERMEABILITY` at ``ψ = -SUCTION_RANGE`` and below."""
+    psi = np.minimum(np.asarray(suction_head, dtype=float), 0.0)
+    return np.maximum(10.0 ** (-np.log10(1.0 / DRY_PERMEABILITY) * (-psi) / SUCTION_RANGE), DRY_PERMEABILITY)
 
 
 class SeepageModel:
-    """The head problem ``div(k grad h) = 0`` on the ground's P2 mesh for one table depth and
-    set of permeabilities (its factorization kept for reuse).
+    """Unconfined steady seepage ``div(k k_r(ψ) grad h) = 0`` on the ground's P2 mesh for one
+    table depth and set of permeabilities (solved once, on first use, and kept).
 
-    Fixed head: the water table's ``h = -table`` at every node at or above the table (the
-    table line bounds the saturated ground; the ground above it is dry) and on the model's
-    side below it (hydrostatic far field); ``h = y`` (zero pore pressure) on the excavation
-    boundary. No flow across the bottom and the symmetry line.
+    Held head ``h = -table`` on the model's side below the table (the undisturbed far field)
+    and, for a table at the surface, on the surface (ponded ground). The drain is a seepage
+    face: ``h = y`` (zero pressure) where water leaves the ground into the tunnel, no flow
+    where it would enter (there the ground is dry, ψ ≤ 0). No flow across the bottom, the
+    symmetry line and the rest of the side and surface. The phreatic surface is where
+    ``ψ = 0``: above it ``k_r`` (:func:`relative_permeability`) all but stops the flow, so no
+    water crosses it and the ground there is dry. Picard iterations on ``k_r``, each a
+    Cholesky solve of the head Laplacian scaled per quadrature point.
     """
 
     def __init__(self, mesh, hole_nodes: np.ndarray, conductivity: np.ndarray, table: float, width: float,
                  height: float):
-        from skfem import Basis, BilinearForm, ElementTriP2
+        from skfem import Basis, ElementTriP2
 
         m = mesh.skfem_mesh()
         self.basis = Basis(m, ElementTriP2(), intorder=4)
-        k = np.asarray(conductivity, dtype=float)[:, None]
-
-        @BilinearForm
-        def darcy(u, v, w):
-            return k * (u.grad[0] * v.grad[0] + u.grad[1] * v.grad[1])
-
-        A = darcy.assemble(self.basis).tocsr()
         x, y = mesh.p
         scale = max(width, height)
-        self.table, self.hole = table, np.asarray(hole_nodes)
-        fixed = np.zeros(x.size, bool)
-        fixed[self.hole] = True
-        fixed |= y >= -table - 1e-12 * scale
-        fixed |= np.abs(x - width) <= 1e-9 * scale
-        self.fixed_head = np.where(np.isin(np.arange(x.size), self.hole), y, -table)
-        self.fixed = fixed
-        self.free = np.flatnonzero(~fixed)
-        self.A = A
-        A_ff = A[self.free][:, self.free].tocsr()
-        self._coupling = A[self.free][:, np.flatnonzero(fixed)].tocsr()
-        order = nested_dissection(m, self.free)
-        self._factor = Cholesky(A_ff, order)
-        self.y = y
+        self.table, self.hole, self.y = table, np.asarray(hole_nodes), y
+        held = (np.abs(x - width) <= 1e-9 * scale) & (y <= -table + 1e-12 * scale)
+        if table <= 0.0:
+            held |= y >= -1e-12 * scale
+        self.held = np.flatnonzero(held)
+        self.unknown = np.flatnonzero(~held)
+        self._conductivity = np.asarray(conductivity, dtype=float)
+        self._local, rows, cols = _local_matrices(self.basis)
+        self._pattern = _Pattern(rows, cols, y.size, self.unknown)
+        self._order = nested_dissection(m, self.unknown)
+        self._factor: Cholesky | None = None
+        self._y_q = self.basis.global_coordinates().value[1]
+        self._solution = None
+
+    def matrix(self, kr: np.ndarray):
+        """The conductivity matrix (CSR, all nodes) with relative permeability ``kr`` (E, Q)."""
+        import scipy.sparse as sp
+
+        w = self._conductivity[:, None] * kr
+        data = np.matmul(w[:, None, :], self._local)[:, 0, :].T  # (36, E): entry (i, j) of each element
+        q, n = self._pattern, self.y.size
+        return sp.csr_matrix((np.bincount(q.position, weights=data.ravel(), minlength=q.indices.size), q.indices,
+                              q.indptr), shape=(n, n))
+
+    def kr_of(self, head: np.ndarray) -> np.ndarray:
+        """(E, Q) relative permeability of the head field ``head``."""
+        return relative_permeability(self.basis.interpolate(head).value - self._y_q)
 
     def solve(self, unit_weight: float) -> Seepage:
-        h = self.fixed_head.copy()
-        rhs = -(self._coupling @ h[self.fixed])
-        f = self._factor
-        z = f.solve(_SYS_LT, f.solve(_SYS_L, rhs[f.perm]))
-        h[self.free[f.perm]] = z
-        # the flux into the tunnel: the discrete reactions at the excavation's fixed nodes
-        reaction = self.A[self.hole] @ h
-        inflow = -2.0 * float(np.sum(reaction))
+        if self._solution is None:
+            self._solution = self._picard()
+        h, inflow, outflow, iterations = self._solution
         pore = np.maximum(unit_weight * (h - self.y), 0.0)
         pore[self.hole] = 0.0
-        return Seepage(head=h, pore=pore, inflow=inflow)
+        return Seepage(head=h, pore=pore, inflow=inflow, outflow=outflow, iterations=iterations)
+
+    def _picard(self):
+        h = np.full(self.y.size, -self.table, dtype=float)
+        drain = np.ones(self.hole.size, bool)  # discharging (held at h = y) drain nodes
+        kr = np.ones_like(self._y_q)
+        for it in range(1, MAX_ITERATIONS + 1):
+            A = self.matrix(kr)
+            new = self._linear(A, drain)
+            reaction = (A @ new)[self.hole]
+            # the saturated ground's pressure head: what the result keeps (the dry ground's is zero)
+            change = float(np.max(np.abs(np.maximum(new - self.y, 0.0) - np.maximum(h - self.y, 0.0))))
+            h = new if it == 1 else h + RELAXATION * (new - h)
+            # seepage face: release held nodes that would feed the ground, hold free ones under pressure
+            now = np.where(drain, reaction <= 0.0, h[self.hole] >= self.y[self.hole])
+            if change <= HEAD_TOLERANCE and np.array_equal(now, drain) and it > 1:
+                h = new
+                break
+            drain, kr = now, self.kr_of(h)
+        else:
+            from ..errors import SolverError
+
+            raise SolverError(f"water: the unconfined seepage did not converge in {MAX_ITERATIONS} iterations")
+        inflow = -2.0 * float(np.sum(reaction[drain]))
+        outflow = 2.0 * float(np.sum((A @ h)[self.held]))
+        return h, inflow, outflow, it
+
+    def _linear(self, A, drain: np.ndarray) -> np.ndarray:
+        """Heads with ``A``: held on the far field, ``h = y`` at the discharging drain nodes."""
+        n = self.y.size
+        fixed = np.zeros(n, bool)
+        fixed[self.held] = True
+        fixed[self.hole[drain]] = True
+        h = np.zeros(n)
+        h[self.held] = -self.table
+        h[self.hole[drain]] = self.y[self.hole[drain]]
+        rhs = -(A @ np.where(fixed, h, 0.0))
+        u = self.unknown
+        K = self._pattern.unknown_block(A, fixed[u])
+        b = np.where(fixed[u], h[u], rhs[u])
+        if self._factor is None:  # the one pattern: ordered and analysed once, refactorized after
+            self._factor = Cholesky(K, self._order)
+        else:
+            self._factor.refactor(K)
+        f = self._factor
+        h[u[f.perm]] = f.solve(_SYS_LT, f.solve(_SYS_L, b[f.perm]))
+        return h
+
+
+class _Pattern:
+    """The CSR pattern of the conductivity matrix (each element entry's ``position`` in it) and of
+    its block on the ``unknown`` nodes (held at one pattern whichever drain nodes are held: a
+    held node's row and column are zeroed but kept, its diagonal set to 1)."""
+
+    def __init__(self, rows: np.ndarray, cols: np.ndarray, n: int, unknown: np.ndarray):
+        import scipy.sparse as sp
+
+        keys, self.position = np.unique(rows.astype(np.int64) * n + cols, return_inverse=True)
+        r, c = keys // n, keys % n
+        self.indices = c.astype(np.int32)
+        self.indptr = np.r_[0, np.cumsum(np.bincount(r, minlength=n))].astype(np.int32)
+        local = np.full(n, -1)
+        local[unknown] = np.arange(unknown.size)
+        self.block = np.flatnonzero((local[r] >= 0) & (local[c] >= 0))  # sorted by (row, column) still
+        self.block_row, self.block_col = local[r[self.block]], local[c[self.block]]
+        self.block_shape = (unknown.size, unknown.size)
+        self._block = sp.csr_matrix((np.zeros(self.block.size), self.block_col,
+                                     np.r_[0, np.cumsum(np.bincount(self.block_row, minlength=unknown.size))]),
+                                    shape=self.block_shape)
+
+    def unknown_block(self, A, fixed: np.ndarray):
+        """``A``'s block on the unknown nodes, the ``fixed`` ones' rows and columns replaced by identity."""
+        data = A.data[self.block].copy()
+        touched = fixed[self.block_row] | fixed[self.block_col]
+        data[touched] = 0.0
+        data[touched & (self.block_row == self.block_col)] = 1.0
+        K = self._block.copy()
+        K.data = data
+        return K
+
+
+def _local_matrices(basis):
+    """(E, Q, 36) per-quadrature-point element matrices ``w |J| ∇φi·∇φj`` of a P2 basis (entry
+    ``6 i + j``), and the global row and column of each (6, 6, E) entry."""
+    grads = np.stack([basis.basis[i][0].grad for i in range(basis.Nbfun)])  # (6, 2, E, Q)
+    local = np.einsum("ideq,jdeq,eq->eqij", grads, grads, basis.dx, optimize=True)
+    local = np.ascontiguousarray(local.reshape(local.shape[0], local.shape[1], -1))
+    dofs = basis.element_dofs  # (6, E)
+    rows = np.broadcast_to(dofs[:, None, :], (dofs.shape[0],) * 2 + dofs.shape[1:]).ravel()
+    cols = np.broadcast_to(dofs[None, :, :], (dofs.shape[0],) * 2 + dofs.shape[1:]).ravel()
+    return local, rows, cols
+
+
+def phreatic_depth(mesh, head: np.ndarray, x: np.ndarray, *, height: float, center, radius: float,
+                   step: float) -> np.ndarray:
+    """Depth (m below the surface) of the phreatic surface above each ``x`` (m): the topmost point of
+    the vertical at x where the pressure head ``h - y`` of the P2 field ``head`` on ``mesh`` (the
+    ground's :class:`~solver.geometry.mesh.BodyMesh`) is ≥ 0, linear between samples ``step`` m
+    apart; the excavation (``radius`` about ``center``) is dry. NaN where the vertical is dry to the
+    model's bottom. The samples are located in the straight-sided triangles and keep clear of the
+    curved excavation edges."""
+    z = np.linspace(0.0, height, max(2, int(np.ceil(height / step)) + 1))
+    out = np.full(np.size(x), np.nan)
+    for i, xc in enumerate(np.asarray(x, dtype=float)):
+        psi = _column_pressure_head(mesh, head, xc, z)
+        psi[np.hypot(xc - center[0], -z - center[1]) < radius + 0.5 * step] = -np.inf
+        wet = np.flatnonzero(psi >= 0.0)
+        if wet.size == 0:
+            continue
+        k = wet[0]
+        if k == 0 or not np.isfinite(psi[k - 1]):
+            out[i] = z[k]
+        else:  # between the last dry sample and the first wet one
+            out[i] = z[k - 1] + (z[k] - z[k - 1]) * (-psi[k - 1]) / (psi[k] - psi[k - 1])
+    return out
+
+
+def _column_pressure_head(mesh, head: np.ndarray, xc: float, z: np.ndarray) -> np.ndarray:
+    """Pressure head ``h - y`` of the P2 field at the points ``(xc, -z)`` (-inf outside every triangle)."""
+    p, t = mesh.p, mesh.t
+    xv = p[0, t[:3]]  # (3, E)
+    near = np.flatnonzero((xv.min(axis=0) <= xc + 1e-12) & (xv.max(axis=0) >= xc - 1e-12))
+    P = p[:, t[:3, near]]  # (2, 3, e)
+    d1, d2 = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
+    det = d1[0] * d2[1] - d1[1] * d2[0]
+    rx, ry = xc - P[0, 0][:, None], -z[None, :] - P[1, 0][:, None]  # (e, K)
+    l1 = (d2[1][:, None] * rx - d2[0][:, None] * ry) / det[:, None]
+    l2 = (-d1[1][:, None] * rx + d1[0][:, None] * ry) / det[:, None]
+    l0 = 1.0 - l1 - l2
+    inside = (l0 >= -1e-10) & (l1 >= -1e-10) & (l2 >= -1e-10)
+    found = inside.any(axis=0)
+    e = np.argmax(inside, axis=0)  # the first triangle holding each sample
+    k = np.arange(z.size)
+    a, b, c = l0[e, k], l1[e, k], l2[e, k]
+    shape = np.stack([a * (2 * a - 1), b * (2 * b - 1), c * (2 * c - 1), 4 * a * b, 4 * b * c, 4 * a * c])
+    values = np.sum(shape * head[t[:, near[e]]], axis=0) + z
+    return np.where(found, values, -np.inf)
 
 
 def seepage_load(vector_basis, scalar_basis, delta_p: np.ndarray) -> np.ndarray:

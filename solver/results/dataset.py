@@ -27,7 +27,7 @@ import xarray as xr
 from ..fe.assembly import SUBTRIANGLES, stress_at
 from ..ground.loads import in_situ_stress, moduli
 from ..ground.strata import moved_lines, strata
-from ..ground.water import hydrostatic
+from ..ground.water import hydrostatic, phreatic_depth
 from .settlement import TROUGH_WIDTH_FACTOR, gaussian_trough, ground_loss, surface_warnings
 from ..lining.design import design_utilization, joint_utilization
 from ..model import Solution, TunnelModel
@@ -66,6 +66,8 @@ SCALARS = {
     "stage1_max_plastic_extent": ("m", "largest distance from the tunnel axis of a face at yield at the end of "
                                   "stage 1 (0 if none)"),
     "water_inflow": ("m3 s-1", "steady water inflow into the whole tunnel per metre (0 unless the lining drains)"),
+    "phreatic_drawdown": ("m", "lowering of the water table above the tunnel axis (0 unless the lining drains; "
+                               "NaN in dry ground)"),
     "max_joint_opening": ("m", "largest opening of the segmental lining's joints (0 for a monolithic lining)"),
     "max_joint_rotation": ("rad", "largest absolute rotation across a joint (0 for a monolithic lining)"),
     "max_joint_eccentricity": ("1", "largest |M|/(N a/2) at a joint: <= 1 when every joint carries its thrust "
@@ -352,7 +354,13 @@ def _surface_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict, d
                                     trough_width_factor=TROUGH_WIDTH_FACTOR,
                                     trough_width_m=TROUGH_WIDTH_FACTOR * g.depth),
     }
+    phreatic = phreatic_surface(model, sol, surf_x)
+    data["phreatic_depth"] = _var("surface", phreatic, "m", "depth of the phreatic surface below the ground surface "
+                                  "(the water table, or where a drained lining's seepage lowered it; NaN: dry to the "
+                                  "bottom)")
     scalars = {
+        "phreatic_drawdown": float(phreatic[0] - sol.spec.water.table) if sol.spec.water.table is not None
+        else np.nan,
         "max_surface_settlement": float(settlement.max()),
         "volume_loss": volume_loss(surf_x, settlement, g.hole_radius),
         "ground_loss": loss,
@@ -361,6 +369,19 @@ def _surface_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict, d
         "max_surface_heave": float(max(-settlement.min(), 0.0)),
     }
     return coords, data, scalars, (surf_x, settlement)
+
+
+def phreatic_surface(model: TunnelModel, sol: Solution, x: np.ndarray) -> np.ndarray:
+    """Depth (m) of the phreatic surface above each surface ``x``: the table (hydrostatic), the
+    drained seepage's (:func:`solver.ground.water.phreatic_depth`), NaN in dry ground."""
+    spec = sol.spec
+    if spec.water.table is None:
+        return np.full(x.size, np.nan)
+    if sol.water_head is None:
+        return np.full(x.size, float(spec.water.table))
+    g = spec.geometry
+    return phreatic_depth(model.mesh.ground, sol.water_head, x, height=g.height, center=model.mesh.center,
+                          radius=g.hole_radius, step=0.5 * spec.mesh.interface_size)
 
 
 def _contact_scalars(model: TunnelModel, sol: Solution) -> dict:

@@ -18,7 +18,7 @@ def _round3_defaults() -> dict[str, dict]:
     defaults = {
         "ground": {k: Strength.model_fields[k].default for k in Strength.model_fields} | {"layers": []},
         "lining": {"joints": Joints().model_dump(mode="json")},
-        "solver": {"load_steps": SolverSettings.model_fields["load_steps"].default},
+        "solver": {"load_steps": SolverSettings.model_fields["load_steps"].default, "mesh_check": False},
         "water": Water().model_dump(mode="json"),
     }
     return defaults

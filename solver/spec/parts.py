@@ -212,6 +212,9 @@ class SolverSettings(_Frozen):
         10, ge=1, le=1000, description="increments per construction stage (Mohr-Coulomb ground)")
     bolt: Union[Literal["auto"], float] = Field(
         "auto", description="'auto' (bolt-point search) or a bolt position theta in degrees [0, 180]")
+    mesh_check: bool = Field(
+        False, description="also solve on a mesh refined once (every size halved) and report the relative "
+                           "changes of the key results (mesh_change_*; a warning above 1 %)")
 
     @field_validator("bolt", mode="before")
     @classmethod

@@ -108,5 +108,5 @@ def water_state(model: BuiltModel, spec: CaseSpec, F2: float) -> dict:
                                                     w.table, w.unit_weight))
     elif w.table is not None:
         seep = seepage(model, spec)
-        out["pore"], out["water_inflow"] = seep.pore, seep.inflow
+        out["pore"], out["water_inflow"], out["water_head"] = seep.pore, seep.inflow, seep.head
     return out

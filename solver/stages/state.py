@@ -85,6 +85,8 @@ class Solution:
     pore: np.ndarray | None = None
     water_pressure: np.ndarray | None = None
     water_inflow: float = 0.0
+    #: a drained case's hydraulic head at the ground's nodes (m; the unconfined seepage's), else None
+    water_head: np.ndarray | None = None
     #: yielding ground (:func:`solver.stages.plastic.solve_staged`): effective stress, yield flags and
     #: equivalent plastic strain at the sub-triangle centroids, iterations, ground reaction curve
     plastic: dict | None = None

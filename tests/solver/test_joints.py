@@ -95,10 +95,12 @@ def test_a_full_height_joint_opens_where_the_eccentricity_passes_the_kern():
 
 def test_open_joints_rotate_more_than_closed_ones():
     """A closed joint is a linear rotational spring: its faces' relative rotation per unit moment
-    is the same at every closed joint and load (measured 5.1-5.6e-9 rad per N·m/m for a = 0.15 m,
-    t = 0.3 m); an open joint is softer (K0 = 0.8: the crown and invert joints open, 9.4e-9 and
-    1.06e-8), its faces gape over the strip (opening > 0) where a closed joint's stay in contact,
-    and its rotation has the moment's sign (M > 0, intrados compressed, opens the extrados)."""
+    is the same at every closed joint and load (measured 7.9-8.1e-9 rad per N·m/m for a = 0.15 m,
+    t = 0.3 m on the mesh graded towards the joints; 5.1-5.6e-9 before it, too stiff); a joint
+    that has opened wide is softer (K0 = 0.8: the crown and invert joints, 1.5e-8 and 1.6e-8; the
+    120° joint has just opened, 0.8 µm, and is still as stiff as a closed one), its faces gape over
+    the strip (opening > 0) where a closed joint's stay in contact, and its rotation has the
+    moment's sign (M > 0, intrados compressed, opens the extrados)."""
     closed, opened = [], []
     for k0 in (0.8, 0.9):
         _, sol = _solve(loads={"lateral_ratio": k0}, lining={"joints": {"count": 6, "contact_height": 0.15}})
@@ -106,7 +108,8 @@ def test_open_joints_rotate_more_than_closed_ones():
         flexibility = j.rotation / j.moment
         assert np.all(flexibility > 0)
         closed += list(flexibility[~j.open])
-        opened += list(flexibility[j.open])
+        opened += list(flexibility[j.opening > 1e-5])
+        assert np.all(flexibility[j.open] > 0.99 * flexibility[~j.open].min(initial=np.inf))
         assert np.all(j.opening[j.open] > 1e-7) and np.all(j.opening[~j.open] < 1e-12)
     assert len(closed) >= 4 and len(opened) >= 2
     assert max(closed) < 1.15 * min(closed)
@@ -226,7 +229,8 @@ def test_segments_work_with_yielding_ground_and_water(case):
     _, seg = _solve(**case, lining={"joints": {"count": 6, "contact_height": 0.15}})
     assert seg.kkt_residual < 1e-8
     assert np.all(seg.joints.eccentricity_ratio <= 1 + 1e-9) and np.all(seg.joints.thrust > 0)
-    assert seg.lining_weight == pytest.approx(mono.lining_weight, rel=1e-9)
-    assert seg.water_uplift == pytest.approx(mono.water_uplift, rel=1e-9, abs=1e-9)
+    # the meshes' quadratic arcs differ (the segmental one is graded towards its joints): O(h⁴) in area
+    assert seg.lining_weight == pytest.approx(mono.lining_weight, rel=1e-7)
+    assert seg.water_uplift == pytest.approx(mono.water_uplift, rel=1e-7, abs=1e-9)
     if "ground" in case:
         assert seg.plastic["iterations"] > 0 and seg.plastic["at_yield"].any()

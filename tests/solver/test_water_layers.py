@@ -161,9 +161,13 @@ def test_drained_case_stores_inflow_and_no_water_on_the_lining():
 def test_a_sweep_over_the_table_and_k0_reuses_one_model_bit_for_bit():
     base = _spec(ground={"layers": TWO_LAYERS}, water={"table": 3.0})
     others = [base.model_copy(update={"water": base.water.model_copy(update={"table": 8.0})}),
-              base.model_copy(update={"loads": base.loads.model_copy(update={"lateral_ratio": 0.8})}),
-              base.model_copy(update={"water": base.water.model_copy(update={"lining": "drained"})})]
+              base.model_copy(update={"loads": base.loads.model_copy(update={"lateral_ratio": 0.8})})]
     model = shared_model(base)
+    # a drained case's table is a mesh line (SPEC §9.2): its own model, shared by its K0 sweep
+    drained = base.model_copy(update={"water": base.water.model_copy(update={"lining": "drained"})})
+    assert model_key(drained) != model_key(base)
+    assert model_key(drained.model_copy(update={"loads": base.loads.model_copy(update={"lateral_ratio": 0.8})})) \
+        == model_key(drained)
     for spec in others:
         assert model_key(spec) == model_key(base) and shared_model(spec) is model
         together, alone = run_case(spec, model=model), run_case(spec)
