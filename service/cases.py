@@ -43,13 +43,13 @@ async def submit_case(spec: CaseSpec, request: Request, retry: Optional[Retry] =
     if known is None or known.status == "cancelled" or (retry and known.status == "failed"):
         check_capacity(request, need_bytes=estimated_result_bytes(spec))
     if known is None:
-        record, created = jobs.store.add_case(case_id, spec_json)
+        record, created = jobs.store.add_case(case_id, spec.named_json())  # the name is recorded, not hashed
     elif known.status == "cancelled" and jobs.store.requeue([case_id]):  # submitted again
         record, created = jobs.store.get_case(case_id), True
     else:
         record, created = known, False
     if created:
-        jobs.submit(record.id, spec_json)
+        jobs.submit(record.id, spec.named_json())
     elif retry and await jobs.retry([record.id]):
         record = jobs.store.get_case(record.id)
     return json_response(CaseAccepted.of(record, created=created), status_code=202,

@@ -24,6 +24,7 @@ from fastapi.templating import Jinja2Templates
 
 from solver.results.dataset import ECCENTRICITY_LIMIT, SCALARS
 from workflows.joint_check import statement
+from workflows.section_check import check_of
 from workflows.plots import PLOTS, SWEEP_PLOT_NAMES
 from workflows.studies import MIN_SAMPLES, SENSITIVITY_MIN_SAMPLES
 from workflows.units import DIAGNOSTICS
@@ -168,8 +169,10 @@ def design_verdict(values: dict[str, float], spec: dict) -> Optional[dict]:
         eta_j = values.get("max_joint_utilization")
         ok = bool(worst <= ECCENTRICITY_LIMIT and (eta_j is None or eta_j <= 1.0))
         joints = {"passes": ok, "text": statement(ok, worst, utilization=eta_j)}
-    return {"passes": bool(eta <= 1.0) and (joints is None or joints["passes"]), "section_passes": bool(eta <= 1.0),
-            "eta": f"{eta:.3g}", "joints": joints}
+    checks = check_of(values, spec)  # shear and crack width (SPEC §9.3)
+    return {"passes": bool(eta <= 1.0) and (joints is None or joints["passes"]) and (checks is None or checks.passes),
+            "section_passes": bool(eta <= 1.0), "eta": f"{eta:.3g}", "joints": joints,
+            "checks": None if checks is None else {"passes": checks.passes, "text": checks.text()}}
 
 
 @router.get("/ui/submit", response_class=HTMLResponse)

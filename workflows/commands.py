@@ -26,6 +26,7 @@ from solver.errors import field_errors, format_errors
 from solver.spec import is_number
 
 from .joint_check import joint_report
+from .section_check import section_report
 from .joint_plots import has_joints
 from .parameters import flat_parameters, parameter_attrs, varying_parameters
 from .result_store import ResultStore, StoreLike, as_store, case_warnings, check_case_id
@@ -298,6 +299,7 @@ def show_command(case_id: str, results: str, *, out: TextIO | None = None) -> in
     print(format_summary(summarize(ds)), file=out)
     if "utilization" in ds:
         print(utilization_report(ds), file=out)
+        print(section_report(ds), file=out)
     if has_joints(ds):
         print(joint_report(ds), file=out)
     for warning in case_warnings(ds):
@@ -377,16 +379,21 @@ def utilization_report(ds: xr.Dataset) -> str:
     k = int(np.nanargmax(eta))
     gamma = load_factor(ds)
     theta = float(ds["theta"].values[k])
-    n_ed, m_ed = gamma * float(ds["thrust"].values[k]), gamma * float(ds["moment"].values[k])
+    # N_Ed of the governing combination: γF N, or 1.0 N where a lower thrust is unfavourable (SPEC §9.3)
+    thrust = ds["design_thrust"] if "design_thrust" in ds else gamma * ds["thrust"]
+    n_ed, m_ed = float(thrust.values[k]), gamma * float(ds["moment"].values[k])
     worst = float(eta[k])
     verdict = "passes" if worst <= 1 else "fails" + (" at any load level" if math.isinf(worst) else "")
     fibre = "inner fibre compressed" if m_ed > 0 else "outer fibre compressed"
     failing = int(np.count_nonzero(eta > 1))
     checked = int(np.count_nonzero(~np.isnan(eta)))  # a segmental lining's joints are their strips'
     where = " away from the joints" if has_joints(ds) else ""
-    return (f"max utilization η = {worst:.3g}{where} ({verdict}; EN 1992-1-1, γF = {gamma:g})\n"
+    combination = "" if abs(n_ed - gamma * float(ds["thrust"].values[k])) <= 1e-9 * abs(n_ed) else \
+        " (1.0 N: the lower thrust governs)"
+    return (f"max utilization η = {worst:.3g}{where} ({verdict}; EN 1992-1-1, γF = {gamma:g} on M, "
+            f"the worse of γF N and 1.0 N)\n"
             f"  at θ = {theta:.1f}° ({station_name(theta)} side): N_Ed = {n_ed / 1e3:.1f} kN/m, "
-            f"M_Ed = {m_ed / 1e3:.1f} kN·m/m ({fibre})\n"
+            f"M_Ed = {m_ed / 1e3:.1f} kN·m/m ({fibre}){combination}\n"
             f"  stations with η > 1: {failing} of {checked}")
 
 

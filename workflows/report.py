@@ -26,6 +26,7 @@ from .joint_check import joint_check, joint_report, statement
 from .joint_plots import OPEN_STYLE, has_joints
 from .parameters import flat_parameters, parameter_attrs
 from .result_store import case_warnings
+from .section_check import section_check, section_report
 from .units import DIAGNOSTICS, input_unit, shown_value
 
 A4_PORTRAIT = (8.27, 11.69)
@@ -40,8 +41,9 @@ def _page(size=A4_PORTRAIT) -> Figure:
 
 
 def _margins(fig: Figure, ds: xr.Dataset, page: int, pages: int) -> None:
-    fig.text(0.04, 0.985, f"tunnel-contact · case {ds.attrs.get('case_id', '?')}", fontsize=8, color="0.4",
-             va="top")
+    name = f" · {ds.attrs['case_name']}" if ds.attrs.get("case_name") else ""
+    fig.text(0.04, 0.985, f"tunnel-contact · case {ds.attrs.get('case_id', '?')}{name}"[:140], fontsize=8,
+             color="0.4", va="top")
     fig.text(0.96, 0.985, f"page {page} of {pages}", fontsize=8, color="0.4", va="top", ha="right")
     fig.text(0.04, 0.012, str(ds.attrs.get("history", "")).split("\n")[0][:150], fontsize=6.5, color="0.5")
 
@@ -54,9 +56,10 @@ def _verdict(ds: xr.Dataset) -> tuple[str, str, list[str]]:
         return "NO CHECK", "0.4", ["no EN 1992 check in this result"]
     eta = float(np.nanmax(ds["utilization"].values))
     check = joint_check(ds)
-    passes = eta <= 1 and (check is None or check.passes)
+    section = section_check(ds)
+    passes = eta <= 1 and (check is None or check.passes) and (section is None or section.passes)
     word, colour = ("PASS", _PASS) if passes else ("FAIL", _FAIL)
-    lines = utilization_report(ds).splitlines()
+    lines = utilization_report(ds).splitlines() + section_report(ds).splitlines()
     if check is not None:  # the section away from the joints, then the joints' strips
         lines += joint_report(ds).splitlines()
     return word, colour, lines

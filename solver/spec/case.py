@@ -185,6 +185,12 @@ class CaseSpec(_Frozen):
                 del data[section]
         return json.dumps(data, sort_keys=True, separators=(",", ":"))
 
+    def named_json(self) -> str:
+        """The canonical JSON with the case's ``name`` (if any): what is handed on and recorded, so the
+        name travels with the case while its id stays the hash of :meth:`canonical_json`."""
+        text = self.canonical_json()
+        return text if self.name is None else text[:-1] + "," + json.dumps({"name": self.name}, separators=(",", ":"))[1:]
+
     @property
     def case_id(self) -> str:
         """Stable 16-hex-digit id of the physical case (sha256 of the canonical JSON)."""
