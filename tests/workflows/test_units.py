@@ -36,7 +36,7 @@ def _fields(model=CaseSpec, prefix=""):
         kind = info.annotation
         if isinstance(kind, type) and issubclass(kind, BaseModel):
             yield from _fields(kind, f"{prefix}{name}.")
-        elif f"{prefix}{name}" != "ground.layers":
+        elif f"{prefix}{name}" not in ("ground.layers", "name"):  # a case's name is no input (SPEC §9.3)
             yield f"{prefix}{name}", kind
 
 
