@@ -15,7 +15,7 @@ from fastapi import FastAPI
 from fastapi.exceptions import RequestValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from . import cases, health, pages, searches, studies, sweeps
+from . import case_tables, cases, health, pages, searches, studies, sweeps
 from .cluster import cluster_connection
 from .errors import http_error_handler, overflow_handler, request_validation_handler, store_error_handler
 from .guards import BodyLimitMiddleware, SameOriginMiddleware, TokenReadsMiddleware, openapi_auth_as_configured
@@ -85,7 +85,7 @@ def create_app(settings: Optional[Settings] = None) -> FastAPI:
     app.add_exception_handler(OverflowError, overflow_handler)
     app.add_exception_handler(StarletteHTTPException, http_error_handler)
     openapi_auth_as_configured(app)
-    for module in (cases, sweeps, studies, searches, health, pages):
+    for module in (cases, case_tables, sweeps, studies, searches, health, pages):
         app.include_router(module.router)
     pages.mount_static(app)
     serve_docs_offline(app)

@@ -248,3 +248,13 @@ def case_workbook(ds: xr.Dataset) -> bytes:
     buffer = io.BytesIO()
     wb.save(buffer)
     return buffer.getvalue()
+
+
+def stored_tables(root, case_id: str, kind: str) -> bytes:
+    """``kind`` ``"xlsx"`` (:func:`case_workbook`) or ``"csv"`` (the forces table) of a stored case.
+
+    Raises FileNotFoundError if the case is not stored (:meth:`ResultStore.opened`)."""
+    from .result_store import as_store
+
+    with as_store(root).opened(case_id) as ds:
+        return case_workbook(ds) if kind == "xlsx" else table_csv(forces_table(ds)).encode()

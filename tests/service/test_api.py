@@ -61,7 +61,7 @@ def test_openapi_lists_every_endpoint_with_response_models(client):
     schema = client.get("/openapi.json").json()
     assert set(schema["paths"]) == {
         "/cases", "/cases/{case_id}", "/cases/{case_id}/result.nc", "/cases/{case_id}/plots/{name}.png",
-        "/cases/{case_id}/report.pdf", "/sweeps", "/sweeps/{sweep_id}", "/sweeps/{sweep_id}/result.nc", "/health",
+        "/cases/{case_id}/report.pdf", "/cases/{case_id}/tables.xlsx", "/cases/{case_id}/forces.csv", "/sweeps", "/sweeps/{sweep_id}", "/sweeps/{sweep_id}/result.nc", "/health",
         "/sweeps/{sweep_id}/table", "/sweeps/{sweep_id}/summary.csv", "/sweeps/{sweep_id}/summary.xlsx", "/sweeps/{sweep_id}/plots/{name}.png",
         "/sweeps/{sweep_id}/cancel", "/sweeps/{sweep_id}/sensitivity", "/sweeps/{sweep_id}/sensitivity.png",
         "/sweeps/{sweep_id}/reliability", "/sweeps/{sweep_id}/reliability.png", "/searches", "/searches/{search_id}",
@@ -175,7 +175,7 @@ def test_result_and_plots_of_an_unfinished_case_are_409(client, app):
     case_id = plant(app, coarse_case(loads={"surface_load": 7.77e4}))
     assert client.get(f"/cases/{case_id}").json()["status"] == "queued"
     for url in (f"/cases/{case_id}/result.nc", f"/cases/{case_id}/plots/contact_pressure.png",
-                f"/cases/{case_id}/report.pdf"):
+                f"/cases/{case_id}/report.pdf", f"/cases/{case_id}/tables.xlsx", f"/cases/{case_id}/forces.csv"):
         response = client.get(url)
         assert response.status_code == 409
         assert "queued" in response.json()["detail"]
@@ -192,6 +192,31 @@ def test_plots_are_png_rendered_once_and_cached(client, app, done_case, name):
     stamp = cached.stat().st_mtime_ns
     assert client.get(url).content == response.content
     assert cached.stat().st_mtime_ns == stamp
+
+
+def test_case_tables_read_back_in_engineering_units(client, app, done_case):
+    """forces.csv and tables.xlsx of a finished case: a units row, the stored result's values converted."""
+    import csv
+    import io
+
+    from openpyxl import load_workbook
+
+    case_id = done_case["id"]
+    response = client.get(f"/cases/{case_id}/forces.csv")
+    assert response.status_code == 200 and response.headers["content-type"].startswith("text/csv")
+    rows = list(csv.reader(io.StringIO(response.text)))
+    with as_store(app.state.jobs.root).opened(case_id) as ds:
+        thrust, moment = ds.thrust.values, ds.moment.values
+    names, units = rows[0], rows[1]
+    assert (units[names.index("N")], units[names.index("M")]) == ("kN/m", "kN·m/m")
+    np.testing.assert_allclose([float(r[names.index("N")]) for r in rows[2:]], thrust / 1e3, rtol=1e-12)
+    response = client.get(f"/cases/{case_id}/tables.xlsx")
+    assert response.status_code == 200 and "spreadsheetml" in response.headers["content-type"]
+    ws = load_workbook(io.BytesIO(response.content))["forces"]
+    assert [c.value for c in ws[2]][:4] == ["°", "m", "kN/m", "kN·m/m"]
+    np.testing.assert_allclose([ws.cell(row=r, column=4).value for r in range(3, 3 + thrust.size)],
+                               moment / 1e3, rtol=1e-12)
+    assert client.get("/cases/0123456789abcdef/forces.csv").status_code == 404
 
 
 def test_report_is_a_printable_pdf_of_every_figure_rendered_once(client, app, done_case):
