@@ -10,6 +10,7 @@ from fastapi import APIRouter, Depends, Query, Request, Response
 from fastapi.responses import FileResponse
 
 from solver.spec import CaseSpec, content_id
+from solver.spec.plausible import plausibility_warnings
 from workflows.plots import PLOTS
 from workflows.result_store import as_store, estimated_result_bytes
 
@@ -52,7 +53,8 @@ async def submit_case(spec: CaseSpec, request: Request, retry: Optional[Retry] =
         jobs.submit(record.id, spec.named_json())
     elif retry and await jobs.retry([record.id]):
         record = jobs.store.get_case(record.id)
-    return json_response(CaseAccepted.of(record, created=created), status_code=202,
+    return json_response(CaseAccepted.of(record, created=created, input_warnings=plausibility_warnings(spec)),
+                         status_code=202,
                          headers={"Location": f"/cases/{record.id}"})
 
 

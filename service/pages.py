@@ -23,6 +23,8 @@ from fastapi.staticfiles import StaticFiles
 from fastapi.templating import Jinja2Templates
 
 from solver.results.dataset import ECCENTRICITY_LIMIT, SCALARS
+from solver.spec import CaseSpec
+from solver.spec.plausible import plausibility_warnings
 from workflows.joint_check import statement
 from workflows.section_check import check_of
 from workflows.plots import PLOTS, SWEEP_PLOT_NAMES
@@ -150,7 +152,15 @@ async def case_page(case_id: CaseId, request: Request) -> HTMLResponse:
     diagnostics = [scalar_column(n) for n in names if n in DIAGNOSTICS]
     verdict = design_verdict(values, case.spec)
     return await _render(request, "case.html", case=case, values=values, columns=columns, plots=list(PLOTS),
-                         diagnostics=diagnostics, verdict=verdict)
+                         diagnostics=diagnostics, verdict=verdict, warnings=case.warnings or input_warnings(case.spec))
+
+
+def input_warnings(spec: dict) -> list[str]:
+    """The implausible inputs of a recorded case (shown before its result has its own warnings)."""
+    try:
+        return plausibility_warnings(CaseSpec.model_validate(spec))
+    except ValueError:  # a record of an older case model
+        return []
 
 
 def design_verdict(values: dict[str, float], spec: dict) -> Optional[dict]:

@@ -14,7 +14,8 @@ from __future__ import annotations
 import re
 from typing import Any, Iterable, Sequence
 
-__all__ = ["SolverError", "NotConvergedError", "NoAdmissibleBoltError", "field_errors", "field_path", "format_errors"]
+__all__ = ["SolverError", "NotConvergedError", "NoAdmissibleBoltError", "field_errors", "field_path", "format_errors",
+           "did_you_mean"]
 
 
 class SolverError(RuntimeError):
@@ -82,9 +83,43 @@ def field_errors(errors: Iterable[dict] | Any) -> list[tuple[str, str]]:
             detail = str(err.get("ctx", {}).get("error", ""))
             out.append(("", f"invalid JSON: {detail}".rstrip(": ")))
             continue
-        out.append(field_path(err.get("loc", ()), str(err.get("msg", "")),
-                              kind=str(err.get("type", "value_error"))))
+        path, reason = field_path(err.get("loc", ()), str(err.get("msg", "")),
+                                  kind=str(err.get("type", "value_error")))
+        if err.get("type") == "extra_forbidden":
+            reason = "unknown field" + _case_field_hint(path)
+        out.append((path, reason))
     return out
+
+
+def did_you_mean(word: str, choices: Iterable[str]) -> str:
+    """``"; did you mean 'x'?"`` for the choice closest to a mistyped ``word`` (difflib), else ``""``."""
+    from difflib import get_close_matches
+
+    close = get_close_matches(word, list(choices), n=1, cutoff=0.6)
+    return f"; did you mean {close[0]!r}?" if close else ""
+
+
+def _case_field_hint(path: str) -> str:
+    """The "did you mean" of an unknown field at dotted ``path`` of a case (or of a sweep's ``base``):
+    the closest field of the same section of :class:`solver.spec.CaseSpec`."""
+    from .spec import CaseSpec, Layer
+
+    parts = path.split(".")
+    if parts[0] == "base":  # a sweep's or study's base case
+        parts = parts[1:]
+    model = CaseSpec
+    for part in parts[:-1]:
+        if part.isdigit() and model is None:
+            model = Layer
+            continue
+        info = getattr(model, "model_fields", {}).get(part)
+        kind = getattr(info, "annotation", None)
+        model = kind if isinstance(kind, type) and hasattr(kind, "model_fields") else None
+        if part == "layers":
+            model = None  # the next part is the layer's index
+        elif model is None:
+            return ""
+    return did_you_mean(parts[-1], getattr(model, "model_fields", {})) if parts else ""
 
 
 def format_errors(errors: Iterable[tuple[str, str]], *, whole: str = "value") -> str:

@@ -32,6 +32,7 @@ from .settlement import TROUGH_WIDTH_FACTOR, design_trough, gaussian_trough, gro
 from ..lining.checks import crack_width, shear_utilization
 from ..lining.design import design_utilization, governing_thrust, joint_utilization
 from ..model import Solution, TunnelModel
+from ..spec.plausible import plausibility_warnings
 from ..lining.forces import lining_forces
 from .post import contact_extent, mean_convergence, surface_trough
 
@@ -406,7 +407,7 @@ def _warnings(model: TunnelModel, sol: Solution, u: np.ndarray, surface: tuple) 
     warnings = [f"the line between layers {i - 1} and {i} ({z:.4g} m deep) is drawn at {drawn:.4g} m: it met the "
                 "tunnel's crown or invert level, where the mesh cannot follow a line tangent to the excavation"
                 for i, z, drawn in moved_lines(spec)]
-    warnings += surface_warnings(*surface)
+    warnings += surface_warnings(*surface) + plausibility_warnings(spec)
     largest = float(np.max(np.hypot(u[0], u[1])))
     if largest > SMALL_DISPLACEMENT_LIMIT * g.hole_radius:
         warnings.append(

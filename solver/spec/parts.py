@@ -78,7 +78,9 @@ class Joints(_Frozen):
         # a monolithic ring ignores the joints' other fields; bonded joints ignore friction
         if isinstance(data, dict):
             if data.get("count", 0) == 0:
-                data = {k: v for k, v in data.items() if k == "count" or not _ignorable(v)} | \
+                # unknown keys are kept, for the error that names them (a typo is not ignorable)
+                data = {k: v for k, v in data.items() if k == "count" or k not in cls.model_fields
+                        or not _ignorable(v)} | \
                     ({"shear": "bonded"} if data.get("shear") in ("bonded", "coulomb") else {})
             if data.get("shear", "bonded") == "bonded" and _ignorable(data.get("friction")):
                 data = {**data, "friction": 0.0}
@@ -120,7 +122,7 @@ class Water(_Frozen):
     @classmethod
     def _ignored_when_dry(cls, data):
         if isinstance(data, dict) and data.get("table") is None:
-            data = {k: v for k, v in data.items() if k == "table" or not _ignorable(v)}
+            data = {k: v for k, v in data.items() if k == "table" or k not in cls.model_fields or not _ignorable(v)}
             if data.get("lining") in ("watertight", "drained"):
                 data = {**data, "lining": "watertight"}
         return data

@@ -194,6 +194,24 @@ def test_plots_are_png_rendered_once_and_cached(client, app, done_case, name):
     assert cached.stat().st_mtime_ns == stamp
 
 
+def test_unknown_field_did_you_mean_and_implausible_input_warned(client, done_case):
+    """Issue 39: a misspelt field is refused naming the closest; an implausible value is accepted with a
+    warning (a density of 20 kg/m³ is a unit weight in kN/m³ typed in the wrong field)."""
+    response = client.post("/cases", json={"ground": {"densty": 2000.0}})
+    assert response.status_code == 422
+    assert any(e["field"] == "ground.densty" and e["reason"] == "unknown field; did you mean 'density'?"
+               for e in response.json()["errors"])
+    again = client.post("/cases", json=COARSE)
+    assert again.status_code == 202 and again.json()["input_warnings"] == []
+    implausible = coarse_case(ground={"density": 20.0})
+    response = client.post("/cases", json=implausible)
+    assert response.status_code == 202
+    (warning,) = response.json()["input_warnings"]
+    assert warning.startswith("ground.density: 20 kg/m³")
+    page = client.get(f"/ui/cases/{response.json()['id']}")
+    assert "ground.density: 20 kg/m³" in page.text
+
+
 def test_case_tables_read_back_in_engineering_units(client, app, done_case):
     """forces.csv and tables.xlsx of a finished case: a units row, the stored result's values converted."""
     import csv

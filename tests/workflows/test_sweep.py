@@ -214,3 +214,14 @@ def test_dict_input_and_alias():
     with pytest.raises(SweepError) as info:
         expand_sweep({**data, "vary": {"lining.thickness": [0.2], "geometry.thickness": [0.3]}})
     assert info.value.errors[0][0] == "geometry.thickness"
+
+
+def test_unknown_sweep_path_and_base_field_say_did_you_mean():
+    """Issue 39: a misspelt path is named with the closest parameter."""
+    from solver.errors import field_errors
+
+    with pytest.raises(SweepError, match="did you mean 'ground.young'"):
+        expand_sweep({"name": "typo", "base": {}, "vary": {"ground.yong": [1e7, 2e7]}})
+    with pytest.raises(ValidationError) as info:
+        Sweep.model_validate({"name": "typo", "base": {"ground": {"densty": 2000.0}}, "vary": {}})
+    assert field_errors(info.value) == [("base.ground.densty", "unknown field; did you mean 'density'?")]
