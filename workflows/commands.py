@@ -28,11 +28,11 @@ from solver.spec import is_number
 from .joint_check import joint_report
 from .section_check import section_report
 from .joint_plots import has_joints
-from .parameters import flat_parameters, parameter_attrs, varying_parameters
+from .parameters import flat_parameters, parameter_attrs, parameter_path, varying_parameters
 from .result_store import ResultStore, StoreLike, as_store, case_warnings, check_case_id
 from .summary import summarize
 from .sweep import Sweep, SweepError, run_sweep
-from .units import DIAGNOSTICS, display_unit, shown_number, shown_value
+from .units import DIAGNOSTICS, display_unit, parameter_unit, shown_number, shown_value
 
 
 #: Columns of the comparison table: (summary scalar, header); values and units as every table
@@ -294,8 +294,7 @@ def show_command(case_id: str, results: str, *, out: TextIO | None = None) -> in
         return 1
     params = flat_parameters(ds.attrs["case_spec"])
     print(f"case {case_id}", file=out)
-    print("\n".join(f"  {k} = {_with_unit(v, parameter_attrs(k, numeric=is_number(v)).get('units'))}"
-                    for k, v in params.items()), file=out)
+    print("\n".join(f"  {k} = {_input_text(k, v)}" for k, v in params.items()), file=out)
     print(format_summary(summarize(ds)), file=out)
     if "utilization" in ds:
         print(utilization_report(ds), file=out)
@@ -357,14 +356,13 @@ def format_summary(summary: dict[str, float]) -> str:
                      + [line(k) for k in summary if k in DIAGNOSTICS])
 
 
-def _unit_label(units: str | None) -> str:
-    """The unit as printed: nothing for a dimensionless (``1``) or unknown one."""
-    return "" if units in (None, "", "1") else units
-
-
-def _with_unit(value: Any, units: str | None) -> str:
-    label = _unit_label(units)
-    return f"{value} {label}" if label else str(value)
+def _input_text(name: str, value: Any) -> str:
+    """An input as people read it: in its engineering unit (:func:`workflows.units.parameter_unit`)."""
+    units = parameter_attrs(name, numeric=is_number(value)).get("units")
+    if not units:
+        return str(value)
+    unit, factor = parameter_unit(parameter_path(name), units)
+    return f"{value * factor:.6g} {unit}" if unit not in ("", "1") else f"{value:.6g}"
 
 
 def utilization_report(ds: xr.Dataset) -> str:
@@ -442,11 +440,11 @@ def comparison_table(rows: Iterable[dict[str, Any]]) -> str:
     if any(r["params"].get("lining_joints_count", 0) for r in rows):  # a segmental lining among them
         columns += JOINT_TABLE_COLUMNS
     header = ["case_id", *varied, *(h for _, h in columns)]
-    units = ["", *(_unit_label(parameter_attrs(n).get("units")) for n in varied),
-             *(column_unit(k) for k, _ in columns)]
+    shown = [_parameter_shown(n) for n in varied]  # engineering units, as every table shows inputs
+    units = ["", *(u for u, _ in shown), *(column_unit(k) for k, _ in columns)]
     lines = []
     for r in rows:
-        cells = [r["case_id"], *(_fmt(r["params"].get(n, "")) for n in varied)]
+        cells = [r["case_id"], *(_fmt(_scaled(r["params"].get(n, ""), f)) for n, (_, f) in zip(varied, shown))]
         if r["status"] == "done":
             cells += [shown_number(r["summary"].get(k), SCALARS[k][0], k) for k, _ in columns]
         else:
@@ -458,6 +456,16 @@ def comparison_table(rows: Iterable[dict[str, Any]]) -> str:
     text += [fmt.format(*cells) for cells in lines]
     errors = [f"  {r['case_id']}: {r['error']}" for r in rows if r["error"]]
     return "\n".join(text + (["failures:"] + errors if errors else []))
+
+
+def _parameter_shown(name: str) -> tuple[str, float]:
+    units = parameter_attrs(name).get("units")
+    unit, factor = parameter_unit(parameter_path(name), units) if units else ("", 1.0)
+    return ("" if unit == "1" else unit), factor
+
+
+def _scaled(value: Any, factor: float) -> Any:
+    return value * factor if is_number(value) else value
 
 
 def _fmt(value: Any) -> str:

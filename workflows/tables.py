@@ -24,10 +24,8 @@ from solver.spec import CaseSpec
 
 from .case_plots import load_factor
 from .parameters import flat_parameters, parameter_attrs, parameter_path
-from .units import DIAGNOSTICS, display_unit, input_unit
+from .units import DIAGNOSTICS, display_unit, parameter_unit
 
-#: Inputs read in millimetres.
-MILLIMETRES = ("geometry.gap", "design.crack_width_limit", "design.bar_diameter")
 #: Significant figures shown by the workbook's number formats (the cells keep every digit).
 FIGURES = 3
 
@@ -112,23 +110,6 @@ def _case_data(ds: xr.Dataset) -> dict:
         return json.loads(text)
 
 
-def _input_unit(path: str, gravity: float) -> tuple[str, float]:
-    """Engineering unit and factor from SI of input ``path``: a density as the unit weight ρ g (kN/m³)."""
-    units = parameter_attrs(path).get("units")
-    if path in MILLIMETRES:
-        return "mm", 1e3
-    if units == "kg m-3":
-        return "kN/m³", gravity * 1e-3
-    if units == "N m-3":
-        return "kN/m³", 1e-3
-    if units == "m2 m-1":
-        return "mm²/m", 1e6
-    if path.endswith(("volume_loss", "deconfinement")):
-        return "%", 100.0
-    unit, factor = input_unit(path.replace(".", "_"), units)
-    return unit or "1", factor
-
-
 def inputs_table(ds: xr.Dataset, *, exported: datetime | None = None) -> Table:
     """The case definition in engineering units, with the case's id, name, the software version,
     when it was solved and when this table was written."""
@@ -146,7 +127,7 @@ def inputs_table(ds: xr.Dataset, *, exported: datetime | None = None) -> Table:
         if isinstance(value, list):  # an empty list of layers: one ground, given above
             continue
         if isinstance(value, (int, float)) and not isinstance(value, bool):
-            unit, factor = _input_unit(path, gravity)
+            unit, factor = parameter_unit(path, parameter_attrs(path).get("units"), gravity)
             if unit == "kN/m³" and path.endswith("density"):
                 long_name += " (as unit weight rho g)"
             rows.append([path, float(value) * factor, unit, long_name])
