@@ -293,7 +293,8 @@ def show_command(case_id: str, results: str, *, out: TextIO | None = None) -> in
     if ds is None:
         return 1
     params = flat_parameters(ds.attrs["case_spec"])
-    print(f"case {case_id}", file=out)
+    name = ds.attrs.get("case_name")
+    print(f"case {case_id}" + (f" ({name})" if name else ""), file=out)
     print("\n".join(f"  {k} = {_input_text(k, v)}" for k, v in params.items()), file=out)
     print(format_summary(summarize(ds)), file=out)
     if "utilization" in ds:
