@@ -3,7 +3,8 @@
 Page 1: the design answer (PASS/FAIL with the utilization and where; for a segmental lining
 also whether every joint carries its thrust within its contact strip), the results in
 engineering units, the warnings. Page 2: every input with its unit, and the solver's
-diagnostics. A segmental lining then has a page of its joints (θ, N, M, |M|/(N·a/2), opening,
+diagnostics. Page 3: the lining forces every 5° (characteristic and design values, the section
+checks: :mod:`workflows.report_tables`). A segmental lining then has a page of its joints (θ, N, M, |M|/(N·a/2), opening,
 rotation, open). Then one page per figure of :data:`workflows.plots.PLOTS`, each fitted to an
 A4 landscape page with the case id and the page number in the margin.
 """
@@ -24,10 +25,11 @@ from solver.results.dataset import SCALARS
 
 from .joint_check import joint_check, joint_report, statement
 from .joint_plots import OPEN_STYLE, has_joints
-from .parameters import flat_parameters, parameter_attrs
+from .parameters import flat_parameters, parameter_attrs, parameter_path
+from .report_tables import draw_forces_table
 from .result_store import case_warnings
 from .section_check import section_check, section_report
-from .units import DIAGNOSTICS, input_unit, shown_value
+from .units import DIAGNOSTICS, parameter_unit, shown_value
 
 A4_PORTRAIT = (8.27, 11.69)
 A4_LANDSCAPE = (11.69, 8.27)
@@ -121,7 +123,9 @@ def _inputs_page(ds: xr.Dataset, page: int, pages: int) -> Figure:
     rows = []
     for name, value in params.items():
         attrs = parameter_attrs(name, numeric=isinstance(value, (int, float)) and not isinstance(value, bool))
-        unit, factor = input_unit(name, attrs.get("units"))
+        unit, factor = (parameter_unit(parameter_path(name), attrs["units"], params.get("loads_gravity"))
+                        if "units" in attrs else ("", 1.0))
+        unit = "" if unit == "1" else unit
         text = f"{value * factor:.6g}" if isinstance(value, float) else str(value)
         rows.append((attrs.get("long_name", name), f"{text} {unit}".strip(), name))
     step = min(0.0205, 0.70 / max(len(rows), 1))
@@ -224,7 +228,8 @@ def case_report(ds: xr.Dataset) -> bytes:
 
     spec = json.loads(ds.attrs.get("case_spec", "{}"))
     joints = has_joints(ds)
-    pages = 2 + joints + len(PLOTS)
+    forces = "thrust" in ds and "interface_x" in ds
+    pages = 2 + forces + joints + len(PLOTS)
     buffer = io.BytesIO()
     created = datetime.now(timezone.utc).replace(microsecond=0)
     with PdfPages(buffer, metadata={"Title": f"tunnel-contact case {ds.attrs.get('case_id', '')}",
@@ -232,9 +237,14 @@ def case_report(ds: xr.Dataset) -> bytes:
                                      "CreationDate": created}) as pdf:
         pdf.savefig(_summary_page(ds, spec, 1, pages))
         pdf.savefig(_inputs_page(ds, 2, pages))
+        if forces:  # the lining forces table (SPEC §9.3)
+            fig = _page()
+            _margins(fig, ds, 3, pages)
+            draw_forces_table(fig, ds)
+            pdf.savefig(fig)
         if joints:
-            pdf.savefig(_joints_page(ds, spec, 3, pages))
-        for k, (name, plot) in enumerate(PLOTS.items(), start=3 + joints):
+            pdf.savefig(_joints_page(ds, spec, 3 + forces, pages))
+        for k, (name, plot) in enumerate(PLOTS.items(), start=3 + forces + joints):
             pdf.savefig(_figure_page(ds, plot(ds), name, k, pages))
     return buffer.getvalue()
 

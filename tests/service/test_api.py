@@ -250,7 +250,7 @@ def test_report_is_a_printable_pdf_of_every_figure_rendered_once(client, app, do
     stamp = cached.stat().st_mtime_ns
     assert client.get(url).content == response.content and cached.stat().st_mtime_ns == stamp
     pdf = pdfium.PdfDocument(response.content)
-    assert len(pdf) == 2 + len(PLOTS)
+    assert len(pdf) == 3 + len(PLOTS)  # summary, inputs, lining forces, figures
     for i in range(len(pdf)):
         pixels = np.asarray(pdf[i].render(scale=0.5).to_pil().convert("L"), dtype=float)
         inked = (pixels < 200).mean()
