@@ -17,7 +17,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from workflows.files import DamagedFile
 from workflows.result_store import ResultStore
 
-from . import cases, health, pages, searches, studies, sweeps
+from . import case_tables, cases, health, pages, searches, studies, sweeps
 from .cluster import cluster_connection
 from .errors import (damaged_file_handler, http_error_handler, overflow_handler, request_validation_handler,
                      store_error_handler)
@@ -104,7 +104,7 @@ def create_app(settings: Optional[Settings] = None) -> FastAPI:
     app.add_exception_handler(DamagedFile, damaged_file_handler)
     app.add_exception_handler(StarletteHTTPException, http_error_handler)
     openapi_auth_as_configured(app)
-    for module in (cases, sweeps, studies, searches, health, pages):
+    for module in (cases, case_tables, sweeps, studies, searches, health, pages):
         app.include_router(module.router)
     mount_static(app)
     serve_docs_offline(app)

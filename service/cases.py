@@ -10,6 +10,7 @@ from fastapi import APIRouter, Depends, Query, Request, Response
 from fastapi.responses import FileResponse
 
 from solver.spec import CaseSpec, content_id
+from solver.spec.plausible import plausibility_warnings
 from workflows.files import DamagedFile
 from workflows.plots import PLOTS, STAGED_PLOTS
 from workflows.result_store import as_store, estimated_result_bytes
@@ -50,16 +51,17 @@ async def submit_case(spec: CaseSpec, request: Request, retry: Optional[Retry] =
         jobs.store.repair_spec(case_id, spec_json)
         known = jobs.store.get_case(case_id)
     if known is None:
-        record, created = jobs.store.add_case(case_id, spec_json, room=room)
+        record, created = jobs.store.add_case(case_id, spec.named_json(), room=room)  # the name is recorded, not hashed
     elif known.status == "cancelled" and jobs.store.requeue([case_id]):  # submitted again
         record, created = jobs.store.get_case(case_id), True
     else:
         record, created = known, False
     if created:
-        jobs.submit(record.id, spec_json)
+        jobs.submit(record.id, spec.named_json())
     elif retry and await jobs.retry([record.id]):
         record = jobs.store.get_case(record.id)
-    return json_response(CaseAccepted.of(record, created=created), status_code=202,
+    return json_response(CaseAccepted.of(record, created=created, input_warnings=plausibility_warnings(spec)),
+                         status_code=202,
                          headers={"Location": f"/cases/{record.id}"})
 
 

@@ -14,7 +14,8 @@ Columns, in order
 the varied parameters
     Every case parameter whose value differs between the sweep's cases, by its flat
     name (``lining_thickness``, ``ground_young``: :mod:`workflows.parameters`), in
-    case-model order, SI units as in the case JSON (SPEC §2).
+    case-model order, SI units as in the case JSON (SPEC §2); shown (page, workbook) in
+    engineering units (:func:`workflows.units.parameter_unit`).
 the scalars
     The result scalars of SPEC §3 (``max_contact_pressure``, ``contact_extent``, ...)
     in the contract's order, then any other recorded scalar by name; SI units as
@@ -36,8 +37,8 @@ from typing import Literal, Optional, Union
 from pydantic import BaseModel, Field
 
 from solver.results.dataset import SCALARS
-from workflows.parameters import flat_parameters, parameter_attrs, varying_parameters
-from workflows.units import display_unit
+from workflows.parameters import flat_parameters, parameter_attrs, parameter_path, varying_parameters
+from workflows.units import display_unit, parameter_unit
 
 from .results import non_finite_text
 from .job_records import JobStore, SweepRecord
@@ -85,6 +86,13 @@ def scalar_column(name: str) -> Column:
                   display_factor=factor)
 
 
+def parameter_column(name: str) -> Column:
+    """The column of case parameter ``name`` (flat), shown in its engineering unit (MPa, kPa, mm, ...)."""
+    attrs = parameter_attrs(name)
+    shown, factor = parameter_unit(parameter_path(name), attrs.get("units")) if "units" in attrs else ("", 1.0)
+    return Column(name=name, kind="parameter", **attrs, display_unit=shown, display_factor=factor)
+
+
 def ordered_scalars(names) -> list[str]:
     """``names`` in the contract's order, unknown ones last by name."""
     names = set(names)
@@ -101,7 +109,7 @@ def comparison_table(store: JobStore, record: SweepRecord) -> ComparisonTable:
     scalars = ordered_scalars({*SCALARS, *(name for c in ordered for name in (c.summary or {}))})
     columns = [Column(name="case_id", kind="id", long_name="case id"),
                Column(name="status", kind="status", long_name="status")]
-    columns += [Column(name=p, kind="parameter", **parameter_attrs(p)) for p in varied]
+    columns += [parameter_column(p) for p in varied]
     columns += [scalar_column(s) for s in scalars]
     columns += [Column(name="error", kind="text", long_name="why the case failed"),
                 Column(name="warnings", kind="text", long_name="solver warnings about the result")]

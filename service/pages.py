@@ -18,7 +18,10 @@ from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse
 
 from solver.results.dataset import ECCENTRICITY_LIMIT, SCALARS
+from solver.spec import CaseSpec
+from solver.spec.plausible import plausibility_warnings
 from workflows.joint_check import statement
+from workflows.section_check import check_of
 from workflows.plots import PLOTS, SWEEP_PLOT_NAMES
 from workflows.studies import MIN_SAMPLES, SENSITIVITY_MIN_SAMPLES
 from workflows.units import DIAGNOSTICS
@@ -92,7 +95,15 @@ async def case_page(case_id: CaseId, request: Request) -> HTMLResponse:
     diagnostics = [scalar_column(n) for n in names if n in DIAGNOSTICS]
     verdict = design_verdict(values, case.spec)
     return await render(request, "case.html", case=case, values=values, columns=columns, plots=list(PLOTS),
-                         diagnostics=diagnostics, verdict=verdict)
+                         diagnostics=diagnostics, verdict=verdict, warnings=case.warnings or input_warnings(case.spec))
+
+
+def input_warnings(spec: dict) -> list[str]:
+    """The implausible inputs of a recorded case (shown before its result has its own warnings)."""
+    try:
+        return plausibility_warnings(CaseSpec.model_validate(spec))
+    except ValueError:  # a record of an older case model
+        return []
 
 
 def design_verdict(values: dict[str, float], spec: dict) -> Optional[dict]:
@@ -111,8 +122,10 @@ def design_verdict(values: dict[str, float], spec: dict) -> Optional[dict]:
         eta_j = values.get("max_joint_utilization")
         ok = bool(worst <= ECCENTRICITY_LIMIT and (eta_j is None or eta_j <= 1.0))
         joints = {"passes": ok, "text": statement(ok, worst, utilization=eta_j)}
-    return {"passes": bool(eta <= 1.0) and (joints is None or joints["passes"]), "section_passes": bool(eta <= 1.0),
-            "eta": f"{eta:.3g}", "joints": joints}
+    checks = check_of(values, spec)  # shear and crack width (SPEC §9.3)
+    return {"passes": bool(eta <= 1.0) and (joints is None or joints["passes"]) and (checks is None or checks.passes),
+            "section_passes": bool(eta <= 1.0), "eta": f"{eta:.3g}", "joints": joints,
+            "checks": None if checks is None else {"passes": checks.passes, "text": checks.text()}}
 
 
 @router.get("/ui/submit", response_class=HTMLResponse)

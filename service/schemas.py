@@ -65,6 +65,8 @@ class CaseAccepted(Case):
     """Answer to ``POST /cases``."""
 
     created: bool = Field(description="false when the case was already known (nothing recomputed)")
+    input_warnings: list[str] = Field(default_factory=list, description="inputs outside their plausible range "
+                                      "(e.g. a density typed in kN/m³): accepted, but most likely a mistake of units")
 
 
 class CasePage(BaseModel):

@@ -12,9 +12,10 @@ that path is joined to the location pydantic reports.
 from __future__ import annotations
 
 import re
-from typing import Any, Iterable, Sequence
+from typing import Any, Callable, Iterable, Sequence
 
-__all__ = ["SolverError", "NotConvergedError", "GroundCollapseError", "NoAdmissibleBoltError", "field_errors", "field_path", "format_errors"]
+__all__ = ["SolverError", "NotConvergedError", "GroundCollapseError", "NoAdmissibleBoltError", "field_errors",
+           "field_path", "format_errors", "did_you_mean"]
 
 
 class SolverError(RuntimeError):
@@ -82,9 +83,31 @@ def field_errors(errors: Iterable[dict] | Any) -> list[tuple[str, str]]:
             detail = str(err.get("ctx", {}).get("error", ""))
             out.append(("", f"invalid JSON: {detail}".rstrip(": ")))
             continue
-        out.append(field_path(err.get("loc", ()), str(err.get("msg", "")),
-                              kind=str(err.get("type", "value_error"))))
+        path, reason = field_path(err.get("loc", ()), str(err.get("msg", "")),
+                                  kind=str(err.get("type", "value_error")))
+        if err.get("type") == "extra_forbidden":
+            reason = "unknown field" + _unknown_field_hint(path)
+        out.append((path, reason))
     return out
+
+
+def did_you_mean(word: str, choices: Iterable[str]) -> str:
+    """``"; did you mean 'x'?"`` for the choice closest to a mistyped ``word`` (difflib), else ``""``."""
+    from difflib import get_close_matches
+
+    close = get_close_matches(word, list(choices), n=1, cutoff=0.6)
+    return f"; did you mean {close[0]!r}?" if close else ""
+
+
+#: How an unknown field is hinted at: the case model registers its "did you mean" here
+#: (:func:`solver.spec.hints.case_field_hint`), so that this module, below every other, imports none.
+_unknown_field_hint: Callable[[str], str] = lambda path: ""
+
+
+def set_unknown_field_hint(hint: Callable[[str], str]) -> None:
+    """Register ``hint(dotted path) -> text`` appended to "unknown field" (the case model does)."""
+    global _unknown_field_hint
+    _unknown_field_hint = hint
 
 
 def format_errors(errors: Iterable[tuple[str, str]], *, whole: str = "value") -> str:

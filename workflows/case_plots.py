@@ -232,21 +232,24 @@ def _interaction_axes(ax) -> None:
 def plot_interaction(ds: xr.Dataset) -> Figure:
     """The N–M diagram of one case: design envelope and the design actions at every station.
 
-    Stations are (γF·M, γF·N), coloured by θ; the most utilized one is starred with
+    Stations are (γF·M, N_Ed), N_Ed the governing of γF·N and 1.0·N (SPEC §9.3), coloured by θ; the
+    most utilized one is starred with
     the ray from the origin to the envelope that defines its utilization (SPEC §1.3). A
     segmental lining's joints are diamonds between the rays |M| = N·a/2 of their contact strip
     (:func:`workflows.joint_plots.draw_on_interaction`), not stations of the section check.
     """
     gamma = load_factor(ds)
     theta = ds["theta"].values
-    n_ed, m_ed = gamma * ds["thrust"].values / 1e3, gamma * ds["moment"].values / 1e3
+    # N_Ed of the governing combination (γF N, or 1.0 N where the lower thrust is unfavourable)
+    thrust = ds["design_thrust"].values if "design_thrust" in ds else gamma * ds["thrust"].values
+    n_ed, m_ed = thrust / 1e3, gamma * ds["moment"].values / 1e3
     fig = Figure(figsize=(7.5, 6.5), layout="constrained")
     ax = fig.add_subplot()
     draw_envelope(ax, ds, fill=True)
     eta = ds["utilization"].values
     checked = ~np.isnan(eta)  # a segmental lining's joints: their strips, not the section
     points = ax.scatter(m_ed[checked], n_ed[checked], c=theta[checked], cmap="viridis", vmin=0, vmax=180, s=12,
-                        zorder=3, label=f"stations (γF = {gamma:g})")
+                        zorder=3, label=f"stations (γF = {gamma:g} on M; N_Ed = γF N or 1.0 N, the worse)")
     bar = fig.colorbar(points, ax=ax, ticks=np.arange(0, 181, 30))
     bar.set_label("θ of the station (deg from crown)")
     if joint_plots.has_joints(ds):  # the strip's rays a little beyond the joints, within the envelope's height
@@ -307,6 +310,12 @@ def plot_surface_settlement(ds: xr.Dataset) -> Figure:
         ax.plot(xx, np.concatenate([gs[::-1], gs]), color="tab:red", lw=2.0,
                 label=f"Gaussian trough from the ground loss (K = {K:g})")
         ax.fill_between(xx, np.concatenate([gs[::-1], gs]), color="tab:red", alpha=0.10)
+    if "design_settlement" in ds and not np.allclose(ds["design_settlement"].values, ds["gaussian_settlement"].values):
+        design = ds["design_settlement"].values * 1e3
+        attrs = ds["design_settlement"].attrs
+        ax.plot(xx, np.concatenate([design[::-1], design]), color="tab:blue", lw=1.6, ls="--",
+                label=f"design trough (V_L = {100 * attrs.get('volume_loss', float('nan')):.3g} %, "
+                      f"K = {attrs.get('trough_width_factor', float('nan')):g})")
     ax.plot(x, s, color="k", lw=1.2, marker="o", ms=2, label="FE surface (depends on the model's size)")
     ax.plot(-x, s, color="k", lw=0.8, ls="--")
     ax.axhline(0.0, color="0.5", lw=0.8)

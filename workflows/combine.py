@@ -38,7 +38,7 @@ THETA = np.arange(0.0, 181.0, 1.0)
 #: case are combined on it (NaN beyond a case's model width).
 SURFACE_X = np.arange(0.0, 200.25, 0.5)
 #: Variables on ``surface`` combined on :data:`SURFACE_X`.
-SURFACE_VARIABLES = ("surface_settlement", "gaussian_settlement")
+SURFACE_VARIABLES = ("surface_settlement", "gaussian_settlement", "design_settlement")
 #: Variables on ``interface`` that describe a case's mesh, not its results: not combined.
 MESH_VARIABLES = frozenset({"normal_x", "normal_y", "weight", "ground_node", "lining_node"})
 #: Dataset attributes a reduced case keeps.

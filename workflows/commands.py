@@ -19,17 +19,17 @@ from pydantic import ValidationError
 
 from solver import CaseSpec, SolverError
 from solver.errors import field_errors, format_errors
-from solver.spec import is_number
 
 from .joint_check import joint_report
+from .section_check import section_report
 from .joint_plots import has_joints
-from .parameters import flat_parameters, parameter_attrs
+from .parameters import flat_parameters
 from .result_store import ResultStore, case_warnings, check_case_id
 from .summary import summarize
 from .sweep import Sweep, SweepError, run_sweep
 # the tables live in workflows.tables; their names stay importable from here, the commands' module
 from .tables import (JOINT_TABLE_COLUMNS, TABLE_COLUMNS, case_row, case_rows, column_unit,  # noqa: F401
-                     comparison_table, format_summary, utilization_report, with_unit)
+                     comparison_table, format_summary, input_text, utilization_report, with_unit)
 
 
 def configure_logging(verbose: int = 0) -> None:
@@ -258,12 +258,13 @@ def show_command(case_id: str, results: str, *, out: TextIO | None = None) -> in
     if ds is None:
         return 1
     params = flat_parameters(ds.attrs["case_spec"])
-    print(f"case {case_id}", file=out)
-    print("\n".join(f"  {k} = {with_unit(v, parameter_attrs(k, numeric=is_number(v)).get('units'))}"
-                    for k, v in params.items()), file=out)
+    name = ds.attrs.get("case_name")
+    print(f"case {case_id}" + (f" ({name})" if name else ""), file=out)
+    print("\n".join(f"  {k} = {input_text(k, v)}" for k, v in params.items()), file=out)
     print(format_summary(summarize(ds)), file=out)
     if "utilization" in ds:
         print(utilization_report(ds), file=out)
+        print(section_report(ds), file=out)
     if has_joints(ds):
         print(joint_report(ds), file=out)
     for warning in case_warnings(ds):

@@ -78,6 +78,11 @@ PARAMETER_ATTRS: dict[str, tuple[str | None, str]] = {
     "water.table": ("m", "depth of the water table below the surface"),
     "water.unit_weight": ("N m-3", "unit weight of water"),
     "water.lining": (None, "water condition of the lining"),
+    # fourth round (SPEC §9.3)
+    "design.crack_width_limit": ("m", "largest characteristic crack width that passes"),
+    "design.bar_diameter": ("m", "bar diameter of each face (crack spacing)"),
+    "settlement.volume_loss": ("1", "volume loss of the design trough (null: the case's ground loss)"),
+    "settlement.trough_width_factor": ("1", "trough width factor K of the design trough (i = K z0)"),
 }
 
 #: Units and long names of a layer's fields (path ``ground.layers.<i>.<field>``).
@@ -109,7 +114,7 @@ def _leaf_paths() -> tuple[str, ...]:
             kind = info.annotation
             if isinstance(kind, type) and issubclass(kind, BaseModel):
                 yield from leaves(kind, f"{prefix}{name}.")
-            elif f"{prefix}{name}" != "ground.layers":  # list items are reached by index
+            elif f"{prefix}{name}" not in ("ground.layers", "name"):  # list items by index; a name is no input
                 yield f"{prefix}{name}"
     return tuple(leaves(CaseSpec, ""))
 

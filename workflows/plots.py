@@ -204,7 +204,8 @@ def plot_interaction(cases: list[xr.Dataset], labels: list[str] | None = None, *
 
     Where a case carries its design envelope (``capacity_thrust``, ``capacity_moment``
     on ``envelope``, SPEC §1.3), the envelope is drawn and the stations are the design
-    actions (γF·N, γF·M, with γF = ``design.load_factor`` of the case); otherwise the
+    actions (N_Ed, γF·M, with γF = ``design.load_factor`` of the case and N_Ed the governing of γF·N
+    and 1.0·N, ``design_thrust``); otherwise the
     stations are the computed (N, M). With ``combined`` results holding ``max_utilization``
     and varied parameters, one panel per parameter shows ``max_utilization`` against it
     (cases sharing the other parameters joined), with the limit η = 1: the table a
@@ -236,8 +237,8 @@ def plot_interaction(cases: list[xr.Dataset], labels: list[str] | None = None, *
                 drawn.append(envelope)  # cases sharing a section share one envelope
                 draw_envelope(ax, ds, color=color, label=None)
                 _label_section(ax, ds, color)
-        ax.plot(factor * ds["moment"].values / 1e3, factor * ds["thrust"].values / 1e3, "o", ms=2.5,
-                color=color, label=label)
+        thrust = ds["design_thrust"].values if design and "design_thrust" in ds else factor * ds["thrust"].values
+        ax.plot(factor * ds["moment"].values / 1e3, thrust / 1e3, "o", ms=2.5, color=color, label=label)
         if "utilization" in ds and not np.isnan(ds["utilization"].values).all():
             eta = float(np.nanmax(ds["utilization"].values))
             worst = eta if worst is None else max(worst, eta)

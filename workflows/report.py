@@ -5,7 +5,8 @@ the design answer (PASS/FAIL with what governs, the utilization and where; for a
 lining also whether every joint carries its thrust within its contact strip), the results in
 engineering units, the warnings. Page 2: the whole model (figure 1). Page 3: the stratigraphy
 and every other input with its unit, and the solver's diagnostics. Page 4: the design basis
-(code clauses, partial factors). A segmental lining then has a page of its joints (θ, N, M,
+(code clauses, partial factors). Page 5: the lining forces every 5° (characteristic and design
+values, the section checks: :mod:`workflows.report_tables`). A segmental lining then has a page of its joints (θ, N, M,
 |M|/(N·a/2), opening, rotation, open). Then one page per figure of :data:`workflows.plots.PLOTS`,
 numbered and captioned, as vector graphics on A4 landscape pages with the case id and the page
 number in the margin.
@@ -28,11 +29,13 @@ from solver.results.dataset import SCALARS
 
 from .joint_check import joint_check, joint_report, statement
 from .joint_plots import OPEN_STYLE, has_joints
-from .parameters import flat_parameters, parameter_attrs
-from .store_files import case_warnings
 from .case_plots import load_factor
+from .parameters import flat_parameters, parameter_attrs, parameter_path
+from .report_tables import draw_forces_table
+from .section_check import section_check, section_report
+from .store_files import case_warnings
 from .tables import utilization_report
-from .units import DIAGNOSTICS, input_unit, shown_value
+from .units import DIAGNOSTICS, parameter_unit, shown_value
 
 A4_PORTRAIT = (8.27, 11.69)
 A4_LANDSCAPE = (11.69, 8.27)
@@ -44,8 +47,9 @@ def _page(size=A4_PORTRAIT) -> Figure:
 
 
 def _margins(fig: Figure, ds: xr.Dataset, page: int, pages: int) -> None:
-    fig.text(0.04, 0.985, f"tunnel-contact · case {ds.attrs.get('case_id', '?')}", fontsize=8, color="0.4",
-             va="top")
+    name = f" · {ds.attrs['case_name']}" if ds.attrs.get("case_name") else ""
+    fig.text(0.04, 0.985, f"tunnel-contact · case {ds.attrs.get('case_id', '?')}{name}"[:140], fontsize=8,
+             color="0.4", va="top")
     fig.text(0.96, 0.985, f"page {page} of {pages}", fontsize=8, color="0.4", va="top", ha="right")
     fig.text(0.04, 0.012, str(ds.attrs.get("history", "")).split("\n")[0][:150], fontsize=6.5, color="0.5")
 
@@ -56,9 +60,10 @@ def _verdict(ds: xr.Dataset) -> tuple[str, str, list[str]]:
         return "NO CHECK", "0.4", ["no EN 1992 check in this result"]
     eta = float(np.nanmax(ds["utilization"].values))
     check = joint_check(ds)
-    passes = eta <= 1 and (check is None or check.passes)
+    section = section_check(ds)
+    passes = eta <= 1 and (check is None or check.passes) and (section is None or section.passes)
     word, colour = ("PASS", _PASS) if passes else ("FAIL", _FAIL)
-    lines = utilization_report(ds).splitlines()
+    lines = utilization_report(ds).splitlines() + section_report(ds).splitlines()
     if check is not None:  # the section away from the joints, then the joints' strips
         lines += joint_report(ds).splitlines()
         if not passes:  # say first what fails, so no line of a FAIL reads as the answer
@@ -217,7 +222,9 @@ def _inputs_page(ds: xr.Dataset, page: int, pages: int) -> Figure:
     rows = []
     for name, value in params.items():
         attrs = parameter_attrs(name, numeric=isinstance(value, (int, float)) and not isinstance(value, bool))
-        unit, factor = input_unit(name, attrs.get("units"))
+        unit, factor = (parameter_unit(parameter_path(name), attrs["units"], params.get("loads_gravity"))
+                        if "units" in attrs else ("", 1.0))
+        unit = "" if unit == "1" else unit
         text = f"{value * factor:.6g}" if isinstance(value, float) else str(value)
         rows.append((attrs.get("long_name", name), f"{text} {unit}".strip(), name))
     step = min(0.0185, (y - 0.2) / max(len(rows), 1))
@@ -361,7 +368,8 @@ def case_report(ds: xr.Dataset, title: dict | None = None) -> bytes:
     title = title_block(title)
     spec = json.loads(ds.attrs.get("case_spec", "{}"))
     joints = has_joints(ds)
-    pages = 3 + joints + len(PLOTS)
+    forces = "thrust" in ds and "interface_x" in ds
+    pages = 3 + forces + joints + len(PLOTS)
     buffer = io.BytesIO()
     created = datetime.now(timezone.utc).replace(microsecond=0)
     with PdfPages(buffer, metadata={"Title": f"tunnel-contact case {ds.attrs.get('case_id', '')}",
@@ -372,10 +380,15 @@ def case_report(ds: xr.Dataset, title: dict | None = None) -> bytes:
         pdf.savefig(_figure_page(ds, PLOTS["model"](ds), "model", 2, pages, 1))
         pdf.savefig(_inputs_page(ds, 3, pages))
         pdf.savefig(_basis_page(ds, spec, 4, pages))
+        if forces:  # the lining forces table (SPEC §9.3)
+            fig = _page()
+            _margins(fig, ds, 5, pages)
+            draw_forces_table(fig, ds)
+            pdf.savefig(fig)
         if joints:
-            pdf.savefig(_joints_page(ds, spec, 5, pages))
+            pdf.savefig(_joints_page(ds, spec, 5 + forces, pages))
         rest = [(name, plot) for name, plot in PLOTS.items() if name != "model"]
-        for k, (name, plot) in enumerate(rest, start=5 + joints):
-            pdf.savefig(_figure_page(ds, plot(ds), name, k, pages, k - 3 - joints))
+        for k, (name, plot) in enumerate(rest, start=5 + forces + joints):
+            pdf.savefig(_figure_page(ds, plot(ds), name, k, pages, k - 3 - forces - joints))
     return buffer.getvalue()
 

@@ -22,7 +22,7 @@ from typing import Any, Literal, Optional
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from solver.errors import field_errors
+from solver.errors import did_you_mean, field_errors
 from solver.spec import CaseSpec, canonical_json, content_id
 
 from .sampling import SAMPLED_MODES, Distribution, sample_errors, sampled_values
@@ -217,7 +217,7 @@ def _structure_errors(sweep: Sweep, base: dict[str, Any]) -> list[tuple[str, str
         if not is_parameter(target, base):
             errors.append((path, "unknown parameter; expected '<section>.<field>' of the case "
                                  f"(e.g. {known[0]}, ..., {known[-1]}), or ground.layers.<i>.<field> "
-                                 "of a layer the base case has"))
+                                 "of a layer the base case has" + did_you_mean(path, [*known, *PATH_ALIASES])))
         elif target in seen:
             errors.append((path, f"the same parameter as {seen[target]!r}"))
         else:

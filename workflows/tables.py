@@ -15,10 +15,12 @@ from solver.results.dataset import SCALARS
 
 from .case_plots import load_factor, station_name
 from .joint_plots import has_joints
-from .parameters import flat_parameters, parameter_attrs, varying_parameters
+from solver.spec import is_number
+
+from .parameters import flat_parameters, parameter_attrs, parameter_path, varying_parameters
 from .result_store import StoreLike, as_store
 from .summary import summarize
-from .units import DIAGNOSTICS, display_unit, shown_number, shown_value
+from .units import DIAGNOSTICS, display_unit, parameter_unit, shown_number, shown_value
 
 #: Columns of the comparison table: (summary scalar, header); values and units as every table
 #: shows them (:mod:`workflows.units`).
@@ -87,16 +89,21 @@ def utilization_report(ds: xr.Dataset) -> str:
     k = int(np.nanargmax(eta))
     gamma = load_factor(ds)
     theta = float(ds["theta"].values[k])
-    n_ed, m_ed = gamma * float(ds["thrust"].values[k]), gamma * float(ds["moment"].values[k])
+    # N_Ed of the governing combination: γF N, or 1.0 N where a lower thrust is unfavourable (SPEC §9.3)
+    thrust = ds["design_thrust"] if "design_thrust" in ds else gamma * ds["thrust"]
+    n_ed, m_ed = float(thrust.values[k]), gamma * float(ds["moment"].values[k])
     worst = float(eta[k])
     verdict = "passes" if worst <= 1 else "fails" + (" at any load level" if math.isinf(worst) else "")
     fibre = "inner fibre compressed" if m_ed > 0 else "outer fibre compressed"
     failing = int(np.count_nonzero(eta > 1))
     checked = int(np.count_nonzero(~np.isnan(eta)))  # a segmental lining's joints are their strips'
     where = " away from the joints" if has_joints(ds) else ""
-    return (f"max utilization η = {worst:.3g}{where} ({verdict}; EN 1992-1-1, γF = {gamma:g})\n"
+    combination = "" if abs(n_ed - gamma * float(ds["thrust"].values[k])) <= 1e-9 * abs(n_ed) else \
+        " (1.0 N: the lower thrust governs)"
+    return (f"max utilization η = {worst:.3g}{where} ({verdict}; EN 1992-1-1, γF = {gamma:g} on M, "
+            f"the worse of γF N and 1.0 N)\n"
             f"  at θ = {theta:.1f}° ({station_name(theta)} side): N_Ed = {n_ed / 1e3:.1f} kN/m, "
-            f"M_Ed = {m_ed / 1e3:.1f} kN·m/m ({fibre})\n"
+            f"M_Ed = {m_ed / 1e3:.1f} kN·m/m ({fibre}){combination}\n"
             f"  stations with η > 1: {failing} of {checked}")
 
 
@@ -145,11 +152,11 @@ def comparison_table(rows: Iterable[dict[str, Any]]) -> str:
     if any(r["params"].get("lining_joints_count", 0) for r in rows):  # a segmental lining among them
         columns += JOINT_TABLE_COLUMNS
     header = ["case_id", *varied, *(h for _, h in columns)]
-    units = ["", *(_unit_label(parameter_attrs(n).get("units")) for n in varied),
-             *(column_unit(k) for k, _ in columns)]
+    shown = [_parameter_shown(n) for n in varied]  # engineering units, as every table shows inputs
+    units = ["", *(u for u, _ in shown), *(column_unit(k) for k, _ in columns)]
     lines = []
     for r in rows:
-        cells = [r["case_id"], *(_fmt(r["params"].get(n, "")) for n in varied)]
+        cells = [r["case_id"], *(_fmt(_scaled(r["params"].get(n, ""), f)) for n, (_, f) in zip(varied, shown))]
         if r["status"] == "done":
             cells += [shown_number(r["summary"].get(k), SCALARS[k][0], k) for k, _ in columns]
         else:
@@ -161,6 +168,25 @@ def comparison_table(rows: Iterable[dict[str, Any]]) -> str:
     text += [fmt.format(*cells) for cells in lines]
     errors = [f"  {r['case_id']}: {r['error']}" for r in rows if r["error"]]
     return "\n".join(text + (["failures:"] + errors if errors else []))
+
+
+def _parameter_shown(name: str) -> tuple[str, float]:
+    units = parameter_attrs(name).get("units")
+    unit, factor = parameter_unit(parameter_path(name), units) if units else ("", 1.0)
+    return ("" if unit == "1" else unit), factor
+
+
+def _scaled(value: Any, factor: float) -> Any:
+    return value * factor if is_number(value) else value
+
+
+def input_text(name: str, value: Any) -> str:
+    """An input as people read it: in its engineering unit (:func:`workflows.units.parameter_unit`)."""
+    units = parameter_attrs(name, numeric=is_number(value)).get("units")
+    if not units:
+        return str(value)
+    unit, factor = parameter_unit(parameter_path(name), units)
+    return f"{value * factor:.6g} {unit}" if unit not in ("", "1") else f"{value:.6g}"
 
 
 def _fmt(value: Any) -> str:

@@ -95,7 +95,7 @@ def map_cases(client, spec_jsons: Sequence[str], case_ids: Sequence[str], root: 
 
 def submit_cases(client, specs: Sequence[CaseSpec], root: StoreLike, *, force: bool = False) -> dict:
     """Submit the cases ``specs`` (:func:`map_cases`); return ``{future: case id}``."""
-    futures = map_cases(client, [s.canonical_json() for s in specs], [s.case_id for s in specs],
+    futures = map_cases(client, [s.named_json() for s in specs], [s.case_id for s in specs],
                         str(as_store(root)), force=force)
     return {future: spec.case_id for future, spec in zip(futures, specs)}
 

@@ -62,3 +62,26 @@ def input_unit(name: str, units: str | None) -> tuple[str, float]:
         return "MPa/m", 1e-6
     return {"m2 m-1": ("cm²/m", 1e4), "kg m-3": ("kg/m³", 1.0), "m s-2": ("m/s²", 1.0), "m s-1": ("m/s", 1.0),
             "degree": ("°", 1.0), "1": ("", 1.0)}.get(units or "", (units or "", 1.0))
+
+
+#: Inputs read in millimetres (small lengths).
+MILLIMETRE_INPUTS = ("geometry.gap", "design.crack_width_limit", "design.bar_diameter")
+
+
+def parameter_unit(path: str, units: str | None, gravity: float | None = None) -> tuple[str, float]:
+    """``(unit, factor from SI)`` in which every table, page and report shows input ``path`` (dotted) of
+    CF ``units``: moduli and strengths in MPa, other stresses in kPa, small lengths in mm, other
+    lengths in m, steel in mm²/m, fractions of a load or volume in %, and a density as the unit
+    weight ρ g in kN/m³ when the case's ``gravity`` is given (kg/m³ otherwise)."""
+    if path in MILLIMETRE_INPUTS:
+        return "mm", 1e3
+    if units == "kg m-3":
+        return ("kN/m³", gravity * 1e-3) if gravity else ("kg/m³", 1.0)
+    if units == "N m-3":
+        return "kN/m³", 1e-3
+    if units == "m2 m-1":
+        return "mm²/m", 1e6
+    if path.endswith(("volume_loss", "deconfinement")):
+        return "%", 100.0
+    unit, factor = input_unit(path.replace(".", "_"), units)
+    return unit or "1", factor

@@ -41,7 +41,7 @@ import numpy as np
 
 __all__ = [
     "fcd", "fyd", "concrete_parameters", "section_forces", "interaction_envelope",
-    "utilization", "design_utilization", "joint_utilization", "section_errors",
+    "utilization", "design_utilization", "governing_thrust", "joint_utilization", "section_errors",
 ]
 
 GAMMA_C, GAMMA_S = 1.5, 1.15
@@ -323,8 +323,19 @@ def _cached_envelope(thickness: float, fck: float, fyk: float, area: float, axis
     return env
 
 
+def _combinations(N, M, thickness: float, design):
+    """Utilizations of (γF N, γF M) and (1.0 N, γF M), and the section's envelope."""
+    env_N, env_M = _cached_envelope(float(thickness), float(design.concrete_strength),
+                                    float(design.steel_strength), float(design.reinforcement_area),
+                                    float(design.axis_distance))
+    gamma = design.load_factor
+    N, M = np.asarray(N, float), gamma * np.asarray(M, float)
+    return utilization(gamma * N, M, env_N, env_M), utilization(N, M, env_N, env_M), env_N, env_M
+
+
 def design_utilization(N, M, thickness: float, design) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Utilization of the characteristic forces N, M with N_Ed = γF N, M_Ed = γF M.
+    """Utilization of the characteristic forces N, M: the worse of (γF N, γF M) and (1.0 N, γF M)
+    (SPEC §9.3: where bending governs, a lower thrust is unfavourable).
 
     Parameters
     ----------
@@ -343,11 +354,16 @@ def design_utilization(N, M, thickness: float, design) -> tuple[np.ndarray, np.n
     envelope_N, envelope_M : ndarray
         The closed envelope (:func:`interaction_envelope`).
     """
-    env_N, env_M = _cached_envelope(float(thickness), float(design.concrete_strength),
-                                    float(design.steel_strength), float(design.reinforcement_area),
-                                    float(design.axis_distance))
-    gamma = design.load_factor
-    return utilization(gamma * np.asarray(N, float), gamma * np.asarray(M, float), env_N, env_M), env_N, env_M
+    full, favourable, env_N, env_M = _combinations(N, M, thickness, design)
+    return np.maximum(full, favourable), env_N, env_M
+
+
+def governing_thrust(N, M, thickness: float, design) -> np.ndarray:
+    """N_Ed (N/m) of the governing combination of :func:`design_utilization` per station: γF N, or
+    1.0 N where that gives the larger utilization."""
+    full, favourable, _, _ = _combinations(N, M, thickness, design)
+    N = np.asarray(N, float)
+    return np.where(favourable > full, N, design.load_factor * N)
 
 
 def joint_utilization(N, M, contact_height: float, design, *, width: float = 1.0) -> np.ndarray:

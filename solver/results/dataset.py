@@ -28,9 +28,11 @@ from ..fe.assembly import SUBTRIANGLES, stress_at
 from ..ground.loads import in_situ_stress, moduli
 from ..ground.strata import moved_lines, strata
 from ..ground.water import hydrostatic, phreatic_depth
-from .settlement import TROUGH_WIDTH_FACTOR, gaussian_trough, ground_loss, surface_warnings
-from ..lining.design import design_utilization, joint_utilization
+from .settlement import TROUGH_WIDTH_FACTOR, design_trough, gaussian_trough, ground_loss, surface_warnings
+from ..lining.checks import crack_width, shear_utilization
+from ..lining.design import design_utilization, governing_thrust, joint_utilization
 from ..model import Solution, TunnelModel
+from ..spec.plausible import plausibility_warnings
 from ..lining.forces import lining_forces
 from .post import contact_extent, mean_convergence, surface_trough
 
@@ -53,11 +55,20 @@ SCALARS = {
     "kkt_residual": ("1", "relative residual of the discrete KKT conditions"),
     "solve_seconds": ("s", "wall-clock seconds from case to dataset (building a shared model not included)"),
     "max_utilization": ("1", "largest EN 1992 utilization of the lining section (<= 1 passes)"),
+    "max_shear_utilization": ("1", "largest EN 1992-1-1 shear utilization |V_Ed| / V_Rd,c of the lining section "
+                                   "(6.2.2 reinforced, 12.6.3 plain; <= 1 passes)"),
+    "max_crack_width": ("m", "largest characteristic crack width w_k of the lining section (EN 1992-1-1 7.3.4; "
+                             "inf where a plain section cracks)"),
     "max_surface_settlement": ("m", "largest settlement of the ground surface since excavation"),
     "volume_loss": ("1", "settlement trough area over excavated area (the trough: where the surface settles)"),
     "ground_crown_settlement": ("m", "settlement of the ground at the tunnel crown since excavation"),
     "ground_loss": ("1", "area lost at the excavation boundary over the excavated area (since excavation)"),
     "gaussian_max_settlement": ("m", "largest settlement of the Gaussian trough holding the ground loss"),
+    "design_max_settlement": ("m", "largest settlement of the design trough (settlement.volume_loss, "
+                                   "settlement.trough_width_factor)"),
+    "max_slope": ("1", "largest slope |dS/dx| of the design trough (at x = i)"),
+    "max_horizontal_strain": ("1", "largest horizontal tensile strain of the design trough (O'Reilly and New: "
+                                   "horizontal displacement x S(x) / z0)"),
     "axis_settlement": ("m", "FE ground surface settlement above the tunnel axis (downward positive)"),
     "max_surface_heave": ("m", "largest upward displacement of the FE ground surface (>= 0)"),
     "plastic_area": ("m2", "area of yielded ground around the whole tunnel"),
@@ -320,21 +331,33 @@ def _lining_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict]:
     """``(data, scalars)`` of the lining's section forces and their EN 1992 check."""
     spec, iface = sol.spec, model.mesh.interface
     forces = lining_forces(spec, model.lining.body, iface, model.mesh.center, sol.u_lining, sol.lam, sol.shear)
-    eta, env_n, env_m = design_utilization(forces.thrust, forces.moment, spec.geometry.thickness, spec.design)
+    h, design = spec.geometry.thickness, spec.design
+    eta, env_n, env_m = design_utilization(forces.thrust, forces.moment, h, design)
+    n_ed = governing_thrust(forces.thrust, forces.moment, h, design)
+    shear_eta = shear_utilization(forces.thrust, forces.moment, forces.shear, h, design)
+    crack = crack_width(forces.thrust, forces.moment, h, design)
     if sol.joints is not None:  # the section at a joint is its contact strip: checked by joint_eccentricity
-        eta = eta.copy()
-        eta[joint_stations(iface.theta, sol.joints.theta)] = np.nan
+        for checked in (eta, shear_eta, crack):  # fresh arrays of this case
+            checked[joint_stations(iface.theta, sol.joints.theta)] = np.nan
     data = {
         "thrust": _var("interface", forces.thrust, "N m-1", "lining thrust (compression positive)"),
         "moment": _var("interface", forces.moment, "N m m-1", "lining bending moment (positive: inner fibre in compression)"),
         "shear": _var("interface", forces.shear, "N m-1", "lining shear force (outward force of the invert side on the crown side)"),
         "utilization": _var("interface", eta, "1", JOINT_UTILIZATION if sol.joints is not None
                             else "EN 1992-1-1 utilization of the lining section (<= 1 passes)"),
+        "design_thrust": _var("interface", n_ed, "N m-1", "design thrust N_Ed of the governing N-M combination "
+                              "(gamma_F N, or 1.0 N where a lower thrust is unfavourable)"),
+        "shear_utilization": _var("interface", shear_eta, "1", "EN 1992-1-1 shear utilization |gamma_F V| / V_Rd,c "
+                                  "(6.2.2 reinforced, 12.6.3 plain; <= 1 passes)"),
+        "crack_width": _var("interface", crack, "m", "characteristic crack width w_k (EN 1992-1-1 7.3.4, gamma_F = 1; "
+                            "0 uncracked, inf where a plain section cracks)",
+                            crack_width_limit=float(design.crack_width_limit)),
         "capacity_thrust": _var("envelope", env_n, "N m-1", "design N-M resistance envelope: thrust (compression positive)"),
         "capacity_moment": _var("envelope", env_m, "N m m-1", "design N-M resistance envelope: moment"),
     }
     scalars = {"max_thrust": float(forces.thrust.max()), "max_abs_moment": float(np.abs(forces.moment).max()),
-               "max_utilization": float(np.nanmax(eta))}
+               "max_utilization": float(np.nanmax(eta)), "max_shear_utilization": float(np.nanmax(shear_eta)),
+               "max_crack_width": float(np.nanmax(crack))}
     return data, scalars
 
 
@@ -345,6 +368,7 @@ def _surface_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict, d
     surf_x, settlement = surface_trough(model.mesh.ground.p, sol.u_ground, scale=max(g.width, g.height))
     loss = ground_loss(sol.u_ground, iface.ground_node, iface.normal, iface.weight, g.hole_radius)
     trough, trough_max = gaussian_trough(surf_x, loss, g.hole_radius, g.depth)
+    design = design_trough(surf_x, loss, g.hole_radius, g.depth, sol.spec.settlement)
     coords = {"surface_x": _var("surface", surf_x, "m", "x of ground surface node")}
     data = {
         "surface_settlement": _var("surface", settlement, "m", f"FE ground surface settlement (downward positive, "
@@ -353,6 +377,10 @@ def _surface_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict, d
                                     "(Peck; O'Reilly and New), downward positive",
                                     trough_width_factor=TROUGH_WIDTH_FACTOR,
                                     trough_width_m=TROUGH_WIDTH_FACTOR * g.depth),
+        "design_settlement": _var("surface", design["settlement"], "m", "design settlement trough (Gaussian, "
+                                  "settlement.volume_loss and trough_width_factor), downward positive",
+                                  volume_loss=design["volume_loss"],
+                                  trough_width_factor=sol.spec.settlement.trough_width_factor),
     }
     phreatic = phreatic_surface(model, sol, surf_x)
     data["phreatic_depth"] = _var("surface", phreatic, "m", "depth of the phreatic surface below the ground surface "
@@ -365,6 +393,9 @@ def _surface_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict, d
         "volume_loss": volume_loss(surf_x, settlement, g.hole_radius),
         "ground_loss": loss,
         "gaussian_max_settlement": trough_max,
+        "design_max_settlement": design["max_settlement"],
+        "max_slope": design["max_slope"],
+        "max_horizontal_strain": design["max_horizontal_strain"],
         "axis_settlement": float(settlement[0]),
         "max_surface_heave": float(max(-settlement.min(), 0.0)),
     }
@@ -409,7 +440,7 @@ def _warnings(model: TunnelModel, sol: Solution, u: np.ndarray, surface: tuple) 
     warnings = [f"the line between layers {i - 1} and {i} ({z:.4g} m deep) is drawn at {drawn:.4g} m: it met the "
                 "tunnel's crown or invert level, where the mesh cannot follow a line tangent to the excavation"
                 for i, z, drawn in moved_lines(spec)]
-    warnings += surface_warnings(*surface)
+    warnings += surface_warnings(*surface) + plausibility_warnings(spec)
     largest = float(np.max(np.hypot(u[0], u[1])))
     if largest > SMALL_DISPLACEMENT_LIMIT * g.hole_radius:
         warnings.append(
@@ -467,6 +498,7 @@ def _attrs(model: TunnelModel, sol: Solution, warnings: list[str], software_vers
         "title": "tunnel-contact result",
         "case_id": spec.case_id,
         "case_spec": spec.canonical_json(),
+        **({"case_name": spec.name} if spec.name is not None else {}),
         "software_version": software_version,
         "history": f"{now}: solved by tunnel-contact {software_version} (P2 elements, "
                    f"{spec.excavation.method}, {spec.interface.model} interface, inner solver {spec.solver.inner})",

@@ -40,6 +40,26 @@ def gaussian_trough(x: np.ndarray, loss: float, hole_radius: float, depth: float
     return s_max * np.exp(-np.asarray(x) ** 2 / (2.0 * i * i)), float(s_max)
 
 
+def design_trough(x: np.ndarray, loss: float, hole_radius: float, depth: float, settlement) -> dict:
+    """The design trough of SPEC §9.3 at ``x`` (m): ``settlement.volume_loss`` (None: ``loss``, the case's
+    ground loss) spread with ``settlement.trough_width_factor`` K (i = K z0, z0 = ``depth``).
+
+    Returns ``settlement`` (m, downward positive, shape of ``x``), ``max_settlement`` S_max (m),
+    ``max_slope`` = S_max e^-½ / i (the largest |dS/dx| = (x/i²) S, at x = i) and
+    ``max_horizontal_strain`` (1, tensile positive): O'Reilly & New's horizontal displacement
+    x S(x)/z0 towards the axis gives ε_h = -(S/z0)(1 - x²/i²), compressive inside the inflection
+    points and largest in tension at x = √3 i, 2 e^-3/2 S_max/z0 (at the axis, -S_max/z0, if the
+    trough heaves).
+    """
+    volume = loss if settlement.volume_loss is None else settlement.volume_loss
+    factor = settlement.trough_width_factor
+    trough, s_max = gaussian_trough(x, volume, hole_radius, depth, factor)
+    i = factor * depth
+    return {"settlement": trough, "max_settlement": s_max, "volume_loss": float(volume),
+            "max_slope": abs(s_max) * np.exp(-0.5) / i,
+            "max_horizontal_strain": max(2.0 * np.exp(-1.5) * s_max, -s_max) / depth}
+
+
 def surface_warnings(x: np.ndarray, settlement: np.ndarray) -> list[str]:
     """Why the FE surface settlement must not be read as the tunnel's trough: it heaves above
     the tunnel, or its largest settlement lies at the model's side boundary."""

@@ -2,8 +2,9 @@
 from __future__ import annotations
 
 import json
+from typing import Optional
 
-from pydantic import model_validator
+from pydantic import Field, field_validator, model_validator
 
 from ..geometry.sizing import MAX_ELEMENTS, estimated_elements
 from ..ground.strata import geostatic_errors, strata
@@ -11,7 +12,7 @@ from ..lining.design import section_errors
 from .canonical import MAX_STIFFNESS_RATIO, _Frozen, content_id
 from .ground import LAYER_FIELDS, Ground, Strength
 from .parts import (Boundaries, Design, Excavation, Geometry, Interface, Joints, Lining, Loads, MeshSettings,
-                    SolverSettings, Water)
+                    Settlement, SolverSettings, Water)
 
 
 def _round3_defaults() -> dict[str, dict]:
@@ -22,6 +23,18 @@ def _round3_defaults() -> dict[str, dict]:
         "water": Water().model_dump(mode="json"),
     }
     return defaults
+
+
+def _round4_defaults() -> dict[str, dict]:
+    design = Design.model_fields
+    return {
+        "design": {k: design[k].default for k in ("crack_width_limit", "bar_diameter")},
+        "settlement": Settlement().model_dump(mode="json"),
+    }
+
+
+#: Longest case name (characters).
+MAX_NAME = 120
 
 
 class CaseSpec(_Frozen):
@@ -38,6 +51,17 @@ class CaseSpec(_Frozen):
     solver: SolverSettings = SolverSettings()
     design: Design = Design()
     water: Water = Water()
+    settlement: Settlement = Settlement()
+    name: Optional[str] = Field(None, max_length=MAX_NAME, description="what people call the case: stored "
+                                "with it, shown in every list and report, outside its id")
+
+    @field_validator("name")
+    @classmethod
+    def _printable(cls, value):
+        if value is not None and not value.isprintable():
+            raise ValueError("name: a control character (line break, tab, ...) cannot be shown in a list; "
+                             "give one line of text")
+        return value
 
     @model_validator(mode="after")
     def _consistent(self) -> "CaseSpec":
@@ -147,17 +171,25 @@ class CaseSpec(_Frozen):
     def canonical_json(self) -> str:
         """Defaults filled, keys sorted, no whitespace: the text the case id hashes.
 
-        Round-3 fields (SPEC §2: strata, water, plasticity, joints, load steps) are left out
-        while they hold their defaults, so every case that gives none of them keeps its id.
+        Round-3 fields (SPEC §2: strata, water, plasticity, joints, load steps) and round-4 ones
+        (SPEC §9.3: crack width limit, bar diameter, design trough) are left out while they hold
+        their defaults, so every case that gives none of them keeps its id; ``name`` is never in it.
         """
-        data = self.model_dump(mode="json")
-        for section, fields in ROUND3_DEFAULTS.items():
+        data = self.model_dump(mode="json", exclude={"name"})
+        for section, fields in (*ROUND3_DEFAULTS.items(), *ROUND4_DEFAULTS.items()):
             for name, default in fields.items():
                 if data[section].get(name, default) == default:
                     data[section].pop(name, None)
-        if data["water"] == {}:
-            del data["water"]
+        for section in ("water", "settlement"):
+            if data[section] == {}:
+                del data[section]
         return json.dumps(data, sort_keys=True, separators=(",", ":"))
+
+    def named_json(self) -> str:
+        """The canonical JSON with the case's ``name`` (if any): what is handed on and recorded, so the
+        name travels with the case while its id stays the hash of :meth:`canonical_json`."""
+        text = self.canonical_json()
+        return text if self.name is None else text[:-1] + "," + json.dumps({"name": self.name}, separators=(",", ":"))[1:]
 
     @property
     def case_id(self) -> str:
@@ -165,5 +197,6 @@ class CaseSpec(_Frozen):
         return content_id(self.canonical_json())
 
 
-#: Round-3 fields and their defaults: left out of the canonical JSON while at them.
+#: Round-3 and round-4 fields and their defaults: left out of the canonical JSON while at them.
 ROUND3_DEFAULTS = _round3_defaults()
+ROUND4_DEFAULTS = _round4_defaults()

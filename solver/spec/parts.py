@@ -78,7 +78,9 @@ class Joints(_Frozen):
         # a monolithic ring ignores the joints' other fields; bonded joints ignore friction
         if isinstance(data, dict):
             if data.get("count", 0) == 0:
-                data = {k: v for k, v in data.items() if k == "count" or not _ignorable(v)} | \
+                # unknown keys are kept, for the error that names them (a typo is not ignorable)
+                data = {k: v for k, v in data.items() if k == "count" or k not in cls.model_fields
+                        or not _ignorable(v)} | \
                     ({"shear": "bonded"} if data.get("shear") in ("bonded", "coulomb") else {})
             if data.get("shear", "bonded") == "bonded" and _ignorable(data.get("friction")):
                 data = {**data, "friction": 0.0}
@@ -120,7 +122,7 @@ class Water(_Frozen):
     @classmethod
     def _ignored_when_dry(cls, data):
         if isinstance(data, dict) and data.get("table") is None:
-            data = {k: v for k, v in data.items() if k == "table" or not _ignorable(v)}
+            data = {k: v for k, v in data.items() if k == "table" or k not in cls.model_fields or not _ignorable(v)}
             if data.get("lining") in ("watertight", "drained"):
                 data = {**data, "lining": "watertight"}
         return data
@@ -190,7 +192,23 @@ class Design(_Frozen):
         1.5e-3, ge=0, le=0.05,
         description="As per face (m^2/m), symmetric (default: 14 mm bars at 100 mm); 0 means plain concrete")
     axis_distance: float = Field(0.05, gt=0, le=0.5, description="reinforcement axis distance from each face (m)")
-    load_factor: float = Field(1.35, gt=0, le=10.0, description="gamma_F: design actions are gamma_F times N and M")
+    load_factor: float = Field(
+        1.35, gt=0, le=10.0,
+        description="gamma_F: design actions gamma_F M and gamma_F V with the worse of gamma_F N and 1.0 N")
+    crack_width_limit: float = Field(
+        0.3e-3, gt=0, le=0.01, description="largest characteristic crack width w_k that passes (m; EN 1992-1-1 7.3.1)")
+    bar_diameter: float = Field(
+        0.014, ge=0.006, le=0.05, description="diameter phi of the bars of each face (m), for the crack spacing (7.11)")
+
+
+class Settlement(_Frozen):
+    """The design surface trough (SPEC §9.3): Gaussian, after O'Reilly & New (1982)."""
+
+    volume_loss: Optional[float] = Field(
+        None, gt=0, le=0.2,
+        description="volume loss V_L of the design trough (1, e.g. 0.01 for 1 %); null: the case's own ground_loss")
+    trough_width_factor: float = Field(
+        0.5, ge=0.05, le=2.0, description="K of the trough width i = K z0 (0.5 clays, 0.25-0.35 sands)")
 
 
 class Boundaries(_Frozen):

@@ -61,7 +61,8 @@ def test_openapi_lists_every_endpoint_with_response_models(client):
     schema = client.get("/openapi.json").json()
     assert set(schema["paths"]) == {
         "/cases", "/cases/{case_id}", "/cases/{case_id}/result.nc", "/cases/{case_id}/plots/{name}.png",
-        "/cases/{case_id}/report.pdf", "/sweeps", "/sweeps/{sweep_id}", "/sweeps/{sweep_id}/result.nc", "/health",
+        "/cases/{case_id}/report.pdf", "/cases/{case_id}/tables.xlsx", "/cases/{case_id}/forces.csv", "/sweeps",
+        "/sweeps/{sweep_id}", "/sweeps/{sweep_id}/result.nc", "/health",
         "/sweeps/{sweep_id}/table", "/sweeps/{sweep_id}/table.parquet", "/sweeps/{sweep_id}/summary.csv",
         "/sweeps/{sweep_id}/summary.xlsx", "/sweeps/{sweep_id}/plots/{name}.png",
         "/sweeps/{sweep_id}/cancel", "/sweeps/{sweep_id}/sensitivity", "/sweeps/{sweep_id}/sensitivity.png",
@@ -176,7 +177,7 @@ def test_result_and_plots_of_an_unfinished_case_are_409(client, app):
     case_id = plant(app, coarse_case(loads={"surface_load": 7.77e4}))
     assert client.get(f"/cases/{case_id}").json()["status"] == "queued"
     for url in (f"/cases/{case_id}/result.nc", f"/cases/{case_id}/plots/contact_pressure.png",
-                f"/cases/{case_id}/report.pdf"):
+                f"/cases/{case_id}/report.pdf", f"/cases/{case_id}/tables.xlsx", f"/cases/{case_id}/forces.csv"):
         response = client.get(url)
         assert response.status_code == 409
         assert "queued" in response.json()["detail"]
@@ -195,6 +196,49 @@ def test_plots_are_png_rendered_once_and_cached(client, app, done_case, name):
     assert cached.stat().st_mtime_ns == stamp
 
 
+def test_unknown_field_did_you_mean_and_implausible_input_warned(client, done_case):
+    """Issue 39: a misspelt field is refused naming the closest; an implausible value is accepted with a
+    warning (a density of 20 kg/m³ is a unit weight in kN/m³ typed in the wrong field)."""
+    response = client.post("/cases", json={"ground": {"densty": 2000.0}})
+    assert response.status_code == 422
+    assert any(e["field"] == "ground.densty" and e["reason"] == "unknown field; did you mean 'density'?"
+               for e in response.json()["errors"])
+    again = client.post("/cases", json=COARSE)
+    assert again.status_code == 202 and again.json()["input_warnings"] == []
+    implausible = coarse_case(ground={"density": 20.0})
+    response = client.post("/cases", json=implausible)
+    assert response.status_code == 202
+    (warning,) = response.json()["input_warnings"]
+    assert warning.startswith("ground.density: 20 kg/m³")
+    page = client.get(f"/ui/cases/{response.json()['id']}")
+    assert "ground.density: 20 kg/m³" in page.text
+
+
+def test_case_tables_read_back_in_engineering_units(client, app, done_case):
+    """forces.csv and tables.xlsx of a finished case: a units row, the stored result's values converted."""
+    import csv
+    import io
+
+    from openpyxl import load_workbook
+
+    case_id = done_case["id"]
+    response = client.get(f"/cases/{case_id}/forces.csv")
+    assert response.status_code == 200 and response.headers["content-type"].startswith("text/csv")
+    rows = list(csv.reader(io.StringIO(response.text)))
+    with as_store(app.state.jobs.root).opened(case_id) as ds:
+        thrust, moment = ds.thrust.values, ds.moment.values
+    names, units = rows[0], rows[1]
+    assert (units[names.index("N")], units[names.index("M")]) == ("kN/m", "kN·m/m")
+    np.testing.assert_allclose([float(r[names.index("N")]) for r in rows[2:]], thrust / 1e3, rtol=1e-12)
+    response = client.get(f"/cases/{case_id}/tables.xlsx")
+    assert response.status_code == 200 and "spreadsheetml" in response.headers["content-type"]
+    ws = load_workbook(io.BytesIO(response.content))["forces"]
+    assert [c.value for c in ws[2]][:4] == ["°", "m", "kN/m", "kN·m/m"]
+    np.testing.assert_allclose([ws.cell(row=r, column=4).value for r in range(3, 3 + thrust.size)],
+                               moment / 1e3, rtol=1e-12)
+    assert client.get("/cases/0123456789abcdef/forces.csv").status_code == 404
+
+
 def test_report_is_a_printable_pdf_of_every_figure_rendered_once(client, app, done_case):
     """The report read as a person would: its pages rendered to images, none blank, the first
     stating the verdict the summary gives (pdfium renders, pdfium extracts the text)."""
@@ -208,7 +252,7 @@ def test_report_is_a_printable_pdf_of_every_figure_rendered_once(client, app, do
     stamp = cached.stat().st_mtime_ns
     assert client.get(url).content == response.content and cached.stat().st_mtime_ns == stamp
     pdf = pdfium.PdfDocument(response.content)
-    assert len(pdf) == 3 + len(PLOTS)  # summary, inputs, design basis and one page per figure
+    assert len(pdf) == 4 + len(PLOTS)  # summary, inputs, design basis, lining forces, one page per figure
     for i in range(len(pdf)):
         pixels = np.asarray(pdf[i].render(scale=0.5).to_pil().convert("L"), dtype=float)
         inked = (pixels < 200).mean()
@@ -220,8 +264,8 @@ def test_report_is_a_printable_pdf_of_every_figure_rendered_once(client, app, do
     assert "Figure 1. The model" in pdf[1].get_textpage().get_text_range()  # page 2: the whole model
     assert "ground_young" in pdf[2].get_textpage().get_text_range()
     assert "γC = 1.5" in pdf[3].get_textpage().get_text_range()  # the design basis: partial factors
-    for i, name in enumerate([n for n in PLOTS if n != "model"], start=4):  # a page per figure, numbered
-        assert f"Figure {i - 2}." in pdf[i].get_textpage().get_text_range()
+    for i, name in enumerate([n for n in PLOTS if n != "model"], start=5):  # a page per figure, numbered
+        assert f"Figure {i - 3}." in pdf[i].get_textpage().get_text_range()
     pdf.close()
 
 

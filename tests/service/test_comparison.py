@@ -145,11 +145,11 @@ def test_summary_xlsx_opens_in_openpyxl_with_a_units_row(tmp_path):
     col = {n: i for i, n in enumerate(names)}
     assert names[:3] == ("case_id", "status", "ground_young")
     assert units[col["max_contact_pressure"]] == "kPa" and units[col["max_thrust"]] == "kN/m"
-    assert units[col["ground_young"]] == "kPa"
+    assert units[col["ground_young"]] == "MPa"  # an input's engineering unit, as on the page and the form
     first = rows[2]
     assert first[col["case_id"]] == cases[0][0] and first[col["status"]] == "done"
     assert first[col["max_contact_pressure"]] == 250.0 and first[col["max_thrust"]] == 624.0
-    assert first[col["ground_young"]] == 20000.0
+    assert first[col["ground_young"]] == 20.0  # MPa
     assert first[col["max_utilization"]] == "inf"  # no infinity in a spreadsheet cell: text
     assert rows[3][col["max_thrust"]] is None  # the second case is not done
     assert ws.freeze_panes == "A3"

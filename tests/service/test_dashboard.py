@@ -209,7 +209,10 @@ def test_submit_a_sweep_watch_it_sort_it_open_a_case_download_the_csv(service, b
     cells = {td.find_element(By.XPATH, "following-sibling::td[2]").text: td for td in
              browser.find_elements(By.CSS_SELECTOR, "#summary td.num")}
     eta = float(cells["max_utilization"].get_attribute("data-value"))
-    assert word == ("PASS" if eta <= 1 else "FAIL")
+    # and the shear and crack width checks (SPEC §9.3; the default crack width limit, 0.3 mm)
+    shear, crack = (float(cells[n].get_attribute("data-value")) for n in ("max_shear_utilization", "max_crack_width"))
+    assert word == ("PASS" if eta <= 1 and shear <= 1 and crack <= 0.3e-3 else "FAIL")
+    assert "crack width" in verdict.text
     assert ("over" in cells["max_utilization"].get_attribute("class")) == (eta > 1)
     # the solver's diagnostics in their own table, not among the engineering results
     solver_rows = {td.find_element(By.XPATH, "following-sibling::td[2]").text for td in

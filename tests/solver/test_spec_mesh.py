@@ -87,8 +87,8 @@ def _patch(path, value):
     return data
 
 
-#: Fields where null means something (a dry ground, a strip as high as the lining).
-NULLABLE = {"water.table", "lining.joints.contact_height"}
+#: Fields where null means something (a dry ground, a strip as high as the lining, the case's own ground loss).
+NULLABLE = {"water.table", "lining.joints.contact_height", "settlement.volume_loss"}
 
 
 def test_every_numeric_field_is_found():

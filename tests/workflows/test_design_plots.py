@@ -113,7 +113,7 @@ def test_interaction_draws_the_envelope_and_design_stations_coloured_by_theta(st
     np.testing.assert_allclose(envelope.get_xdata()[:-1], env_m)
     np.testing.assert_allclose(envelope.get_ydata()[:-1], env_n)
     stations = next(c for c in ax.collections if c.get_label().startswith("stations"))
-    np.testing.assert_allclose(stations.get_offsets(), gamma * np.column_stack([ds["moment"], ds["thrust"]]) / 1e3)
+    np.testing.assert_allclose(stations.get_offsets(), np.column_stack([gamma * ds["moment"], ds["design_thrust"]]) / 1e3)
     np.testing.assert_allclose(stations.get_array(), ds["theta"].values)
     assert len(fig.axes) == 2 and "θ" in fig.axes[1].get_ylabel()  # the colorbar
     worst = float(ds["max_utilization"])
@@ -141,7 +141,9 @@ def test_show_prints_max_utilization_and_where(store):
     assert f"max utilization η = {float(ds['max_utilization']):.3g}" in text
     assert f"θ = {theta:.1f}° ({side} side)" in text
     gamma = json.loads(ds.attrs["case_spec"])["design"]["load_factor"]
-    assert f"N_Ed = {gamma * float(ds['thrust'][k]) / 1e3:.1f} kN/m" in text
+    # N_Ed of the governing combination: γF N, or 1.0 N where the lower thrust governs (SPEC §9.3)
+    assert float(ds["design_thrust"][k]) in (gamma * float(ds["thrust"][k]), float(ds["thrust"][k]))
+    assert f"N_Ed = {float(ds['design_thrust'][k]) / 1e3:.1f} kN/m" in text
     assert f"M_Ed = {gamma * float(ds['moment'][k]) / 1e3:.1f} kN·m/m" in text
     for name in PLOTS:
         assert root.plot_path(grid[0], name).is_file()

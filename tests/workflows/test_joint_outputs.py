@@ -321,10 +321,10 @@ def test_report_has_the_joints_page_and_the_joint_verdict(mixed, monolithic):
     from workflows.report import _summary_page, _verdict, case_report, joint_rows, title_block
 
     pdf = pdfium.PdfDocument(case_report(mixed))
-    assert len(pdf) == 4 + len(PLOTS)
+    assert len(pdf) == 5 + len(PLOTS)  # summary, inputs, basis, lining forces, joints, figures
     first = pdf[0].get_textpage().get_text_range()
     assert "PASS" in first and "away from the joints" in first and "all 3 joints" in first
-    joints = pdf[4].get_textpage().get_text_range()  # after the summary, the model, the inputs, the basis
+    joints = pdf[5].get_textpage().get_text_range()  # after summary, model, inputs, basis, lining forces
     assert "Joints of the segmental lining" in joints and "PASS" in joints
     for heading in ("θ (°)", "N (kN/m)", "M (kN·m/m)", "|M|/(N·a/2)", "opening (mm)", "rotation (mrad)", "state"):
         assert heading in joints
@@ -334,7 +334,7 @@ def test_report_has_the_joints_page_and_the_joint_verdict(mixed, monolithic):
         assert f"{mixed['joint_moment'].values[j] / 1e3:.2f}" in joints
         assert f"{mixed['joint_eccentricity'].values[j]:.3f}" in joints
     assert [r[-1] for r in joint_rows(mixed)] == ["closed", "open", "open"]
-    assert "section forces" in pdf[6].get_textpage().get_text_range()  # the figures follow
+    assert "section forces" in pdf[7].get_textpage().get_text_range()  # the figures follow
     pdf.close()
     # a joint whose thrust leaves its strip fails the case, whatever the section's utilization
     outside = mixed.copy(deep=True)

@@ -64,7 +64,7 @@ def test_the_stratigraphy_is_a_table_of_resolved_layers_and_layer_inputs_are_not
 
 
 def test_the_design_basis_states_the_clauses_and_partial_factors(pages):
-    basis = pages[3]
+    basis = pages[3]  # after the summary, the model and the inputs
     for text in ("EN 1992-1-1", "γC = 1.5", "γS = 1.15", "γF = 1.35", "(12.10)", "bolt-point"):
         assert text in basis, text
 

@@ -232,3 +232,14 @@ def test_a_sweeps_definition_keeps_the_order_its_sample_depends_on():
     assert list(again.vary) == list(given["vary"])
     canonical = Sweep.model_validate(json.loads(sweep.canonical_json()))
     assert [s.case_id for s in expand_sweep(canonical)] != ids
+
+
+def test_unknown_sweep_path_and_base_field_say_did_you_mean():
+    """Issue 39: a misspelt path is named with the closest parameter."""
+    from solver.errors import field_errors
+
+    with pytest.raises(SweepError, match="did you mean 'ground.young'"):
+        expand_sweep({"name": "typo", "base": {}, "vary": {"ground.yong": [1e7, 2e7]}})
+    with pytest.raises(ValidationError) as info:
+        Sweep.model_validate({"name": "typo", "base": {"ground": {"densty": 2000.0}}, "vary": {}})
+    assert field_errors(info.value) == [("base.ground.densty", "unknown field; did you mean 'density'?")]

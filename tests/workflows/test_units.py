@@ -36,7 +36,7 @@ def _fields(model=CaseSpec, prefix=""):
         kind = info.annotation
         if isinstance(kind, type) and issubclass(kind, BaseModel):
             yield from _fields(kind, f"{prefix}{name}.")
-        elif f"{prefix}{name}" != "ground.layers":
+        elif f"{prefix}{name}" not in ("ground.layers", "name"):  # a case's name is no input (SPEC §9.3)
             yield f"{prefix}{name}", kind
 
 
@@ -133,7 +133,8 @@ def test_cli_table_gives_the_parameter_units():
             for i, (t, e) in enumerate(((0.25, 2e7), (0.35, 5e7)))]
     header, units = cli_table(rows).splitlines()[:2]
     names, labels = header.split(), units.split()
-    assert names[1:3] == ["lining_thickness", "ground_young"] and labels[:2] == ["m", "Pa"]
+    assert names[1:3] == ["lining_thickness", "ground_young"] and labels[:2] == ["m", "MPa"]
+    assert "20" in cli_table(rows).splitlines()[3].split()  # 2e7 Pa shown as 20 MPa
 
 
 def parse(text: str) -> dict[str, tuple[float, str]]:
@@ -173,5 +174,6 @@ def test_run_and_show_print_each_scalar_with_its_unit(tmp_path):
     line = next(l for l in out.getvalue().splitlines() if l.strip().startswith("max_contact_pressure"))
     assert line.endswith(" kPa")
     assert {k: shown[k] for k in ran} == ran
-    assert shown["geometry_gap"] == ("0.005", "m") and shown["ground_young"][1] == "Pa"
+    # inputs in the engineering units of the tables and the form (issue 39: no Pa beside kPa)
+    assert shown["geometry_gap"] == ("5", "mm") and shown["ground_young"] == ("50", "MPa")
     assert shown["interface_model"] == ("frictionless", "")

@@ -1,0 +1,65 @@
+"""Mistakes that used to pass silently (issue 39, item 10): implausible values warn, unknown fields
+are named with the closest known one."""
+from __future__ import annotations
+
+import json
+
+import pytest
+from pydantic import ValidationError
+
+from solver import CaseSpec, run_case
+from solver.errors import field_errors
+from solver.spec.plausible import PLAUSIBLE, plausibility_warnings
+
+COARSE = {"interface_size": 0.25, "far_size": 8.0}
+
+
+def test_default_case_is_plausible():
+    assert plausibility_warnings(CaseSpec()) == []
+
+
+@pytest.mark.parametrize("case, field, words", [
+    ({"ground": {"density": 20.0}}, "ground.density", "kN/m³ typed as a density"),
+    ({"loads": {"surface_load": 100.0}}, "loads.surface_load", "kPa typed as Pa"),
+    ({"lining": {"density": 24.0}}, "lining.density", "kN/m³"),
+    ({"ground": {"young": 5e5}}, "ground.young", "MPa or kPa"),
+    ({"ground": {"layers": [{"thickness": 8.0, "density": 19.0}, {}]}}, "ground.layers.0.density", "kg/m³"),
+    ({"settlement": {"volume_loss": 0.1}}, "settlement.volume_loss", "fraction"),
+])
+def test_implausible_values_warn_naming_the_field(case, field, words):
+    spec = CaseSpec.model_validate(case)  # accepted: a warning, not a refusal
+    warnings = plausibility_warnings(spec)
+    assert len(warnings) == 1 and warnings[0].startswith(field + ":") and words in warnings[0]
+
+
+def test_zero_is_plausible_where_the_input_may_be_absent():
+    spec = CaseSpec.model_validate({"loads": {"surface_load": 0.0}, "design": {"reinforcement_area": 0.0}})
+    assert plausibility_warnings(spec) == []
+    assert all(r.low < r.high for r in PLAUSIBLE.values())
+
+
+def test_density_typed_in_kn_per_m3_warns_in_the_result():
+    ds = run_case(CaseSpec.model_validate({"mesh": COARSE, "ground": {"density": 20.0}}))
+    warnings = json.loads(ds.attrs["warnings"])
+    assert any(w.startswith("ground.density: 20 kg/m³") for w in warnings)
+
+
+@pytest.mark.parametrize("case, field, suggestion", [
+    ({"ground": {"densty": 2000.0}}, "ground.densty", "density"),
+    ({"geomtry": {"depth": 20.0}}, "geomtry", "geometry"),
+    ({"ground": {"layers": [{"thickness": 5.0, "yung": 1e7}, {}]}}, "ground.layers.0.yung", "young"),
+    # these two were dropped silently: a dry case and a monolithic ring ignore their other fields
+    ({"water": {"tabel": 5.0}}, "water.tabel", "table"),
+    ({"lining": {"joints": {"cont": 6}}}, "lining.joints.cont", "count"),
+    ({"design": {"crack_limit": 2e-4}}, "design.crack_limit", "crack_width_limit"),
+])
+def test_unknown_fields_say_did_you_mean(case, field, suggestion):
+    with pytest.raises(ValidationError) as info:
+        CaseSpec.model_validate(case)
+    assert field_errors(info.value) == [(field, f"unknown field; did you mean {suggestion!r}?")]
+
+
+def test_unknown_field_without_a_close_one():
+    with pytest.raises(ValidationError) as info:
+        CaseSpec.model_validate({"ground": {"zzzz": 1.0}})
+    assert field_errors(info.value) == [("ground.zzzz", "unknown field")]
