@@ -36,7 +36,7 @@ from typing import Literal, Optional, Union
 
 from pydantic import BaseModel, Field
 
-from solver.results.dataset import SCALARS
+from solver.results.variables import SCALARS
 from workflows.parameters import flat_parameters, parameter_attrs, parameter_path, varying_parameters
 from workflows.units import display_unit, parameter_unit
 

@@ -17,7 +17,7 @@ from urllib.parse import urlencode
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse
 
-from solver.results.dataset import ECCENTRICITY_LIMIT, SCALARS
+from solver.results.variables import ECCENTRICITY_LIMIT, SCALARS
 from solver.spec import CaseSpec
 from solver.spec.plausible import plausibility_warnings
 from workflows.joint_check import statement

@@ -19,7 +19,7 @@ from datetime import datetime, timezone
 import numpy as np
 import xarray as xr
 
-from solver.results.dataset import SCALARS
+from solver.results.variables import SCALARS
 from solver.spec import CaseSpec
 
 from .case_plots import load_factor

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-from solver.results.dataset import ECCENTRICITY_LIMIT
+from solver.results.variables import ECCENTRICITY_LIMIT
 
 from .joint_plots import contact_height, has_joints
 

@@ -25,7 +25,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import FancyBboxPatch
 
 from solver.lining.design import ALPHA_CC, ALPHA_CC_PL, EPS_UD, ES, GAMMA_C, GAMMA_S
-from solver.results.dataset import SCALARS
+from solver.results.variables import SCALARS
 
 from .joint_check import joint_check, joint_report, statement
 from .joint_plots import OPEN_STYLE, has_joints

@@ -35,7 +35,7 @@ import xarray as xr
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from solver.errors import field_errors
-from solver.results.dataset import SCALARS
+from solver.results.variables import SCALARS
 from solver.spec import CaseSpec
 
 from .parameters import (canonical_path, flat_name, flat_parameters, is_parameter, parameter_path, set_parameter,

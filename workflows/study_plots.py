@@ -5,7 +5,7 @@ import numpy as np
 import xarray as xr
 from matplotlib.figure import Figure
 
-from solver.results.dataset import SCALARS
+from solver.results.variables import SCALARS
 
 from .units import display_unit
 

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from solver.results.dataset import SCALARS
+from solver.results.variables import SCALARS
 
 from .case_plots import load_factor, station_name
 from .joint_plots import has_joints

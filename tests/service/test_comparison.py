@@ -102,7 +102,7 @@ def test_pages_render_without_a_scheduler_and_unknown_ids_are_html_404(tmp_path)
 
 def test_the_contract_order_names_every_scalar_the_solver_writes():
     from service.comparison import SCALAR_ORDER
-    from solver.results.dataset import SCALARS
+    from solver.results.variables import SCALARS
 
     assert sorted(SCALAR_ORDER) == sorted(SCALARS)
 

@@ -15,7 +15,8 @@ import pytest
 import xarray as xr
 
 from solver import CaseSpec
-from solver.results.dataset import ECCENTRICITY_LIMIT, JOINT_VARIABLES, SCALARS, joint_stations, to_dataset
+from solver.results.dataset import joint_stations, to_dataset
+from solver.results.variables import ECCENTRICITY_LIMIT, JOINT_VARIABLES, SCALARS
 from solver.model import TunnelModel
 from solver.lining.forces import lining_forces
 from workflows import ResultStore
