@@ -32,6 +32,7 @@ from .settlement import TROUGH_WIDTH_FACTOR, gaussian_trough, ground_loss, surfa
 from ..lining.design import design_utilization, joint_utilization
 from ..model import Solution, TunnelModel
 from ..lining.forces import lining_forces
+from .installation import installation_attrs, installation_scalars
 from .post import contact_extent, mean_convergence, surface_trough
 
 log = logging.getLogger(__name__)
@@ -67,6 +68,10 @@ SCALARS = {
     "max_joint_rotation": ("rad", "largest absolute rotation across a joint (0 for a monolithic lining)"),
     "max_joint_eccentricity": ("1", "largest |M|/(N a/2) at a joint: <= 1 when every joint carries its thrust "
                                "within its contact strip of height a (0 for a monolithic lining)"),
+    "deconfinement": ("1", "share of the excavation load released before the lining is placed (lambda_d: given, "
+                           "or found from the face distance; 0 for 'wished-in-place')"),
+    "ldp_ratio": ("1", "u*: the wall convergence at the lining's installation over that far behind the face, of "
+                       "the longitudinal displacement profile (NaN unless excavation.face_distance is given)"),
     "max_joint_utilization": ("1", "largest EN 1992-1-1 (12.10) utilization of a joint's contact strip at its "
                               "thrust (<= 1 passes; 0 for a monolithic lining)"),
 }
@@ -428,6 +433,7 @@ def _attrs(model: TunnelModel, sol: Solution, warnings: list[str], software_vers
         attrs["lining_modes"] = list(model.modes.label)
         attrs["joint_contact_height_m"] = float(sol.joints.contact_height)
     attrs.update(_stage_attrs(model, sol))
+    attrs.update(installation_attrs(sol))
     now = datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
     return {
         "Conventions": "CF-1.10 UGRID-1.0",
@@ -448,7 +454,7 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
     lining_data, lining_scalars = _lining_variables(model, sol)
     surf_coords, surf_data, surf_scalars, surface = _surface_variables(model, sol)
     joint_coords, joint_data, joint_scalars = _joint_results(sol)
-    scalars = {**_contact_scalars(model, sol), **lining_scalars, **surf_scalars,
+    scalars = {**_contact_scalars(model, sol), **lining_scalars, **surf_scalars, **installation_scalars(sol),
                **_plastic_scalars(sol, geo["node_xy"], geo["ground_faces"], model.mesh.center), **joint_scalars}
     coords = {**mesh_coords, **iface_coords, **surf_coords, **joint_coords}
     data = {**mesh_data, **iface_data, **lining_data, **surf_data, **joint_data}

@@ -20,6 +20,8 @@ def _round3_defaults() -> dict[str, dict]:
         "lining": {"joints": Joints().model_dump(mode="json")},
         "solver": {"load_steps": SolverSettings.model_fields["load_steps"].default},
         "water": Water().model_dump(mode="json"),
+        # fourth round (SPEC §9.5): the face distance and its profile
+        "excavation": {"face_distance": None, "ldp": Excavation.model_fields["ldp"].default},
     }
     return defaults
 
@@ -147,8 +149,9 @@ class CaseSpec(_Frozen):
     def canonical_json(self) -> str:
         """Defaults filled, keys sorted, no whitespace: the text the case id hashes.
 
-        Round-3 fields (SPEC §2: strata, water, plasticity, joints, load steps) are left out
-        while they hold their defaults, so every case that gives none of them keeps its id.
+        Round-3 fields (SPEC §2: strata, water, plasticity, joints, load steps) and later ones
+        (the face distance) are left out while they hold their defaults, so every case that gives
+        none of them keeps its id. A face-distance case carries no deconfinement: it is found.
         """
         data = self.model_dump(mode="json")
         for section, fields in ROUND3_DEFAULTS.items():
@@ -157,6 +160,8 @@ class CaseSpec(_Frozen):
                     data[section].pop(name, None)
         if data["water"] == {}:
             del data["water"]
+        if self.excavation.face_distance is not None:  # found, not given (SPEC §9.5)
+            data["excavation"].pop("deconfinement", None)
         return json.dumps(data, sort_keys=True, separators=(",", ":"))
 
     @property
@@ -165,5 +170,5 @@ class CaseSpec(_Frozen):
         return content_id(self.canonical_json())
 
 
-#: Round-3 fields and their defaults: left out of the canonical JSON while at them.
+#: Round-3 and later fields and their defaults: left out of the canonical JSON while at them.
 ROUND3_DEFAULTS = _round3_defaults()

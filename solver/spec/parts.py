@@ -5,6 +5,7 @@ from typing import Literal, Optional, Union
 
 from pydantic import Field, field_validator, model_validator
 
+from ..ground.ldp import PROFILES
 from .canonical import MAX_DENSITY, MAX_POISSON, MAX_SEGMENTS, MAX_YOUNG, MIN_YOUNG, _Frozen, _ignorable, is_number
 from .ground import Material
 
@@ -137,26 +138,54 @@ class Loads(_Frozen):
 
 
 class Excavation(_Frozen):
-    """How the tunnel is built (SPEC §1.1)."""
+    """How the tunnel is built (SPEC §1.1), and where the lining is installed (§9.5)."""
 
     method: Literal["deconfinement", "wished-in-place"] = Field(
         "deconfinement",
         description="'deconfinement': in-situ stress, excavation, lining placed after a release "
                     "of lambda_d; 'wished-in-place': the paper's model, both bodies stress-free")
-    deconfinement: float = Field(
+    deconfinement: Optional[float] = Field(
         0.3, ge=0, le=1,
         description="lambda_d: fraction of the excavation load released before the lining is placed "
-                    "(no meaning for 'wished-in-place', where it is recorded as 0)")
+                    "(no meaning for 'wished-in-place', where it is recorded as 0; found, not given, "
+                    "with face_distance)")
+    face_distance: Optional[float] = Field(
+        None, ge=0, le=1000.0,
+        description="distance behind the face at which the lining is installed (m); lambda_d is then "
+                    "found from the longitudinal displacement profile 'ldp' and the ground reaction curve")
+    ldp: Literal[PROFILES] = Field(
+        "vlachopoulos-diederichs", description="longitudinal displacement profile for face_distance")
 
     @model_validator(mode="before")
     @classmethod
     def _deconfinement_only_when_staged(cls, data):
         # as interface.friction: a value the model ignores must not split one physical case
         # into several ids (nor be kept in the record as if it had acted)
-        if isinstance(data, dict) and data.get("method") == "wished-in-place" \
+        if not isinstance(data, dict):
+            return data
+        if data.get("method") == "wished-in-place" \
                 and ("deconfinement" not in data or _ignorable(data["deconfinement"])):
             data = {**data, "deconfinement": 0.0}
+        if data.get("face_distance") is None:
+            if "ldp" in data and data["ldp"] in PROFILES:  # the profile only serves a face distance
+                data = {**data, "ldp": "vlachopoulos-diederichs"}
+        elif data.get("method", "deconfinement") == "deconfinement":
+            if data.get("deconfinement") is not None:
+                raise ValueError(
+                    "deconfinement: give excavation.deconfinement or excavation.face_distance, not both "
+                    "(with a face distance the deconfinement is found from the longitudinal displacement "
+                    "profile and the ground reaction curve)")
+            data = {**data, "deconfinement": None}
         return data
+
+    @model_validator(mode="after")
+    def _stage_defined(self) -> "Excavation":
+        if self.face_distance is not None and self.method != "deconfinement":
+            raise ValueError("face_distance: a face distance needs excavation.method = 'deconfinement' (the "
+                             "'wished-in-place' lining is placed before any release)")
+        if self.face_distance is None and self.deconfinement is None:
+            raise ValueError("deconfinement: a number from 0 to 1 (or give excavation.face_distance)")
+        return self
 
 
 class Interface(_Frozen):

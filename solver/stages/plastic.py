@@ -370,6 +370,26 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "
     return u1, p1, iterations, curve
 
 
+def release_unsupported(model, spec, rows, fraction: float = 1.0):
+    """Stage 1 alone: ``fraction`` of the excavation load released on the unsupported ground in
+    ``solver.load_steps`` increments (as :func:`solve_staged` begins). Returns the ground reaction
+    curve [(released, convergence)] and the quadrature points' history (:class:`_Points`: where
+    the ground yielded). Raises :class:`NotConvergedError` where the ground collapses."""
+    gauss = _Points(model, spec, "gauss")
+    release = stage_loads(model, spec).release
+    tol = max(spec.solver.tolerance, MIN_TOLERANCE)
+
+    def stress_of(u_free):
+        grad = gauss.gradient(u_free)
+        return (u_free, grad) + gauss.trial(grad)
+
+    def commit(u_free, grad, stress, dep, flags, tau):
+        gauss.commit(grad, stress, dep, flags, tau)
+
+    curve = _stage_one(model, rows, release, fraction, spec.solver.load_steps, tol, gauss, stress_of, commit)[3]
+    return curve, gauss
+
+
 def solve_staged(model, spec, rows, t0: float):
     """Solve a case whose ground can yield (see the module's docstring): a
     :class:`~solver.model.Solution` with ``plastic`` results filled."""

@@ -11,6 +11,7 @@ from ..spec import CaseSpec
 if TYPE_CHECKING:  # typing only
     from ..contact.bolt import BoltTrial
     from ..lining.joints import JointResults
+    from .face import Installation
 
 #: Relative gap (to the largest displacement) below which a node counts as closed.
 CONTACT_GAP_TOL = 1e-6
@@ -93,6 +94,8 @@ class Solution:
     plastic: dict | None = None
     #: a segmental lining's joints (:class:`solver.lining.joints.JointResults`) and its bolt set
     joints: "JointResults | None" = None
+    #: a face-distance case: how its λd was found (:class:`solver.stages.face.Installation`)
+    installation: "Installation | None" = None
 
     @property
     def gap(self) -> np.ndarray:
