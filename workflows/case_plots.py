@@ -348,8 +348,10 @@ def ground_reaction(ds: xr.Dataset) -> dict:
     (1 − released)·p0, from (0, p0)); the lining's characteristic line (``k_s`` of the thick
     ring, from ``u_in``, the convergence when it is placed, plus the gap); the FE end state
     (``u_end``: mean wall convergence, ``p_end``: mean pressure on the extrados, water
-    included); and the closed-form curve under isotropic p0 (``closed_u``, ``closed_p``: Salençon's,
-    Kirsch's for elastic ground) for one homogeneous layer, None otherwise."""
+    included); the closed-form curve under isotropic p0 (``closed_u``, ``closed_p``: Salençon's,
+    Kirsch's for elastic ground) for one homogeneous layer, None otherwise; and, for a case whose λd
+    was found from its face distance, ``installation`` (the attribute of SPEC §9.5) with the
+    curve on to full release (``full_u``, ``full_p``), None otherwise."""
     from solver.analytic import interface_mean, salencon
     from solver.spec import CaseSpec
     from solver.ground.strata import geostatic_state, strata
@@ -369,7 +371,14 @@ def ground_reaction(ds: xr.Dataset) -> dict:
     k_s = lining.young * (b**2 - a**2) / ((1 + lining.poisson) * b * ((1 - 2 * lining.poisson) * b**2 + a**2))
     out = {"p0": p0, "convergence": convergence, "pressure": pressure, "k_s": k_s,
            "u_in": float(convergence[-1]) + g.gap, "u_end": interface_mean(ds, inward),
-           "p_end": interface_mean(ds, support), "closed_u": None, "closed_p": None}
+           "p_end": interface_mean(ds, support), "closed_u": None, "closed_p": None, "installation": None}
+    if "installation" in ds.attrs:
+        found = json.loads(ds.attrs["installation"])
+        full = found["full_release_curve"] or [  # elastic ground: the straight line on to full release
+            {"released": 1.0, "wall_convergence_m": float(convergence[-1]) / max(found["deconfinement"], 1e-12)}]
+        out["installation"] = found
+        out["full_u"] = np.array([0.0] + [c["wall_convergence_m"] for c in full])
+        out["full_p"] = p0 * np.array([1.0] + [1.0 - c["released"] for c in full])
     if len(layers) == 1 and not layers[0].young_gradient:  # a homogeneous ground has a closed form
         ground, closed_p = layers[0], np.linspace(p0, 0.0, 60)
         if ground.model == "mohr-coulomb":
@@ -400,8 +409,16 @@ def plot_ground_reaction(ds: xr.Dataset) -> Figure:
     if grc["closed_u"] is not None:
         ax.plot(grc["closed_u"] * mm, grc["closed_p"] * kpa, color="0.45", ls="--", lw=1.2,
                 label="ground reaction, closed form (isotropic p0)")
+    found = grc["installation"]
+    if found is not None:
+        ax.plot(grc["full_u"] * mm, grc["full_p"] * kpa, color="tab:blue", lw=1.0, ls=":",
+                label="ground reaction on to full release (u_max, the profile's scale)")
     ax.plot(grc["convergence"] * mm, grc["pressure"] * kpa, color="tab:blue", lw=2.0, marker="o", ms=3,
             label="ground reaction, FE stage 1 (unsupported ground)")
+    where = (f"lining installed {found['face_distance_m']:g} m behind the face ({found['ldp']}: "
+             f"u* = {found['ldp_ratio']:.3g})" if found is not None else "lining installed")
+    ax.plot([grc["convergence"][-1] * mm], [grc["pressure"][-1] * kpa], marker="D", ms=8, color="tab:orange",
+            ls="none", label=f"{where}: {grc['convergence'][-1] * mm:.3g} mm")
     u_end = max(grc["u_end"], grc["u_in"])
     line_u = np.array([grc["u_in"], u_end + 1.3 * (u_end - grc["u_in"]) + 1e-9])
     ax.plot(line_u * mm, grc["k_s"] * (line_u - grc["u_in"]) * kpa, color="tab:green", lw=1.8,

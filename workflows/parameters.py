@@ -46,6 +46,8 @@ PARAMETER_ATTRS: dict[str, tuple[str | None, str]] = {
     "loads.lateral_ratio": ("1", "lateral earth pressure ratio K0"),
     "excavation.method": (None, "excavation method"),
     "excavation.deconfinement": ("1", "deconfinement ratio released before lining placement"),
+    "excavation.face_distance": ("m", "distance behind the face at which the lining is installed"),
+    "excavation.ldp": (None, "longitudinal displacement profile"),
     "interface.model": (None, "interface contact model"),
     "interface.friction": ("1", "interface Coulomb friction coefficient"),
     "boundaries.side": (None, "side boundary condition"),

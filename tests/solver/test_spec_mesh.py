@@ -87,8 +87,8 @@ def _patch(path, value):
     return data
 
 
-#: Fields where null means something (a dry ground, a strip as high as the lining).
-NULLABLE = {"water.table", "lining.joints.contact_height"}
+#: Fields where null means something (a dry ground, a strip as high as the lining, no face distance).
+NULLABLE = {"water.table", "lining.joints.contact_height", "excavation.face_distance"}
 
 
 def test_every_numeric_field_is_found():
