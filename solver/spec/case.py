@@ -10,6 +10,7 @@ from ..ground.strata import geostatic_errors, strata
 from ..lining.design import section_errors
 from .canonical import MAX_STIFFNESS_RATIO, _Frozen, content_id
 from .ground import LAYER_FIELDS, Ground, Strength
+from .section import Section
 from .parts import (Boundaries, Design, Excavation, Geometry, Interface, Joints, Lining, Loads, MeshSettings,
                     SolverSettings, Water)
 
@@ -20,7 +21,8 @@ def _round3_defaults() -> dict[str, dict]:
         "lining": {"joints": Joints().model_dump(mode="json")},
         "solver": {"load_steps": SolverSettings.model_fields["load_steps"].default},
         "water": Water().model_dump(mode="json"),
-        # fourth round (SPEC §9.5): the face distance and its profile
+        # fourth round (SPEC §9.4, §9.5): the section's shape, the face distance and its profile
+        "geometry": {"section": Section().model_dump(mode="json")},
         "excavation": {"face_distance": None, "ldp": Excavation.model_fields["ldp"].default},
     }
     return defaults
@@ -61,6 +63,10 @@ class CaseSpec(_Frozen):
         if errors:
             field, reason = errors[0]
             raise ValueError(f"{field}: {reason}")
+        if self.geometry.section.shape != "circle":
+            raise ValueError(
+                f"geometry.section.shape: a '{self.geometry.section.shape}' section is described (its profile, "
+                "closure and offsets) but not yet meshed and solved; only 'circle' is solved so far")
         return self._mesh_fits()
 
     def _ground_fits(self) -> None:

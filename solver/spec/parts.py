@@ -8,6 +8,7 @@ from pydantic import Field, field_validator, model_validator
 from ..ground.ldp import PROFILES
 from .canonical import MAX_DENSITY, MAX_POISSON, MAX_SEGMENTS, MAX_YOUNG, MIN_YOUNG, _Frozen, _ignorable, is_number
 from .ground import Material
+from .section import Section
 
 
 class Geometry(_Frozen):
@@ -19,6 +20,7 @@ class Geometry(_Frozen):
     width: float = Field(40.0, gt=0, le=10000.0, description="ground model width from the symmetry axis (m)")
     height: float = Field(50.0, gt=0, le=10000.0, description="ground model height (m)")
     gap: float = Field(0.0, ge=0, description="initial radial clearance g0 between lining and ground (m)")
+    section: Section = Field(Section(), description="the intrados's shape (SPEC §9.4); circle: inner_radius")
 
     @property
     def outer_radius(self) -> float:
