@@ -310,7 +310,8 @@ def _interface_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict]
 def _lining_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict]:
     """``(data, scalars)`` of the lining's section forces and their EN 1992 check."""
     spec, iface = sol.spec, model.mesh.interface
-    forces = lining_forces(spec, model.lining.body, iface, model.mesh.center, sol.u_lining, sol.lam, sol.shear)
+    forces = lining_forces(spec, model.lining.body, iface, model.mesh.center, sol.u_lining, sol.lam, sol.shear,
+                           profile=model.mesh.profile)
     eta, env_n, env_m = design_utilization(forces.thrust, forces.moment, spec.geometry.thickness, spec.design)
     if sol.joints is not None:  # the section at a joint is its contact strip: checked by joint_eccentricity
         eta = eta.copy()

@@ -63,10 +63,8 @@ class CaseSpec(_Frozen):
         if errors:
             field, reason = errors[0]
             raise ValueError(f"{field}: {reason}")
-        if self.geometry.section.shape != "circle":
-            raise ValueError(
-                f"geometry.section.shape: a '{self.geometry.section.shape}' section is described (its profile, "
-                "closure and offsets) but not yet meshed and solved; only 'circle' is solved so far")
+        if not self.geometry.circle:
+            self._section_supported()
         return self._mesh_fits()
 
     def _ground_fits(self) -> None:
@@ -99,6 +97,20 @@ class CaseSpec(_Frozen):
         if errors:
             field, reason = errors[0]
             raise ValueError(f"{field}: {reason}")
+
+    def _section_supported(self) -> None:
+        """What a non-circular section does not have yet: joints (cuts normal to the
+        mid-surface) and layer lines cutting the section."""
+        if self.lining.joints.count:
+            raise ValueError(f"lining.joints.count: a '{self.geometry.section.shape}' section's lining is "
+                             "monolithic so far (segment joints are cut on circles only)")
+        up, down, _ = self.geometry.hole_extent
+        for i, layer in enumerate(self.ground.layers[:-1]):
+            z = sum(lay.thickness for lay in self.ground.layers[:i + 1])
+            if self.geometry.depth - up - self.mesh.interface_size <= z <= self.geometry.depth + down + \
+                    self.mesh.interface_size:
+                raise ValueError(f"ground.layers.{i}.thickness: the layer boundary {z:.6g} m deep cuts (or touches) "
+                                 f"the '{self.geometry.section.shape}' section; so far only a circle may be cut")
 
     @property
     def plastic(self) -> bool:

@@ -1,10 +1,14 @@
 """The geometry, lining, water, loads, stages, interface, design and numerical settings of a case."""
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import Literal, Optional, Union
+
+import numpy as np
 
 from pydantic import Field, field_validator, model_validator
 
+from ..geometry.section import equal_area_radius
 from ..ground.ldp import PROFILES
 from .canonical import MAX_DENSITY, MAX_POISSON, MAX_SEGMENTS, MAX_YOUNG, MIN_YOUNG, _Frozen, _ignorable, is_number
 from .ground import Material
@@ -23,17 +27,45 @@ class Geometry(_Frozen):
     section: Section = Field(Section(), description="the intrados's shape (SPEC §9.4); circle: inner_radius")
 
     @property
+    def circle(self) -> bool:
+        """Whether the section is a circle of radius ``inner_radius`` (every case before §9.4)."""
+        return self.section.shape == "circle"
+
+    def profile(self, offset: float = 0.0):
+        """The intrados moved ``offset`` (m) along its outward normal, as a
+        :class:`~solver.geometry.section.Profile` centred on the section's centre."""
+        return _profile(self.section, self.inner_radius, offset)
+
+    @property
     def outer_radius(self) -> float:
-        """Lining outer radius b = a + t (m)."""
-        return self.inner_radius + self.thickness
+        """Lining outer radius b = a + t (m); for another shape, the radius of the circle of the
+        extrados's area."""
+        if self.circle:
+            return self.inner_radius + self.thickness
+        return equal_area_radius(self.profile(self.thickness))
 
     @property
     def hole_radius(self) -> float:
-        """Radius of the excavation in the ground, b + g0 (m)."""
-        return self.outer_radius + self.gap
+        """Radius of the excavation in the ground, b + g0 (m); for another shape, the radius of
+        the circle of the excavated area (the extrados's offset by the gap)."""
+        if self.circle:
+            return self.outer_radius + self.gap
+        return equal_area_radius(self.profile(self.thickness + self.gap))
+
+    @property
+    def hole_extent(self) -> tuple[float, float, float]:
+        """The excavation's reach from the section's centre (m): up to the crown, down to the
+        invert, sideways (the hole radius three times for a circle)."""
+        if self.circle:
+            r = self.hole_radius
+            return r, r, r
+        return _extent(self.section, self.inner_radius, self.thickness + self.gap)
 
     @model_validator(mode="after")
     def _fits(self) -> "Geometry":
+        if not self.circle:  # the intrados is the section's: inner_radius is its equal-area radius
+            object.__setattr__(self, "inner_radius", equal_area_radius(self.profile()))
+        up, down, side = self.hole_extent
         r = self.hole_radius
         if self.thickness > 0.5 * self.inner_radius:
             raise ValueError(
@@ -47,22 +79,34 @@ class Geometry(_Frozen):
             raise ValueError(
                 f"gap: {self.gap} m exceeds 10 % of inner_radius; the small-displacement "
                 "contact model does not hold for such clearances")
-        cover = self.depth - r
+        cover = self.depth - up
         if cover <= 0.25 * r:
             raise ValueError(
                 f"depth: cover above the tunnel is {cover:.4g} m; it must exceed a quarter "
                 f"of the excavation radius ({0.25 * r:.4g} m)")
-        below = self.height - self.depth - r
+        below = self.height - self.depth - down
         if below <= 0.25 * r:
             raise ValueError(
                 f"height: room below the tunnel is {below:.4g} m; it must exceed a quarter "
                 f"of the excavation radius ({0.25 * r:.4g} m)")
-        beside = self.width - r
+        beside = self.width - side
         if beside <= 0.25 * r:
             raise ValueError(
                 f"width: room beside the tunnel is {beside:.4g} m; it must exceed a quarter "
                 f"of the excavation radius ({0.25 * r:.4g} m)")
         return self
+
+
+@lru_cache(maxsize=256)
+def _profile(section: Section, inner_radius: float, offset: float):
+    return section.profile(inner_radius).offset_by(offset)
+
+
+@lru_cache(maxsize=256)
+def _extent(section: Section, inner_radius: float, offset: float) -> tuple[float, float, float]:
+    hole = _profile(section, inner_radius, offset)
+    p = hole.points(np.linspace(0.0, np.pi, 2001))
+    return float(p[1, 0]), float(-p[1, -1]), float(p[0].max())
 
 
 class Joints(_Frozen):
