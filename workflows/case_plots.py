@@ -137,16 +137,34 @@ def _mid_radius(ds: xr.Dataset) -> float:
     return float(np.max(np.hypot(ds["interface_x"].values, ds["interface_y"].values - cy)))
 
 
+def mid_surface(ds: xr.Dataset) -> tuple[np.ndarray, np.ndarray] | None:
+    """The lining's mid-surface points (m, 2) relative to the section's centre and their outward
+    normals (m, 2), for a section that is not a circle (SPEC §9.4); None for a circle."""
+    spec = case_spec(ds)
+    geometry = spec.get("geometry", {})
+    if geometry.get("section", {"shape": "circle"}).get("shape", "circle") == "circle":
+        return None
+    from solver.spec import CaseSpec
+
+    g = CaseSpec.model_validate(spec).geometry
+    outward = -np.column_stack([ds["normal_x"].values, ds["normal_y"].values])
+    hole = np.column_stack([ds["interface_x"].values, ds["interface_y"].values + g.depth])
+    return hole - (g.gap + 0.5 * g.thickness) * outward, outward
+
+
 def _force_diagram(ax, theta_deg: np.ndarray, values: np.ndarray, radius: float, *, symbol: str, unit: str,
-                   title: str, outward: str, joints: xr.Dataset | None = None) -> None:
+                   title: str, outward: str, joints: xr.Dataset | None = None, shape=None) -> None:
     """``values`` drawn as offsets from the half ring, scaled so the largest is 0.35 radius;
-    the joints of ``joints`` (a segmental lining's result) as radial ticks."""
+    the joints of ``joints`` (a segmental lining's result) as radial ticks. ``shape``: the
+    mid-surface and its normals (:func:`mid_surface`) of a section that is not a circle."""
     theta = np.radians(theta_deg)
     nx, ny = np.sin(theta), np.cos(theta)
     peak = float(np.max(np.abs(values))) if values.size else 0.0
     values = np.where(np.abs(values) < 1e-6 * peak, 0.0, values)  # round-off at the symmetry axis
     scale = 0.35 * radius / peak if peak > 0 else 0.0
     ring = np.column_stack([radius * nx, radius * ny])
+    if shape is not None:
+        ring, (nx, ny) = shape[0], shape[1].T
     ax.plot(ring[:, 0], ring[:, 1], color="0.3", lw=2.0, solid_capstyle="butt")
     for part, color in ((np.maximum(values, 0.0), "tab:blue"), (np.minimum(values, 0.0), "tab:red")):
         curve = ring + (scale * part)[:, None] * np.column_stack([nx, ny])
@@ -159,8 +177,7 @@ def _force_diagram(ax, theta_deg: np.ndarray, values: np.ndarray, radius: float,
     ax.axvline(0.0, color="0.6", lw=0.8, ls="-.")
     for name, where in STATIONS.items():
         i = int(np.argmin(np.abs(theta_deg - where)))
-        tip = radius + max(scale * values[i], 0.0) + 0.06 * radius
-        x, y = tip * nx[i], tip * ny[i]
+        x, y = ring[i] + (max(scale * values[i], 0.0) + 0.06 * radius) * np.array([nx[i], ny[i]])
         align = {"crown": ("left", "bottom"), "springline": ("left", "center"), "invert": ("left", "top")}[name]
         ax.annotate(f"{name}\n{values[i]:.1f} {unit}", (x, y), ha=align[0], va=align[1], fontsize="small",
                     xytext=(3 if name != "springline" else 0, 0), textcoords="offset points")
@@ -192,6 +209,9 @@ def plot_lining_forces(ds: xr.Dataset) -> Figure:
     are radial ticks through the diagrams (closed dashed, open orange; :mod:`workflows.joint_plots`).
     """
     radius = _mid_radius(ds)
+    shape = mid_surface(ds)
+    if shape is not None:  # the scale and the frame of the section's largest reach
+        radius = float(np.max(np.hypot(*shape[0].T)))
     theta = ds["theta"].values
     fig = Figure(figsize=(12, 5.4), layout="constrained")
     axes = fig.subplots(1, 3)
@@ -201,14 +221,15 @@ def plot_lining_forces(ds: xr.Dataset) -> Figure:
               ("shear", "V", "shear force V (kN/m)", "kN/m", "+ drawn outward"))
     for ax, (name, symbol, title, unit, outward) in zip(axes, panels):
         _force_diagram(ax, theta, ds[name].values / 1e3, radius, symbol=symbol, unit=unit, title=title,
-                       outward=outward, joints=ds)
+                       outward=outward, joints=ds, shape=shape)
     joints = joint_plots.summary(ds)
     if joints:
         fig.legend(handles=joint_plots.ring_legend_handles(ds), loc="outside lower center", ncols=2,
                    fontsize="small", title=f"segmental lining: {joints} (ticks across the ring)",
                    title_fontsize="small")
-    fig.suptitle(f"Lining forces, {_title(ds)} (half ring, symmetry axis dash-dotted; "
-                 f"mid-surface radius {radius:.3g} m)", fontsize="medium")
+    where = f"mid-surface radius {radius:.3g} m" if shape is None else \
+        f"{case_spec(ds)['geometry']['section']['shape']} section, largest mid-surface reach {radius:.3g} m"
+    fig.suptitle(f"Lining forces, {_title(ds)} (half ring, symmetry axis dash-dotted; {where})", fontsize="medium")
     return fig
 
 

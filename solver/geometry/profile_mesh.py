@@ -153,3 +153,15 @@ def profile_interface(ground, lining, g_nodes, l_nodes, center, hole: Profile) -
     weight[1::2] += 2.0 * length / 3.0
     return dict(theta=theta, ground_node=g_nodes, lining_node=l_nodes, normal=-hole.normals(phi_g),
                 weight=weight, vertex=vertex)
+
+
+def extrados_arc_length(mesh, spec) -> np.ndarray:
+    """(m,) length (m) along the lining's extrados from the crown to each interface station:
+    b·θ on a circle, the profile's arc length at the station's turning angle otherwise."""
+    g = spec.geometry
+    if mesh.profile is None:
+        return g.outer_radius * np.radians(mesh.interface.theta)
+    extrados = mesh.profile.offset_by(g.thickness)
+    phi = extrados.parameter(mesh.lining.p[:, mesh.interface.lining_node] - np.asarray(mesh.center, float)[:, None])
+    phi[0], phi[-1] = 0.0, math.pi
+    return extrados.arc_length(phi)

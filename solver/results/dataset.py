@@ -32,6 +32,7 @@ from .settlement import TROUGH_WIDTH_FACTOR, gaussian_trough, ground_loss, surfa
 from ..lining.design import design_utilization, joint_utilization
 from ..model import Solution, TunnelModel
 from ..lining.forces import lining_forces
+from ..geometry.profile_mesh import extrados_arc_length
 from .installation import installation_attrs, installation_scalars
 from .post import contact_extent, mean_convergence, surface_trough
 
@@ -288,6 +289,8 @@ def _interface_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict]
         "theta": _var("interface", iface.theta, "degree", "interface position at the tunnel axis from the crown"),
         "interface_x": _var("interface", p_ground[0, iface.ground_node], "m", "x of interface node"),
         "interface_y": _var("interface", p_ground[1, iface.ground_node], "m", "y of interface node"),
+        "arc_length": _var("interface", extrados_arc_length(model.mesh, sol.spec), "m",
+                           "length along the lining's extrados from the crown"),
     }
     data = {
         "water_pressure": _var("interface", sol.water_pressure, "Pa", "water pressure on the lining's extrados (0 when dry or drained)"),
