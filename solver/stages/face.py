@@ -6,12 +6,13 @@ the case's own stage-1 ground reaction curve reaches that convergence. For groun
 elastic the curve is a straight line through the origin, so λd = u* without a solve. For
 ground that can yield the full release is solved once on the built model (stage 1 alone,
 :func:`solver.stages.plastic.release_unsupported`): its last point is u_max, its plastic zone
-gives R* (largest distance of a yielded point from the axis over R, at least 1), and the curve,
+gives R* (the radius of the ring of yielded ground's area around the excavation, over R), and the curve,
 interpolated monotonically (PCHIP) through its increments, is inverted at u*·u_max.
 """
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -71,11 +72,7 @@ def install(model: "TunnelModel", spec: CaseSpec, rows) -> Installation:
         ratio = ldp_ratio(exc.ldp, x, plastic_ratio=1.0, poisson=axis_poisson(spec))
         return Installation(deconfinement=ratio, ldp_ratio=ratio, radius=radius, plastic_ratio=1.0)
     curve, points = _full_release(model, spec, rows)
-    yielded = (points.eqps > 0) | points.at_yield
-    xy = np.asarray(points.basis.global_coordinates())  # (2, E, Q)
-    cx, cy = model.mesh.center
-    reach = np.hypot(xy[0] - cx, xy[1] - cy)[yielded]
-    plastic_ratio = max(1.0, float(reach.max()) / radius) if reach.size else 1.0
+    plastic_ratio = plastic_radius(points, radius)
     ratio = ldp_ratio(exc.ldp, x, plastic_ratio=plastic_ratio, poisson=axis_poisson(spec))
     u_max = curve[-1][1]
     found = invert_curve(curve, ratio * u_max)
@@ -83,6 +80,16 @@ def install(model: "TunnelModel", spec: CaseSpec, rows) -> Installation:
              exc.face_distance, ratio, plastic_ratio, u_max, found)
     return Installation(deconfinement=found, ldp_ratio=ratio, radius=radius, plastic_ratio=plastic_ratio,
                         full_release_convergence=u_max, full_release_curve=tuple(curve))
+
+
+def plastic_radius(points, radius: float) -> float:
+    """R* of the full release: the radius of the circle whose ring around the excavation (of the
+    equal-area radius ``radius``) has the area of the yielded ground, over ``radius`` (1 when
+    nothing yielded). An area, not the farthest yielded point: ground that yields far from the
+    tunnel (in tension near the surface, at the model's corners) would otherwise set R*."""
+    yielded = (points.eqps > 0) | points.at_yield
+    area = 2.0 * float(np.sum(np.asarray(points.weights)[yielded]))  # both halves
+    return math.sqrt(area / math.pi + radius**2) / radius
 
 
 def invert_curve(curve, convergence: float) -> float:
