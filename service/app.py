@@ -23,6 +23,7 @@ from .jobs import Dispatcher
 from .searches import Searches
 from .settings import Settings, get_settings
 from .job_records import open_job_records
+from .views import mount_static
 
 logger = logging.getLogger(__name__)
 
@@ -87,7 +88,7 @@ def create_app(settings: Optional[Settings] = None) -> FastAPI:
     openapi_auth_as_configured(app)
     for module in (cases, sweeps, studies, searches, health, pages):
         app.include_router(module.router)
-    pages.mount_static(app)
+    mount_static(app)
     serve_docs_offline(app)
     return app
 

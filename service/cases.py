@@ -10,14 +10,14 @@ from fastapi import APIRouter, Depends, Query, Request, Response
 from fastapi.responses import FileResponse
 
 from solver.spec import CaseSpec, content_id
-from workflows.plots import PLOTS
+from workflows.plots import PLOTS, STAGED_PLOTS
 from workflows.result_store import as_store, estimated_result_bytes
 
 from workflows.artifacts import render_plot, render_report
-from .errors import responses
+from .errors import invalid, responses
 from .guards import check_capacity, require_token
 from .params import NETCDF, CaseId, Offset, jobs_of, not_found, not_ready
-from .schemas import Case, CaseAccepted, CasePage, Status, json_response
+from .schemas import Case, CaseAccepted, CasePage, FieldError, Status, json_response
 
 router = APIRouter(prefix="/cases", tags=["cases"])
 
@@ -111,13 +111,24 @@ async def get_case_result(case_id: CaseId, request: Request) -> FileResponse:
 @router.get("/{case_id}/report.pdf", response_class=FileResponse, responses={
     200: {"content": {"application/pdf": {}}, "description": "the case's printable report, written once and cached"},
     **responses(404, 409)})
-async def get_case_report(case_id: CaseId, request: Request) -> FileResponse:
-    """The printable report of a finished case: the design answer (PASS/FAIL), the results in
-    engineering units, the warnings, every input and every figure, on A4 pages."""
+async def get_case_report(case_id: CaseId, request: Request,
+                          project: Optional[str] = Query(None, max_length=120, description="title block: project"),
+                          job: Optional[str] = Query(None, max_length=40, description="title block: job number"),
+                          author: Optional[str] = Query(None, max_length=60, description="title block: author"),
+                          checker: Optional[str] = Query(None, max_length=60, description="title block: checker"),
+                          revision: Optional[str] = Query(None, max_length=20, description="title block: revision"),
+                          date: Optional[str] = Query(None, max_length=20, description="title block: date "
+                                                                                          "(default today)"),
+                          ) -> FileResponse:
+    """The printable report of a finished case, a calculation record: the title block (optional
+    fields), the design answer (PASS/FAIL), the results in engineering units, the warnings, the
+    model, the stratigraphy and every input, the design basis and every figure, on A4 pages."""
     await _result_of_done_case(request, case_id)
     jobs = jobs_of(request)
+    title = {"project": project, "job": job, "author": author, "checker": checker, "revision": revision,
+             "date": date}
     try:
-        path = await asyncio.to_thread(render_report, jobs.root, case_id)
+        path = await asyncio.to_thread(render_report, jobs.root, case_id, title=title)
     except Exception:
         if await jobs.recompute_broken(case_id):
             raise not_ready(f"case {case_id}", "its stored result was missing or unreadable; "
@@ -129,12 +140,19 @@ async def get_case_report(case_id: CaseId, request: Request) -> FileResponse:
 @router.get("/{case_id}/plots/{name}.png", response_class=FileResponse, responses={
     200: {"content": {"image/png": {}}, "description": "the figure, rendered once and cached"},
     **responses(404, 409)})
-async def get_case_plot(case_id: CaseId, name: PlotName, request: Request) -> FileResponse:
+async def get_case_plot(case_id: CaseId, name: PlotName, request: Request,
+                        stage: Optional[Literal["total", "1", "2"]] = Query(
+                            None, description="deformed_mesh: the construction stage shown (every body in one "
+                                              "reference): total since excavation, 1 before the lining, 2 since "
+                                              "its placement")) -> Response:
     """A figure of a finished case (one of :data:`workflows.plots.PLOTS`)."""
+    if stage is not None and name.value not in STAGED_PLOTS:
+        return invalid([FieldError(field="stage", type="value_error",
+                                   reason=f"the plot {name.value!r} has no stages (only {', '.join(STAGED_PLOTS)})")])
     await _result_of_done_case(request, case_id)
     jobs = jobs_of(request)
     try:
-        path = await asyncio.to_thread(render_plot, jobs.root, case_id, name.value)
+        path = await asyncio.to_thread(render_plot, jobs.root, case_id, name.value, stage=stage)
     except Exception:
         # the file may have broken since it was checked: then recompute, else a real fault
         if await jobs.recompute_broken(case_id):

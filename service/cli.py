@@ -55,6 +55,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("case_id", metavar="CASE_ID", help="a case id or a unique prefix of one (4+ hex digits)")
     p.add_argument("-o", "--output", default=None, metavar="FILE.pdf",
                    help="where to write it (default: CASE_ID.pdf in the current folder)")
+    for field in ("project", "job", "author", "checker", "revision", "date"):
+        p.add_argument(f"--{field}", default=None, help=f"the title block's {field}"
+                       + (" (default today)" if field == "date" else ""))
     results(p)
 
     p = sub.add_parser("list", help="list the cases of the result store (done and failed) as a table")
@@ -116,7 +119,8 @@ def main(argv: list[str] | None = None) -> int:
             return commands.analyse_command(args.sweep_id, args.results, sensitivity=args.sensitivity,
                                             reliability=args.reliability, limit=args.limit)
         if args.command == "report":
-            return commands.report_command(args.case_id, args.results, output=args.output)
+            title = {k: getattr(args, k) for k in ("project", "job", "author", "checker", "revision", "date")}
+            return commands.report_command(args.case_id, args.results, output=args.output, title=title)
         return commands.show_command(args.case_id, args.results)
     except commands.InputError as exc:
         print(f"tunnel-contact: error: {exc}", file=sys.stderr)

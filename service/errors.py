@@ -19,8 +19,9 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from solver.errors import field_errors as _field_reasons
 
-from .job_records import is_damage
+from .job_tables import is_damage
 from .schemas import ErrorBody, FieldError
+from .views import error_page
 
 logger = logging.getLogger(__name__)
 
@@ -115,8 +116,6 @@ def _page_request(request: Request) -> bool:
 async def _error_page(request: Request, status_code: int, detail: str) -> Response:
     """A page request's error as the dashboard's HTML error page: every page error (a
     malformed or unknown id, an unknown page) comes here, raised or refused by validation."""
-    from .pages import error_page  # pages import the routers, which import this module
-
     return await error_page(request, status_code, detail)
 
 

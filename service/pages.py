@@ -4,23 +4,18 @@
 comparison table, plots, downloads); ``/ui/cases/{id}`` a case (summary, plots,
 downloads, its JSON); ``/ui/submit`` a form for a case or a sweep. Templates and the
 small script that keeps the status live (it polls the JSON routes) ship in the
-package: no build step, nothing fetched from outside.
+package (:mod:`service.views` renders them): no build step, nothing fetched from outside.
 """
 from __future__ import annotations
 
 import json
 import logging
 import math
-import time
-from pathlib import Path
 from typing import Optional
 from urllib.parse import urlencode
 
-import httpx
-from fastapi import APIRouter, FastAPI, Request
+from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse
-from fastapi.staticfiles import StaticFiles
-from fastapi.templating import Jinja2Templates
 
 from solver.results.dataset import ECCENTRICITY_LIMIT, SCALARS
 from workflows.joint_check import statement
@@ -29,18 +24,14 @@ from workflows.studies import MIN_SAMPLES, SENSITIVITY_MIN_SAMPLES
 from workflows.units import DIAGNOSTICS
 
 from . import cases, searches, studies
-from .comparison import comparison_table, ordered_scalars, scalar_column, shown
+from .comparison import comparison_table, ordered_scalars, scalar_column
 from .form import case_form
 from .params import CaseId, SearchId, SweepId, jobs_of, sweep_or_404
 from .schemas import SweepStatus
 from .studies import RANDOM_MODES
+from .views import render
 
 logger = logging.getLogger(__name__)
-
-HERE = Path(__file__).parent
-templates = Jinja2Templates(directory=HERE / "templates")
-templates.env.filters["shown"] = shown
-templates.env.filters["pretty_json"] = lambda value: json.dumps(value, indent=2, sort_keys=True)
 
 router = APIRouter(include_in_schema=False)
 
@@ -56,62 +47,14 @@ EXAMPLE_SWEEP = {
 EXAMPLE_CASE = {"geometry": {"thickness": 0.3, "gap": 0.01}, "mesh": {"interface_size": 0.1, "far_size": 6.0}}
 
 
-def mount_static(app: FastAPI) -> None:
-    """Serve the dashboard's script and style sheet under ``/static``."""
-    app.mount("/static", StaticFiles(directory=HERE / "static"), name="static")
-
-
-async def dask_dashboard(request: Request) -> Optional[str]:
-    """Link to the dask scheduler's dashboard, when the scheduler serves one.
-
-    A scheduler always lists its HTTP server as ``dashboard``, even without bokeh or
-    with ``--no-dashboard``; so the link is shown only if it answers (checked once a
-    minute).
-    """
-    jobs = jobs_of(request)
-    if not jobs.connected:
-        return None
-    try:
-        if "dashboard" not in jobs.client.scheduler_info().get("services", {}):
-            return None
-        link = jobs.client.dashboard_link
-    except Exception as exc:  # an older or unusual scheduler: no link rather than no page
-        logger.debug("no dask dashboard link: %s", exc)
-        return None
-    checked = _dashboard_checks.get(link)
-    if checked is None or time.monotonic() - checked[0] > _DASHBOARD_CHECK_EVERY:
-        try:
-            async with httpx.AsyncClient(timeout=1.0) as http:
-                serves = (await http.get(link)).status_code == 200
-        except httpx.HTTPError:
-            serves = False
-        checked = _dashboard_checks[link] = (time.monotonic(), serves)
-    return link if checked[1] else None
-
-
-_DASHBOARD_CHECK_EVERY = 60.0
-_dashboard_checks: dict[str, tuple[float, bool]] = {}
-
-
-async def _render(request: Request, name: str, **context) -> HTMLResponse:
-    return templates.TemplateResponse(request, name, {"dask_dashboard": await dask_dashboard(request), **context})
-
-
 @router.get("/", response_class=HTMLResponse)
 async def index(request: Request) -> HTMLResponse:
     sweep_page = await studies.list_sweeps(request, limit=20, offset=0)
     search_list = (await searches.list_searches(request, limit=20, offset=0)).items
     case_page = await cases.list_cases(request, status=None, limit=20, offset=0, newest_first=True)
     workers = (await jobs_of(request).cluster_state())[1]
-    return await _render(request, "index.html", sweeps=sweep_page, cases=case_page, workers=workers,
+    return await render(request, "index.html", sweeps=sweep_page, cases=case_page, workers=workers,
                          searches=search_list)
-
-
-async def error_page(request: Request, status_code: int, detail: str) -> HTMLResponse:
-    """The HTML error page (what :mod:`service.errors` answers a page request's HTTP error with)."""
-    response = await _render(request, "error.html", status_code=status_code, detail=detail)
-    response.status_code = status_code
-    return response
 
 
 @router.get("/ui/sweeps/{sweep_id}", response_class=HTMLResponse)
@@ -130,14 +73,14 @@ async def sweep_page(sweep_id: SweepId, request: Request, output: str = "max_abs
                 "sensitivity_png": f"/sweeps/{sweep_id}/sensitivity.png?{urlencode({'output': output})}",
                 "reliability_png": f"/sweeps/{sweep_id}/reliability.png?"
                                    f"{urlencode({'output': reliability_output, 'limit': limit})}"}
-    return await _render(request, "sweep.html", sweep=status, table=comparison_table(store, record),
+    return await render(request, "sweep.html", sweep=status, table=comparison_table(store, record),
                          spec=record.spec, plots=SWEEP_PLOT_NAMES, analyses=analyses)
 
 
 @router.get("/ui/searches/{search_id}", response_class=HTMLResponse)
 async def search_page(search_id: SearchId, request: Request) -> HTMLResponse:
     record = await searches.get_search(search_id, request)
-    return await _render(request, "search.html", search=record)
+    return await render(request, "search.html", search=record)
 
 
 @router.get("/ui/cases/{case_id}", response_class=HTMLResponse)
@@ -148,7 +91,7 @@ async def case_page(case_id: CaseId, request: Request) -> HTMLResponse:
     columns = [scalar_column(n) for n in names if n not in DIAGNOSTICS]
     diagnostics = [scalar_column(n) for n in names if n in DIAGNOSTICS]
     verdict = design_verdict(values, case.spec)
-    return await _render(request, "case.html", case=case, values=values, columns=columns, plots=list(PLOTS),
+    return await render(request, "case.html", case=case, values=values, columns=columns, plots=list(PLOTS),
                          diagnostics=diagnostics, verdict=verdict)
 
 
@@ -174,5 +117,5 @@ def design_verdict(values: dict[str, float], spec: dict) -> Optional[dict]:
 
 @router.get("/ui/submit", response_class=HTMLResponse)
 async def submit_page(request: Request) -> HTMLResponse:
-    return await _render(request, "submit.html", form=case_form(), example_sweep=json.dumps(EXAMPLE_SWEEP, indent=2),
+    return await render(request, "submit.html", form=case_form(), example_sweep=json.dumps(EXAMPLE_SWEEP, indent=2),
                    example_case=json.dumps(EXAMPLE_CASE, indent=2))

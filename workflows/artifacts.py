@@ -19,6 +19,8 @@ its folder.
 """
 from __future__ import annotations
 
+import json
+
 import logging
 import threading
 import time
@@ -29,7 +31,7 @@ import xarray as xr
 
 from .combine import for_netcdf
 from .files import DamagedFile, verify, write_atomically
-from .plots import PLOTS, SWEEP_PLOT_NAMES, SWEEP_PLOTS, case_labels, plot_interaction
+from .plots import PLOTS, STAGED_PLOTS, SWEEP_PLOT_NAMES, SWEEP_PLOTS, case_labels, plot_interaction
 from .result_store import ResultStore, StoreLike, as_store, netcdf_lock
 
 logger = logging.getLogger(__name__)
@@ -44,10 +46,11 @@ def plot_path(root: StoreLike, case_id: str, name: str) -> Path:
     return as_store(root).plot_path(case_id, name)
 
 
-def render_plot(root: StoreLike, case_id: str, name: str, ds=None) -> Path:
+def render_plot(root: StoreLike, case_id: str, name: str, ds=None, *, stage: str | None = None) -> Path:
     """The cached PNG of plot ``name`` of a stored case, rendered first if missing.
 
-    ``ds`` is the case's result if the caller has it open already.
+    ``ds`` is the case's result if the caller has it open already; ``stage`` the construction
+    stage a plot of :data:`workflows.plots.STAGED_PLOTS` shows (``"total"``, ``"1"``, ``"2"``).
 
     Raises
     ------
@@ -57,30 +60,41 @@ def render_plot(root: StoreLike, case_id: str, name: str, ds=None) -> Path:
         If the case is not stored.
     """
     plot = PLOTS[name]
+    if stage is not None and name not in STAGED_PLOTS:
+        raise ValueError(f"stage: the plot {name!r} has no stages (only {', '.join(STAGED_PLOTS)})")
     store = as_store(root)
-    target = store.plot_path(case_id, name)
+    target = store.plot_path(case_id, name if stage in (None, "total") else f"{name}-stage{stage}")
     if target.is_file():
         return target
     with _BUILD_LOCK:
         if not target.is_file():
-            figure = plot(store.open_case(case_id) if ds is None else ds)
+            data = store.open_case(case_id) if ds is None else ds
+            figure = plot(data) if stage is None else plot(data, stage=stage)
             write_atomically(target, lambda tmp: figure.savefig(tmp, format="png", dpi=110))
             logger.info("rendered %s of case %s", name, case_id)
     return target
 
 
-def render_report(root: StoreLike, case_id: str, ds=None) -> Path:
+def render_report(root: StoreLike, case_id: str, ds=None, *, title: dict | None = None) -> Path:
     """The cached PDF report of a stored case (:func:`workflows.report.case_report`), written
-    first if missing; kept beside the case's plots (removed with them when the case is)."""
-    from .report import case_report
+    first if missing; kept beside the case's plots (removed with them when the case is). A
+    report with a title block (``title``: :data:`workflows.report.TITLE_FIELDS`) is cached apart,
+    per title."""
+    from solver.spec import content_id
+
+    from .report import case_report, title_block
 
     store = as_store(root)
-    target = store.plot_dir(case_id) / "report.pdf"
+    given = {k: v for k, v in (title or {}).items() if v not in (None, "")}
+    if given:
+        title_block(given)  # refuse an unknown field before writing anything
+    stem = "report" if not given else f"report-{content_id(json.dumps(given, sort_keys=True))}"
+    target = store.plot_dir(case_id) / f"{stem}.pdf"
     if target.is_file():
         return target
     with _BUILD_LOCK:
         if not target.is_file():
-            pdf = case_report(store.open_case(case_id) if ds is None else ds)
+            pdf = case_report(store.open_case(case_id) if ds is None else ds, title=given)
             write_atomically(target, lambda tmp: Path(tmp).write_bytes(pdf))
             logger.info("wrote the report of case %s", case_id)
     return target

@@ -3,9 +3,9 @@
 Cases may have different meshes: each case is reduced (:func:`reduce_case`) to its
 0-d scalars and its interface quantities on one ``theta`` grid (0 to 180 by 1
 degree); the meshes stay in the per-case files. The reduced cases are stacked
-(:func:`stack_cases`) and labelled (:func:`label_cases`). :func:`open_results`
-answers from the store's index (:mod:`workflows.index`), which keeps the reduced
-cases; :func:`combine_files` reads every case file instead and is what the index
+(:func:`stack_cases`) and labelled (:func:`label_cases`). :func:`workflows.open_results`
+(:func:`workflows.result_store.open_results`) answers from the store's index
+(:mod:`workflows.index`), which keeps the reduced cases; :func:`combine_files` reads every case file instead and is what the index
 must reproduce exactly.
 
 Segmental linings (SPEC §1.6): the per-joint variables (dim ``joint``: ``joint_theta``,
@@ -28,7 +28,7 @@ import xarray as xr
 from solver.spec import is_number
 
 from .parameters import flat_parameters, parameter_attrs, varying_parameters
-from .result_store import ResultStore, StoreLike, as_store, check_case_id
+from .store_files import FilesLike, StoreFiles, check_case_id, files_of
 
 logger = logging.getLogger(__name__)
 
@@ -146,7 +146,7 @@ def label_cases(stacked: xr.Dataset, case_ids: Sequence[str], specs: Sequence[st
     return combined
 
 
-def requested_ids(store: ResultStore, case_ids: Sequence[str] | None) -> list[str]:
+def requested_ids(store: StoreFiles, case_ids: Sequence[str] | None) -> list[str]:
     """The case ids to combine: checked and without duplicates, or every stored case, sorted."""
     ids = list(dict.fromkeys(check_case_id(c) for c in case_ids)) if case_ids is not None \
         else store.case_ids()
@@ -155,15 +155,15 @@ def requested_ids(store: ResultStore, case_ids: Sequence[str] | None) -> list[st
     return ids
 
 
-def read_reduced(store: ResultStore, case_id: str) -> xr.Dataset:
+def read_reduced(store: StoreFiles, case_id: str) -> xr.Dataset:
     """:func:`reduce_case` of a stored case file."""
     with store.opened(case_id) as ds:
         return reduce_case(ds)
 
 
-def combine_files(root: StoreLike, case_ids: Sequence[str] | None = None) -> xr.Dataset:
-    """:func:`open_results` computed from the case files alone (no index); about 30 ms a case."""
-    store = as_store(root)
+def combine_files(root: FilesLike, case_ids: Sequence[str] | None = None) -> xr.Dataset:
+    """:func:`workflows.open_results` computed from the case files alone (no index); about 30 ms a case."""
+    store = files_of(root)
     ids = requested_ids(store, case_ids)
     parts = [read_reduced(store, c) for c in ids]
     return label_cases(stack_cases(parts), ids, [p.attrs["case_spec"] for p in parts],
@@ -174,40 +174,3 @@ def for_netcdf(combined: xr.Dataset) -> xr.Dataset:
     """Combined results as netCDF can hold them: the ``case`` MultiIndex (a pandas object)
     dropped, its levels kept as plain coordinates along ``case``."""
     return combined.reset_index("case") if "case" in combined.indexes else combined
-
-
-def open_results(root: StoreLike, case_ids: Sequence[str] | None = None) -> xr.Dataset:
-    """Stack stored cases into one Dataset with dimension ``case``.
-
-    Answers from the store's index (:mod:`workflows.index`), which is brought up to
-    date with the case files first; the result is identical to :func:`combine_files`.
-
-    Parameters
-    ----------
-    root : the result store, or the path of its folder.
-    case_ids : cases to combine, in this order (duplicates dropped); default: every
-        stored case, sorted by id.
-
-    Returns
-    -------
-    xr.Dataset
-        Dimension ``case`` with coordinate ``case_id``; every case parameter whose
-        value differs between the cases as a coordinate along ``case`` named
-        ``<section>_<field>`` (``ground_young`` for ``ground.young``, ``geometry_gap``
-        for ``geometry.gap``; the one exception is ``geometry.thickness``, named
-        ``lining_thickness``, see :mod:`workflows.parameters`); every interface
-        quantity of the cases (:func:`interface_quantities`: e.g. ``contact_pressure``,
-        ``thrust``, ``moment`` interpolated linearly, ``in_contact`` from the nearest
-        station; a segmental lining's ``utilization`` NaN at its joints) on ``(case, theta)``
-        with ``theta`` = 0, 1, ..., 180 deg; every 0-d scalar of the cases on ``case`` (the
-        joints' maxima among them; the per-joint variables stay in the case files); and
-        ``case_spec`` (canonical JSON) on ``case``.
-
-    Raises
-    ------
-    FileNotFoundError
-        If a requested case is not stored.
-    ValueError
-        If a case id is malformed or no case is given.
-    """
-    return as_store(root).open_results(case_ids)

@@ -134,50 +134,90 @@ def plot_contours(ds: xr.Dataset) -> Figure:
     return fig
 
 
-def plot_deformed_mesh(ds: xr.Dataset, *, scale: float | None = None) -> Figure:
-    """The ground and lining near the tunnel deformed by scaled displacements, coloured by the
-    displacement magnitude (mm); the undeformed excavation boundary dashed, the contact zone red,
-    a segmental lining's joints as lines across the lining (each face deformed with its segment, so
-    an open joint gapes; :mod:`workflows.joint_plots`).
+#: The views of the deformed mesh (``stage``): stage 1 (the unsupported ground, before the lining),
+#: stage 2 (both bodies from the lining's placement on), and the total (since excavation).
+STAGES = ("total", "1", "2")
 
-    The lining's own deformation (its ovalization, the displacement less the ring's mean
-    translation) is what the eye should see, so by default the scale makes the largest of it
-    12 % of the radius; the translation is stated in the title.
 
-    Parameters
-    ----------
-    ds : a case result.
-    scale : displacement magnification (default as above).
+def _placement_shift(ds: xr.Dataset, lining_nodes: np.ndarray) -> np.ndarray:
+    """(2, n) where each lining node was placed: the stage-1 displacement of the excavation
+    boundary at the node's angle (the lining is built in the hole as stage 1 left it), so that
+    the lining's displacement since placement plus this is its displacement since excavation."""
+    cy = float(np.mean(ds["interface_y"].values[[0, -1]]))
+    gn = ds["ground_node"].values.astype(np.int64)
+    theta = ds["theta"].values
+    x, y = ds["node_x"].values[lining_nodes], ds["node_y"].values[lining_nodes] - cy
+    at = np.degrees(np.arctan2(x, y))
+    return np.stack([np.interp(at, theta, ds[f"stage1_displacement_{c}"].values[gn]) for c in "xy"])
+
+
+def stage_displacements(ds: xr.Dataset, stage: str = "total") -> tuple[np.ndarray, np.ndarray, bool]:
+    """Node displacements (m) of every body in one reference for a view of the construction:
+    ``"1"`` the ground's of stage 1 (the lining is not there yet: ``False``), ``"2"`` both bodies'
+    since the lining was placed, ``"total"`` both since excavation (the lining's since placement
+    plus where it was placed). The ground is never drawn inside the lining: in every view the
+    interface's drawn gap is the contact's normal jump (zero where closed)."""
+    if stage not in STAGES:
+        raise ValueError(f"stage: one of {', '.join(STAGES)}, not {stage!r}")
+    ux, uy = ds["displacement_x"].values.copy(), ds["displacement_y"].values.copy()
+    lining = np.unique(ds["face_nodes"].values[ds["body"].values == 1])
+    u1x, u1y = ds["stage1_displacement_x"].values, ds["stage1_displacement_y"].values
+    if stage == "1":
+        return u1x.copy(), u1y.copy(), False
+    if stage == "2":
+        ground = np.ones(ux.size, bool)
+        ground[lining] = False
+        ux[ground] -= u1x[ground]
+        uy[ground] -= u1y[ground]
+        return ux, uy, True
+    shift = _placement_shift(ds, lining)
+    ux[lining] += shift[0]
+    uy[lining] += shift[1]
+    return ux, uy, True
+
+
+_STAGE_TITLES = {"total": "total since excavation (the lining from where it was placed)",
+                 "1": "stage 1: the unsupported ground before the lining",
+                 "2": "stage 2: both bodies since the lining was placed"}
+
+
+def plot_deformed_mesh(ds: xr.Dataset, *, scale: float | None = None, stage: str = "total") -> Figure:
+    """The ground and lining near the tunnel deformed by scaled displacements, every body in the
+    same reference (:func:`stage_displacements`: ``stage`` ``"total"``, ``"1"`` or ``"2"``),
+    coloured by the displacement magnitude (mm); the undeformed excavation boundary dashed, the
+    contact zone red, a segmental lining's joints as lines across the lining (each face deformed
+    with its segment, so an open joint gapes; :mod:`workflows.joint_plots`).
+
+    The lining's own deformation (its ovalization, the displacement since placement less the
+    ring's mean translation) is what the eye should see, so by default the scale makes the largest
+    of it 12 % of the radius (stage 1: the wall's largest displacement); the translation is stated
+    in the title.
     """
+    ux, uy, with_lining = stage_displacements(ds, stage)
     x, y = ds["node_x"].values, ds["node_y"].values
-    ux, uy = ds["displacement_x"].values, ds["displacement_y"].values
     tri = ds["face_nodes"].values.astype(np.int64)[:, :3]
     body = ds["body"].values
     cy, radius, view = _frame(ds)
     ring = ds["lining_node"].values.astype(np.int64)
-    shift = np.array([0.0, float(np.mean(uy[ring]))])  # symmetric: no mean horizontal motion
-    own = float(np.max(np.hypot(ux[ring] - shift[0], uy[ring] - shift[1])))
+    lx, ly = ds["displacement_x"].values[ring], ds["displacement_y"].values[ring]
+    shift = np.array([0.0, float(np.mean(ly))])  # symmetric: no mean horizontal motion
+    own = float(np.max(np.hypot(lx - shift[0], ly - shift[1])))
+    if not with_lining:
+        gn = ds["ground_node"].values.astype(np.int64)
+        own = float(np.max(np.hypot(ux[gn], uy[gn])))
     if scale is None:
         scale = 0.12 * radius / own if own > 0 else 1.0
     xd, yd = x + scale * ux, y + scale * uy
     magnitude = 1e3 * np.hypot(ux, uy)
-
     fig = Figure(figsize=(6.4, 7), layout="constrained")
     ax = fig.add_subplot()
-    ground = body == 0
-    art = ax.tripcolor(Triangulation(xd, yd, tri[ground]), magnitude, cmap="viridis", shading="gouraud",
-                       rasterized=True)
-    ax.triplot(Triangulation(xd, yd, tri[ground]), color="w", lw=0.15, alpha=0.5)
-    lining = tri[body == 1]
-    ax.add_collection(PolyCollection(np.stack([xd[lining], yd[lining]], axis=-1), facecolors="0.75",
-                                     edgecolors="0.45", linewidths=0.2, label="lining (deformed)"))
+    ground = tri[body == 0]
+    art = ax.tripcolor(Triangulation(xd, yd, ground), magnitude, cmap="viridis", shading="gouraud", rasterized=True)
+    ax.triplot(Triangulation(xd, yd, ground), color="w", lw=0.15, alpha=0.5)
+    if with_lining:
+        _deformed_lining(ax, ds, tri[body == 1], xd, yd, ring, scale, (ux, uy))
     ix, iy = ds["interface_x"].values, ds["interface_y"].values
     ax.plot(ix, iy, color="k", lw=1.0, ls="--", label="excavation boundary (undeformed)")
-    on = ds["in_contact"].values.astype(bool)
-    pts = np.column_stack([xd[ring], yd[ring]])
-    segs = [pts[i:i + 2] for i in range(len(pts) - 1) if on[i] and on[i + 1]]
-    ax.add_collection(LineCollection(segs, colors=_CONTACT_COLOR, linewidths=2.5, label="in contact"))
-    joint_plots.draw_on_mesh(ax, ds, scale=scale)
     _yielded_outline(ax, ds, tri, xd, yd)
     _ground_lines(ax, ds)
     ax.set_xlim(0.0, view)
@@ -188,9 +228,21 @@ def plot_deformed_mesh(ds: xr.Dataset, *, scale: float | None = None) -> Figure:
     bar = fig.colorbar(art, ax=ax, shrink=0.8)
     bar.set_label("displacement magnitude |u| (mm)", fontsize="small")
     ax.legend(loc="upper right", fontsize="x-small")
-    joints = joint_plots.summary(ds)
-    ax.set_title(f"Deformed mesh ×{scale:.3g}, {_title(ds)}\nring translation {1e3 * shift[1]:+.3g} mm "
-                 f"(up +), ring deformation up to {1e3 * own:.3g} mm"
+    joints = joint_plots.summary(ds) if with_lining else ""
+    ax.set_title(f"Deformed mesh ×{scale:.3g}, {_title(ds)}\n{_STAGE_TITLES[stage]}\n"
+                 + (f"ring translation {1e3 * shift[1]:+.3g} mm (up +), ring deformation up to {1e3 * own:.3g} mm"
+                    if with_lining else f"wall displacement up to {1e3 * own:.3g} mm")
                  + (f"\nsegmental lining: {joints}, largest opening {1e3 * float(ds['max_joint_opening']):.3g} mm"
                     if joints else ""), fontsize="medium")
     return fig
+
+
+def _deformed_lining(ax, ds, lining, xd, yd, ring, scale, displacement) -> None:
+    """The deformed lining, the contact zone on its extrados and its joints."""
+    ax.add_collection(PolyCollection(np.stack([xd[lining], yd[lining]], axis=-1), facecolors="0.75",
+                                     edgecolors="0.45", linewidths=0.2, label="lining (deformed)"))
+    on = ds["in_contact"].values.astype(bool)
+    pts = np.column_stack([xd[ring], yd[ring]])
+    segs = [pts[i:i + 2] for i in range(len(pts) - 1) if on[i] and on[i + 1]]
+    ax.add_collection(LineCollection(segs, colors=_CONTACT_COLOR, linewidths=2.5, label="in contact"))
+    joint_plots.draw_on_mesh(ax, ds, scale=scale, displacement=displacement)

@@ -22,7 +22,7 @@ Files (under ``<root>/index/``)::
 How it stays true
 -----------------
 A row is used only while its recorded key (inode, size, mtime, ctime of the case file,
-:func:`workflows.result_store.file_key`) equals the key of the file in ``cases/`` now, so a
+:func:`workflows.store_files.file_key`) equals the key of the file in ``cases/`` now, so a
 case forced again (a new file) or removed is never answered from an old row. Writers
 never touch ``results.nc``: each stored case writes its own pending entry (atomically,
 carrying the key of the file it describes), so concurrent workers cannot lose each
@@ -50,7 +50,6 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import dask
 import numpy as np
@@ -59,10 +58,7 @@ from xarray.backends.netCDF4_ import NETCDF4_PYTHON_LOCK
 
 from .combine import label_cases, read_reduced, reduce_case, stack_cases
 from .files import verify, write_atomically
-from .result_store import OPEN_OPTIONS, FileKey, check_case_id, file_key, netcdf_encoding, netcdf_lock
-
-if TYPE_CHECKING:
-    from .result_store import ResultStore
+from .store_files import OPEN_OPTIONS, FileKey, StoreFiles, check_case_id, file_key, netcdf_encoding, netcdf_lock
 
 logger = logging.getLogger(__name__)
 
@@ -115,9 +111,10 @@ class _Table:
 
 
 class ResultIndex:
-    """The index of a :class:`~workflows.result_store.ResultStore` (see the module docstring)."""
+    """The index of the files of a store (:class:`~workflows.store_files.StoreFiles`; see the
+    module docstring)."""
 
-    def __init__(self, store: ResultStore):
+    def __init__(self, store: StoreFiles):
         self.store = store
         self.path = store.index_dir / "results.nc"
         self.pending_dir = store.index_dir / "pending"

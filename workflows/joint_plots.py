@@ -131,12 +131,15 @@ def summary(ds: xr.Dataset) -> str:
     return f"{theta.size} joint{'s' * (theta.size != 1)}, {int(is_open.sum())} open" if theta.size else ""
 
 
-def draw_on_mesh(ax, ds: xr.Dataset, *, scale: float = 0.0) -> None:
+def draw_on_mesh(ax, ds: xr.Dataset, *, scale: float = 0.0, displacement=None) -> None:
     """Each joint's faces as lines across the lining, at the nodes displaced by ``scale`` times
-    their displacement (0: undeformed), so a magnified open joint shows its wedge."""
+    their displacement (0: undeformed; ``displacement`` (ux, uy) in the figure's reference, else
+    the stored one), so a magnified open joint shows its wedge."""
     x, y = ds["node_x"].values, ds["node_y"].values
     if scale:
-        x, y = x + scale * ds["displacement_x"].values, y + scale * ds["displacement_y"].values
+        ux, uy = displacement if displacement is not None else (ds["displacement_x"].values,
+                                                                ds["displacement_y"].values)
+        x, y = x + scale * ux, y + scale * uy
     seen: set[bool] = set()
     for _, is_open, faces in joint_faces(ds):
         for face in faces:

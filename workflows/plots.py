@@ -26,6 +26,7 @@ from .case_plots import (
 )
 from .case_plots import plot_interaction as plot_case_interaction
 from .field_plots import plot_contours, plot_deformed_mesh
+from .model_plot import plot_model
 from .units import DIAGNOSTICS, display_unit
 
 
@@ -58,7 +59,10 @@ PLOTS: dict[str, Callable[[xr.Dataset], Figure]] = {
     "deformed_mesh": plot_deformed_mesh,
     "contours": plot_contours,
     "ground_reaction": plot_ground_reaction,
+    "model": plot_model,
 }
+#: Plots that show one construction stage at a time (``stage``: "total", "1", "2").
+STAGED_PLOTS = ("deformed_mesh",)
 
 
 # -- figures of a sweep (many cases) ------------------------------------------------------

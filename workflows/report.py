@@ -1,11 +1,14 @@
 """The printable record of one case: a PDF of A4 pages (matplotlib's PDF backend).
 
-Page 1: the design answer (PASS/FAIL with the utilization and where; for a segmental lining
-also whether every joint carries its thrust within its contact strip), the results in
-engineering units, the warnings. Page 2: every input with its unit, and the solver's
-diagnostics. A segmental lining then has a page of its joints (θ, N, M, |M|/(N·a/2), opening,
-rotation, open). Then one page per figure of :data:`workflows.plots.PLOTS`, each fitted to an
-A4 landscape page with the case id and the page number in the margin.
+A calculation record. Page 1: the title block (project, job, author, checker, revision, date),
+the design answer (PASS/FAIL with what governs, the utilization and where; for a segmental
+lining also whether every joint carries its thrust within its contact strip), the results in
+engineering units, the warnings. Page 2: the whole model (figure 1). Page 3: the stratigraphy
+and every other input with its unit, and the solver's diagnostics. Page 4: the design basis
+(code clauses, partial factors). A segmental lining then has a page of its joints (θ, N, M,
+|M|/(N·a/2), opening, rotation, open). Then one page per figure of :data:`workflows.plots.PLOTS`,
+numbered and captioned, as vector graphics on A4 landscape pages with the case id and the page
+number in the margin.
 """
 from __future__ import annotations
 
@@ -20,18 +23,19 @@ from matplotlib.backends.backend_pdf import PdfPages
 from matplotlib.figure import Figure
 from matplotlib.patches import FancyBboxPatch
 
+from solver.lining.design import ALPHA_CC, ALPHA_CC_PL, EPS_UD, ES, GAMMA_C, GAMMA_S
 from solver.results.dataset import SCALARS
 
 from .joint_check import joint_check, joint_report, statement
 from .joint_plots import OPEN_STYLE, has_joints
 from .parameters import flat_parameters, parameter_attrs
-from .result_store import case_warnings
+from .store_files import case_warnings
+from .case_plots import load_factor
+from .tables import utilization_report
 from .units import DIAGNOSTICS, input_unit, shown_value
 
 A4_PORTRAIT = (8.27, 11.69)
 A4_LANDSCAPE = (11.69, 8.27)
-#: Resolution of the figures placed on the pages (dots per inch).
-FIGURE_DPI = 170
 _PASS, _FAIL = "#1b7f3b", "#b3261e"
 
 
@@ -48,8 +52,6 @@ def _margins(fig: Figure, ds: xr.Dataset, page: int, pages: int) -> None:
 
 def _verdict(ds: xr.Dataset) -> tuple[str, str, list[str]]:
     """``(word, colour, lines)`` of the design answer."""
-    from .commands import utilization_report
-
     if "utilization" not in ds or np.isnan(ds["utilization"].values).all():
         return "NO CHECK", "0.4", ["no EN 1992 check in this result"]
     eta = float(np.nanmax(ds["utilization"].values))
@@ -59,6 +61,10 @@ def _verdict(ds: xr.Dataset) -> tuple[str, str, list[str]]:
     lines = utilization_report(ds).splitlines()
     if check is not None:  # the section away from the joints, then the joints' strips
         lines += joint_report(ds).splitlines()
+        if not passes:  # say first what fails, so no line of a FAIL reads as the answer
+            governs = "the joints' contact strips" if eta <= 1 else (
+                "the section and the joints" if not check.passes else "the lining section")
+            lines.insert(0, f"fails by {governs}; each check below:")
     return word, colour, lines
 
 
@@ -75,26 +81,65 @@ def _table(fig: Figure, top: float, rows: list[tuple[str, str, str]], *, title: 
     return y - 0.012
 
 
-def _summary_page(ds: xr.Dataset, spec: dict, page: int, pages: int) -> Figure:
+#: The title block's fields (optional, given with the request or on the command line).
+TITLE_FIELDS = ("project", "job", "author", "checker", "revision", "date")
+_TITLE_LABELS = {"project": "Project", "job": "Job no.", "author": "Author", "checker": "Checked",
+                 "revision": "Rev.", "date": "Date"}
+
+
+def title_block(title: dict | None) -> dict[str, str]:
+    """The title block's fields, every one present (blank where not given; the date today's)."""
+    title = {k: str(v) for k, v in (title or {}).items() if v not in (None, "")}
+    unknown = sorted(set(title) - set(TITLE_FIELDS))
+    if unknown:
+        raise ValueError(f"{unknown[0]}: not a title block field (one of {', '.join(TITLE_FIELDS)})")
+    today = datetime.now(timezone.utc).date().isoformat()
+    return {k: title.get(k, today if k == "date" else "") for k in TITLE_FIELDS}
+
+
+def _title_block(fig: Figure, ds: xr.Dataset, title: dict[str, str]) -> None:
+    """A calculation record's title block across the top of page 1: project, job number, what
+    is calculated, author, checker, revision and date, each in its own ruled cell."""
+    name = ds.attrs.get("name") or f"case {ds.attrs.get('case_id', '?')}"
+    cells = [("Project", title["project"], 0.06, 0.50), ("Job no.", title["job"], 0.50, 0.72),
+             ("Rev.", title["revision"], 0.72, 0.82), ("Date", title["date"], 0.82, 0.94),
+             ("Calculation", f"tunnel lining: {name}", 0.06, 0.50), ("Author", title["author"], 0.50, 0.72),
+             ("Checked", title["checker"], 0.72, 0.94)]
+    top, row = 0.965, 0.032
+    for k, (label, value, x0, x1) in enumerate(cells):
+        y1 = top - row * (k >= 4)
+        fig.patches.append(FancyBboxPatch((x0, y1 - row), x1 - x0, row, boxstyle="square,pad=0",
+                                          transform=fig.transFigure, facecolor="none", edgecolor="0.3", lw=0.6))
+        fig.text(x0 + 0.005, y1 - 0.004, label, fontsize=6, color="0.45", va="top")
+        fig.text(x0 + 0.005, y1 - row + 0.005, textwrap.shorten(value, int(95 * (x1 - x0)), placeholder="…"),
+                 fontsize=8.5, va="bottom", gid=f"title-{label.lower().rstrip('.')}")
+
+
+def _summary_page(ds: xr.Dataset, spec: dict, page: int, pages: int, title: dict[str, str]) -> Figure:
     fig = _page()
     _margins(fig, ds, page, pages)
-    fig.text(0.06, 0.955, "Case report", fontsize=20, weight="bold", va="top")
+    _title_block(fig, ds, title)
+    fig.text(0.06, 0.89, "Lining design check", fontsize=16, weight="bold", va="top")
     geometry, ground = spec.get("geometry", {}), spec.get("ground", {})
+    layers = ground.get("layers") or []
+    models = sorted({str(layer.get("model") or ground.get("model", "elastic")) for layer in layers}) or \
+        [str(ground.get("model", "elastic"))]
+    kind = (f"{len(layers)} layers ({', '.join(models)})" if layers else models[0])
     what = (f"lining {geometry.get('thickness', '?')} m thick, inner radius {geometry.get('inner_radius', '?')} m, "
-            f"cover {geometry.get('depth', '?')} m to the axis; ground {ground.get('model', 'linear-elastic')}, "
+            f"axis depth {geometry.get('depth', '?')} m; ground {kind}, "
             f"interface {spec.get('interface', {}).get('model', '?')}")
     segments = spec.get("lining", {}).get("joints", {}).get("count", 0)
     if segments:
         what += f"; segmental lining of {segments} segments"
-    fig.text(0.06, 0.915, "\n".join(textwrap.wrap(what, 95)), fontsize=9, va="top", color="0.25")
+    fig.text(0.06, 0.86, "\n".join(textwrap.wrap(what, 95)), fontsize=9, va="top", color="0.25")
     word, colour, lines = _verdict(ds)
     wrapped = [part for line in lines for part in textwrap.wrap(line, 78, subsequent_indent="    ")]
-    bottom = min(0.78, 0.866 - 0.0112 * len(wrapped) - 0.008)  # room for the joints' lines
+    bottom = min(0.72, 0.81 - 0.0112 * len(wrapped) - 0.008)  # room for the joints' lines
     fig.patches.append(FancyBboxPatch(
-        (0.06, bottom), 0.88, 0.875 - bottom, boxstyle="round,pad=0.005", transform=fig.transFigure,
+        (0.06, bottom), 0.88, 0.82 - bottom, boxstyle="round,pad=0.005", transform=fig.transFigure,
         facecolor=colour, alpha=0.1, edgecolor=colour, lw=1.5))
-    fig.text(0.08, 0.86, word, fontsize=26, weight="bold", color=colour, va="top", gid="verdict")
-    fig.text(0.27, 0.866, "\n".join(wrapped), fontsize=7.5, va="top", family="monospace")
+    fig.text(0.08, 0.805, word, fontsize=26, weight="bold", color=colour, va="top", gid="verdict")
+    fig.text(0.27, 0.811, "\n".join(wrapped), fontsize=7.5, va="top", family="monospace")
     joints = has_joints(ds)
     rows = [(SCALARS.get(name, ("", name))[1], shown_value(ds[name].values, SCALARS[name][0], name), name)
             for name in SCALARS if name in ds and name not in DIAGNOSTICS
@@ -111,22 +156,108 @@ def _summary_page(ds: xr.Dataset, spec: dict, page: int, pages: int) -> Figure:
     return fig
 
 
+#: The stratigraphy table's columns: (heading, value of a :class:`solver.ground.strata.Stratum`).
+STRATA_COLUMNS = (
+    ("layer", lambda s, g: str(s.index)),
+    ("from–to (m)", lambda s, g: f"{s.top:g}–{s.bottom:g}"),
+    ("γ (kN/m³)", lambda s, g: f"{s.density * g / 1e3:.3g}"),
+    ("E (MPa)", lambda s, g: f"{s.young / 1e6:.4g}" + (f" +{s.young_gradient / 1e6:.3g}/m" if s.young_gradient else "")),
+    ("ν", lambda s, g: f"{s.poisson:.3g}"),
+    ("K0", lambda s, g: f"{s.k0:.3g}"),
+    ("model", lambda s, g: s.model),
+    ("c (kPa)", lambda s, g: f"{s.cohesion / 1e3:.3g}" if s.model == "mohr-coulomb" else "–"),
+    ("φ (°)", lambda s, g: f"{s.friction_angle:.3g}" if s.model == "mohr-coulomb" else "–"),
+    ("k (m/s)", lambda s, g: f"{s.permeability:.2g}"),
+)
+
+
+def stratigraphy(spec: dict) -> list[list[str]]:
+    """The ground's layers as text cells (:data:`STRATA_COLUMNS`), every property resolved as the
+    solver uses it (a one-layer ground is one row)."""
+    from solver.ground.strata import strata
+    from solver.spec import CaseSpec
+
+    case = CaseSpec.model_validate(spec)
+    return [[cell(s, case.loads.gravity) for _, cell in STRATA_COLUMNS] for s in strata(case)]
+
+
+def _layered_inputs(spec: dict) -> set[str]:
+    """Flat input names the stratigraphy table states instead (a layer's own values apply)."""
+    from solver.spec import LAYER_FIELDS
+
+    if not (spec.get("ground") or {}).get("layers"):
+        return set()
+    return {f"ground_{field}" for field in LAYER_FIELDS} | {"loads_lateral_ratio"}
+
+
+def _stratigraphy_table(fig: Figure, top: float, spec: dict) -> float:
+    fig.text(0.06, top, "Stratigraphy (depths below the ground surface)", fontsize=11.5, weight="bold", va="top")
+    x = (0.07, 0.13, 0.25, 0.35, 0.50, 0.56, 0.62, 0.73, 0.80, 0.87)
+    y = top - 0.03
+    for xi, (heading, _) in zip(x, STRATA_COLUMNS):
+        fig.text(xi, y, heading, fontsize=7.5, weight="bold", va="top")
+    for cells in stratigraphy(spec):
+        y -= 0.018
+        for xi, cell in zip(x, cells):
+            fig.text(xi, y, cell, fontsize=7.5, va="top", family="monospace")
+    return y - 0.03
+
+
 def _inputs_page(ds: xr.Dataset, page: int, pages: int) -> Figure:
     fig = _page()
     _margins(fig, ds, page, pages)
-    params = flat_parameters(ds.attrs.get("case_spec", "{}"))
+    spec = json.loads(ds.attrs.get("case_spec", "{}"))
+    y = _stratigraphy_table(fig, 0.955, spec)
+    skip = _layered_inputs(spec)
+    params = {name: value for name, value in flat_parameters(ds.attrs.get("case_spec", "{}")).items()
+              if name not in skip and not name.startswith("ground_layers_")}
     rows = []
     for name, value in params.items():
         attrs = parameter_attrs(name, numeric=isinstance(value, (int, float)) and not isinstance(value, bool))
         unit, factor = input_unit(name, attrs.get("units"))
         text = f"{value * factor:.6g}" if isinstance(value, float) else str(value)
         rows.append((attrs.get("long_name", name), f"{text} {unit}".strip(), name))
-    step = min(0.0205, 0.70 / max(len(rows), 1))
-    y = _table(fig, 0.955, rows, title="Inputs (every default filled in; JSON names on the right, in SI there)",
+    step = min(0.0185, (y - 0.2) / max(len(rows), 1))
+    y = _table(fig, y, rows, title="Other inputs (every default filled in; JSON names on the right, in SI there)",
                size=min(8.5, 420 * step), step=step)
     diagnostics = [(SCALARS[name][1], shown_value(ds[name].values, SCALARS[name][0], name), name)
                    for name in DIAGNOSTICS if name in ds]
-    _table(fig, max(y, 0.2), diagnostics, title="Solver diagnostics (how the answer was found)", size=8, step=0.019)
+    _table(fig, max(y, 0.16), diagnostics, title="Solver diagnostics (how the answer was found)", size=8, step=0.017)
+    return fig
+
+
+def _basis_page(ds: xr.Dataset, spec: dict, page: int, pages: int) -> Figure:
+    """The design basis: the code clauses and partial factors this check used, and what the
+    model assumes (a calculation record states them)."""
+    fig = _page()
+    _margins(fig, ds, page, pages)
+    design = spec.get("design", {})
+    gamma = load_factor(ds)
+    fck = float(design.get("concrete_strength", float("nan"))) / 1e6
+    fyk = float(design.get("steel_strength", float("nan"))) / 1e6
+    area = float(design.get("reinforcement_area", 0.0))
+    lines = [
+        ("Standard", "EN 1992-1-1:2004 (Eurocode 2), recommended values of the partial factors"),
+        ("Actions", f"the FE section forces N, M, V times γF = {gamma:g} (design.load_factor) for the ULS; "
+                    "SLS checks at characteristic values (γF = 1)"),
+        ("Concrete", f"fck = {fck:g} MPa, γC = {GAMMA_C:g}, αcc = {ALPHA_CC:g} (reinforced) / αcc,pl = "
+                     f"{ALPHA_CC_PL:g} (plain, §12.3.1): fcd = αcc fck / γC; parabola–rectangle diagram (3.17)"),
+        ("Steel", f"fyk = {fyk:g} MPa, γS = {GAMMA_S:g}, Es = {ES / 1e9:g} GPa, class B, εud = {EPS_UD:g} (§3.2.7)"
+                  + (f"; As = {area * 1e4:.3g} cm²/m per face" if area else "; plain section (no reinforcement)")),
+        ("N–M", "§6.1: the section's design resistance envelope at the design thrust; where bending governs a "
+                "lower thrust is unfavourable"),
+        ("Plain sections", "§12.6.1 (12.10), the rectangular stress block, no tension; the joints' contact "
+                           "strips checked by (12.10) as plain sections"),
+        ("Model", "2D plane strain, P2 elements, staged excavation (λd released before the lining), contact "
+                  "by the bolt-point method (Janovský & Procházka 1980); small displacements"),
+    ]
+    fig.text(0.06, 0.955, "Design basis: code clauses and partial factors", fontsize=14, weight="bold", va="top")
+    y = 0.91
+    for head, text in lines:
+        wrapped = textwrap.wrap(text, 88)
+        fig.text(0.07, y, head, fontsize=9, weight="bold", va="top")
+        fig.text(0.25, y, "\n".join(wrapped), fontsize=9, va="top")
+        y -= 0.022 * len(wrapped) + 0.012
     return fig
 
 
@@ -193,45 +324,56 @@ def _joints_page(ds: xr.Dataset, spec: dict, page: int, pages: int) -> Figure:
     return fig
 
 
-def _figure_page(ds: xr.Dataset, figure: Figure, name: str, page: int, pages: int) -> Figure:
-    """``figure`` rasterized and fitted to an A4 landscape page (vector pages of 20 000 mesh
-    faces would print slowly and weigh megabytes)."""
-    from matplotlib.image import imread
-
-    buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=FIGURE_DPI)
-    buffer.seek(0)
-    image = imread(buffer)
-    fig = _page(A4_LANDSCAPE)
-    _margins(fig, ds, page, pages)
-    fig.text(0.04, 0.95, name.replace("_", " "), fontsize=13, weight="bold", va="top")
-    h, w = image.shape[:2]
-    box_w, box_h = 0.92, 0.86  # figure fractions below the heading
-    aspect = (w / h) * (A4_LANDSCAPE[1] / A4_LANDSCAPE[0])  # width fraction per height fraction
-    width, height = (box_w, box_w / aspect) if box_w / aspect <= box_h else (box_h * aspect, box_h)
-    ax = fig.add_axes(((1 - width) / 2, 0.04 + (box_h - height) / 2, width, height))
-    ax.imshow(image, interpolation="antialiased")
-    ax.set_axis_off()
-    return fig
+#: Each figure's caption in the report (what it shows and how to read it).
+CAPTIONS = {
+    "model": "The model: the half section with its layers, the water table, the boundary conditions and the mesh.",
+    "contact_pressure": "Contact pressure on the lining's extrados against the angle from the crown.",
+    "lining_forces": "The lining's section forces: thrust N, bending moment M and shear V around the ring.",
+    "interaction": "N–M interaction: the design section forces of every station against the EN 1992 envelope.",
+    "surface_settlement": "Surface settlement: the FE trough and the Gaussian trough holding the ground loss.",
+    "deformed_mesh": "The deformed mesh (magnified), every body in one reference since excavation.",
+    "contours": "Fields near the tunnel: displacement, effective stresses, pore pressure and plastic strain.",
+    "ground_reaction": "Convergence–confinement: the ground reaction curve, the lining's line and the FE end state.",
+}
 
 
-def case_report(ds: xr.Dataset) -> bytes:
-    """The PDF report of a case result (bytes)."""
+def _figure_page(ds: xr.Dataset, figure: Figure, name: str, page: int, pages: int, number: int) -> Figure:
+    """``figure`` itself as an A4 landscape page, numbered and captioned, kept as vector graphics
+    (the mesh plots rasterize their thousands of faces themselves, their lines and text stay vector)."""
+    figure.set_size_inches(*A4_LANDSCAPE)
+    engine = figure.get_layout_engine()
+    if engine is not None and hasattr(engine, "set"):
+        engine.set(rect=(0.02, 0.07, 0.96, 0.87))  # room for the heading and the caption
+    _margins(figure, ds, page, pages)
+    figure.text(0.04, 0.95, f"Figure {number}: {name.replace('_', ' ')}", fontsize=13, weight="bold", va="top")
+    caption = CAPTIONS.get(name, name.replace("_", " "))
+    figure.text(0.04, 0.045, f"Figure {number}. {caption}", fontsize=9, va="bottom", style="italic", gid="caption")
+    return figure
+
+
+def case_report(ds: xr.Dataset, title: dict | None = None) -> bytes:
+    """The PDF report of a case result (bytes): a calculation record with the title block's
+    fields (:data:`TITLE_FIELDS`, optional) on page 1."""
     from .plots import PLOTS
 
+    title = title_block(title)
     spec = json.loads(ds.attrs.get("case_spec", "{}"))
     joints = has_joints(ds)
-    pages = 2 + joints + len(PLOTS)
+    pages = 3 + joints + len(PLOTS)
     buffer = io.BytesIO()
     created = datetime.now(timezone.utc).replace(microsecond=0)
     with PdfPages(buffer, metadata={"Title": f"tunnel-contact case {ds.attrs.get('case_id', '')}",
                                      "Creator": f"tunnel-contact {ds.attrs.get('software_version', '')}",
                                      "CreationDate": created}) as pdf:
-        pdf.savefig(_summary_page(ds, spec, 1, pages))
-        pdf.savefig(_inputs_page(ds, 2, pages))
+        pdf.savefig(_summary_page(ds, spec, 1, pages, title))
+        # page 2: the whole model, as the engineer checks it before any result
+        pdf.savefig(_figure_page(ds, PLOTS["model"](ds), "model", 2, pages, 1))
+        pdf.savefig(_inputs_page(ds, 3, pages))
+        pdf.savefig(_basis_page(ds, spec, 4, pages))
         if joints:
-            pdf.savefig(_joints_page(ds, spec, 3, pages))
-        for k, (name, plot) in enumerate(PLOTS.items(), start=3 + joints):
-            pdf.savefig(_figure_page(ds, plot(ds), name, k, pages))
+            pdf.savefig(_joints_page(ds, spec, 5, pages))
+        rest = [(name, plot) for name, plot in PLOTS.items() if name != "model"]
+        for k, (name, plot) in enumerate(rest, start=5 + joints):
+            pdf.savefig(_figure_page(ds, plot(ds), name, k, pages, k - 3 - joints))
     return buffer.getvalue()
 

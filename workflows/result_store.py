@@ -1,42 +1,24 @@
 """The result store: :class:`ResultStore`, the one object that knows the file layout.
 
-Layout under the results directory ``root``::
+Its files (layout, reading, checksums) are :class:`workflows.store_files.StoreFiles`, which
+it extends with what stands on them: the index of stored results (:mod:`workflows.index`),
+combined results, and solving a case into the store. Dependence runs in one line:
+``store_files -> summary -> combine -> index -> result_store``.
 
-    cases/<case_id>.nc                 the result Dataset of a case (SPEC §3): the truth
-    cases/<case_id>.nc.b2              its checksum (workflows.files)
-    cases/<case_id>.error.json         why the case could not be solved
-    plots/<case_id>/<name>.png         cached figures of a case (workflows.artifacts)
-    sweeps/<sweep_id>-<digest>.nc      combined result of a sweep's finished cases
-    sweeps/plots/<sweep_id>-<digest>-<name>.png   cached figures of those cases
-    sweeps/records/<sweep_id>.json     what a sweep was (the job records are rebuilt from it)
-    index/results.nc                   index of every case's scalars and θ-grid
-                                       interface quantities (workflows.index)
-    index/pending/<case_id>.entry      a case's index entry, written as the case lands
-    cancel/<case_id>                   a request to give up the running case
-
-Every file is written atomically by :func:`workflows.files.write_atomically` (a held
-lock, a temporary in the same folder, flush, fsync, ``os.replace``): a reader never sees
-a half-written file under a final name, and a crash leaves at most a temporary that
-:meth:`ResultStore.remove_stale_temporaries` removes once its writer has gone. Case files
-carry a checksum, verified before they are read: a damaged file is treated as missing.
-This module is the only one that writes case files.
+Every file is written atomically by :func:`workflows.files.write_atomically` (see
+:mod:`workflows.store_files` for the layout). This module is the only one that writes case files.
 """
 from __future__ import annotations
 
 import errno
-import hashlib
 import json
 import logging
 import os
-import re
 import shutil
-import threading
 import time
-from contextlib import contextmanager
-from collections.abc import Collection, Iterator, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Union
+from typing import Any, Union
 
 import dask
 import xarray as xr
@@ -44,250 +26,32 @@ import xarray as xr
 import solver
 from solver.limits import CaseCancelled
 from solver.model import shared_model
-from solver.geometry.sizing import estimated_elements
 from solver.spec import CaseSpec
 
-from .files import remove_checksum, remove_stale_temporaries, verify, write_atomically
+from .files import remove_checksum, remove_stale_temporaries, write_atomically
+from .index import ResultIndex
+from .store_files import (OPEN_OPTIONS, RESULT_BYTES_PER_ELEMENT, RESULT_MARGIN, STORE_FULL, FileKey,
+                          StoreFiles, StoreFull, case_warnings, check_case_id, estimated_result_bytes, file_key,
+                          free_bytes, netcdf_encoding, netcdf_lock)
 from .summary import summarize
 
-if TYPE_CHECKING:
-    from .index import ResultIndex
+__all__ = ["OPEN_OPTIONS", "RESULT_BYTES_PER_ELEMENT", "RESULT_MARGIN", "STORE_FULL", "FileKey", "ResultStore",
+           "StoreFiles", "StoreFull", "StoreLike", "as_store", "case_warnings", "check_case_id",
+           "estimated_result_bytes", "file_key", "free_bytes", "netcdf_encoding", "netcdf_lock", "open_case",
+           "open_results", "run_and_store"]
 
 logger = logging.getLogger(__name__)
 
-#: Every netCDF read and write of this process goes through this lock: the netCDF-C and
-#: HDF5 libraries are not thread-safe (the API serves several plots at once from threads,
-#: and two concurrent reads crashed it in HDF5). Re-entrant, so nested helpers may take it.
-netcdf_lock = threading.RLock()
 
-_CASE_ID = re.compile(r"[0-9a-f]{16}")
-#: Bytes a stored result takes per element of the mesh estimate (measured 380-400 for an
-#: elastic case; plasticity and water add fields) and what its figures, report and index
-#: entry add: the room a case needs before it is solved.
-RESULT_BYTES_PER_ELEMENT = 600
-RESULT_MARGIN = 4 << 20
-#: How a full store's failure starts (the service retries such cases once there is room).
-STORE_FULL = "StoreFull"
-#: Options every stored netCDF file is opened with: values come back exactly as written
-#: (integer ``face_nodes`` keep their dtype and ``_FillValue`` attribute).
-OPEN_OPTIONS: dict[str, Any] = dict(
-    engine="netcdf4", mask_and_scale=False, decode_times=False, decode_timedelta=False)
-
-
-class StoreFull(OSError):
-    """The results store has no room for a case's result (a full disk or quota)."""
-
-    def __init__(self, message: str):
-        super().__init__(errno.ENOSPC, message)
-
-    def __str__(self) -> str:
-        return self.strerror
-
-
-def estimated_result_bytes(spec: CaseSpec) -> int:
-    """Room (bytes) the result of ``spec`` needs in the store, from its mesh estimate."""
-    return RESULT_BYTES_PER_ELEMENT * estimated_elements(spec) + RESULT_MARGIN
-
-
-def free_bytes(root: Path | str) -> int:
-    """Bytes available to this process in the file system of ``root`` (of its nearest existing
-    parent while it is not made yet; 0 if unreachable)."""
-    path = Path(root).absolute()
-    while not path.exists() and path != path.parent:
-        path = path.parent
-    try:
-        return shutil.disk_usage(path).free
-    except OSError:
-        return 0
-
-
-def check_case_id(case_id: str) -> str:
-    """Return ``case_id`` if it is 16 lowercase hex digits, else raise ``ValueError``.
-
-    Every id is checked before it becomes part of a path.
-    """
-    if not _is_case_id(case_id):
-        raise ValueError(f"case id {case_id!r} is not 16 lowercase hex digits")
-    return case_id
-
-
-def _is_case_id(value: Any) -> bool:
-    return isinstance(value, str) and bool(_CASE_ID.fullmatch(value))
-
-
-#: What identifies one version of a case file: (inode, size, mtime ns, ctime ns).
-#: A rewrite (``os.replace`` of a new file) changes it.
-FileKey = tuple[int, int, int, int]
-
-
-def file_key(stat: os.stat_result) -> FileKey:
-    """The :data:`FileKey` of a ``stat`` result."""
-    return (stat.st_ino, stat.st_size, stat.st_mtime_ns, stat.st_ctime_ns)
-
-
-@dataclass(frozen=True)
-class ResultStore:
-    """The results directory ``root`` and everything stored under it.
+class ResultStore(StoreFiles):
+    """The results directory ``root`` and everything stored under it: its files
+    (:class:`~workflows.store_files.StoreFiles`), their index, and the solving of cases into it.
 
     Cheap to create and picklable (it holds only the path), so it can be handed to
     dask tasks; all state is in the files.
     """
 
-    root: Path
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "root", Path(self.root))
-
-    # -- layout ------------------------------------------------------------------------
-
-    @property
-    def cases_dir(self) -> Path:
-        """Folder of the case files."""
-        return self.root / "cases"
-
-    def case_path(self, case_id: str) -> Path:
-        """Path of the result file of ``case_id`` (it may not exist)."""
-        return self.cases_dir / f"{check_case_id(case_id)}.nc"
-
-    def error_path(self, case_id: str) -> Path:
-        """Path of the error record of ``case_id`` (it may not exist)."""
-        return self.cases_dir / f"{check_case_id(case_id)}.error.json"
-
-    def plot_dir(self, case_id: str) -> Path:
-        """Folder of the cached figures of ``case_id``."""
-        return self.root / "plots" / check_case_id(case_id)
-
-    def plot_path(self, case_id: str, name: str) -> Path:
-        """Where the PNG ``name`` of ``case_id`` is cached."""
-        return self.plot_dir(case_id) / f"{name}.png"
-
-    @property
-    def sweeps_dir(self) -> Path:
-        """Folder of the combined files of sweeps."""
-        return self.root / "sweeps"
-
-    def combined_path(self, sweep_id: str, case_ids: Sequence[str]) -> Path:
-        """Where the combined file of ``sweep_id`` over exactly ``case_ids`` is kept.
-
-        The name carries a digest of the case ids, so a file never goes stale as more
-        cases of the sweep finish.
-        """
-        return self.sweeps_dir / f"{check_case_id(sweep_id)}-{_digest(case_ids)}.nc"
-
-    def sweep_plot_path(self, sweep_id: str, case_ids: Sequence[str], name: str) -> Path:
-        """Where the PNG ``name`` of ``sweep_id`` over exactly ``case_ids`` is cached."""
-        return self.sweeps_dir / "plots" / f"{check_case_id(sweep_id)}-{_digest(case_ids)}-{name}.png"
-
-    def cancel_marker(self, case_id: str) -> Path:
-        """The file that asks the process solving ``case_id`` to give it up."""
-        return self.root / "cancel" / check_case_id(case_id)
-
-    def request_cancel(self, case_id: str) -> None:
-        """Ask whoever solves ``case_id`` to give it up (seen within half a second)."""
-        marker = self.cancel_marker(case_id)
-        marker.parent.mkdir(parents=True, exist_ok=True)
-        marker.touch()
-
-    def cancel_requested(self, case_id: str) -> bool:
-        return self.cancel_marker(case_id).exists()
-
-    def clear_cancel(self, case_id: str) -> None:
-        self.cancel_marker(case_id).unlink(missing_ok=True)
-
-    @property
-    def records_dir(self) -> Path:
-        """Folder of the sweep records (one small JSON file per sweep, :meth:`write_sweep_record`)."""
-        return self.sweeps_dir / "records"
-
-    def write_sweep_record(self, sweep_id: str, name: str, spec_json: str, case_ids: Sequence[str]) -> Path:
-        """Record a sweep beside its results (atomically; an existing record is kept): its name,
-        canonical JSON and case ids in order. The command line writes it for every sweep it
-        runs, the service for every sweep it accepts: the service lists the sweeps of either
-        and can rebuild its job records from these files and the results."""
-        target = self.records_dir / f"{check_case_id(sweep_id)}.json"
-        if not target.is_file():
-            record = {"id": sweep_id, "name": name, "spec": json.loads(spec_json), "case_ids": list(case_ids),
-                      "submitted_at": time.time()}
-            write_atomically(target, lambda tmp: Path(tmp).write_text(json.dumps(record)))
-        return target
-
-    def sweep_records(self, skip: Collection[str] = ()) -> Iterator[dict[str, Any]]:
-        """Every readable sweep record of the store but those of the sweeps ``skip`` (not read);
-        a damaged one is logged and skipped."""
-        if not self.records_dir.is_dir():
-            return
-        for path in sorted(self.records_dir.glob("*.json")):
-            if path.stem in skip:
-                continue
-            try:
-                record = json.loads(path.read_text())
-                check_case_id(record["id"])
-                if not isinstance(record["case_ids"], list) or not all(map(_is_case_id, record["case_ids"])):
-                    raise ValueError("case_ids is not a list of case ids")
-            except (OSError, ValueError, KeyError, TypeError) as exc:
-                logger.warning("sweep record %s is unreadable (%s): skipped", path.name, exc)
-                continue
-            yield record
-
-    @property
-    def index_dir(self) -> Path:
-        """Folder of the index of stored results (:mod:`workflows.index`)."""
-        return self.root / "index"
-
-    # -- reading -----------------------------------------------------------------------
-
-    def is_stored(self, case_id: str) -> bool:
-        """True when the result of ``case_id`` is in the store."""
-        return self.case_path(case_id).is_file()
-
-    def case_ids(self) -> list[str]:
-        """Ids of all stored results, sorted."""
-        return sorted(self.file_keys())
-
-    def file_keys(self) -> dict[str, FileKey]:
-        """``{case_id: FileKey}`` of every stored result file (one directory scan)."""
-        keys: dict[str, FileKey] = {}
-        try:
-            entries = os.scandir(self.cases_dir)
-        except FileNotFoundError:
-            return keys
-        with entries:
-            for entry in entries:
-                stem, dot, ext = entry.name.partition(".")
-                if ext == "nc" and _CASE_ID.fullmatch(stem):
-                    try:
-                        keys[stem] = file_key(entry.stat())
-                    except FileNotFoundError:  # removed while we listed
-                        pass
-        return keys
-
-    @contextmanager
-    def opened(self, case_id: str) -> Iterator[xr.Dataset]:
-        """The stored file of ``case_id``, lazily opened under :data:`netcdf_lock` (every
-        netCDF access of this process goes through it), closed on exit.
-
-        Raises
-        ------
-        FileNotFoundError
-            If the case is not stored.
-        DamagedFile
-            If the file no longer matches its checksum (to be recomputed, never served).
-        """
-        path = self.case_path(case_id)
-        verify(path)
-        with netcdf_lock, xr.open_dataset(path, **OPEN_OPTIONS) as ds:
-            yield ds
-
-    def open_case(self, case_id: str) -> xr.Dataset:
-        """Read the stored result of ``case_id`` fully into memory (the file is closed).
-
-        Raises
-        ------
-        FileNotFoundError
-            If the case is not stored.
-        """
-        with self.opened(case_id) as ds:
-            return ds.load()
+    # -- reading through the index -----------------------------------------------------
 
     def read_summary(self, case_id: str) -> dict[str, float]:
         """The scalars of a stored case (see :func:`workflows.summary.summarize`), reading only them."""
@@ -317,18 +81,9 @@ class ResultStore:
                            case_id, type(exc).__name__, exc)
             return None
 
-    def read_error(self, case_id: str) -> dict[str, Any] | None:
-        """The error record of ``case_id``, or None if it has none."""
-        try:
-            return json.loads(self.error_path(case_id).read_text())
-        except FileNotFoundError:
-            return None
-
     @property
     def index(self) -> ResultIndex:
         """The index of stored results (scalars and θ-grid interface quantities)."""
-        from .index import ResultIndex
-
         return ResultIndex(self)
 
     def open_results(self, case_ids: Sequence[str] | None = None) -> xr.Dataset:
@@ -465,47 +220,10 @@ StoreLike = Union[ResultStore, str, os.PathLike]
 
 
 def as_store(root: StoreLike) -> ResultStore:
-    """``root`` itself if it is a :class:`ResultStore`, else the store at that path."""
-    return root if isinstance(root, ResultStore) else ResultStore(root)
-
-
-def case_warnings(ds: xr.Dataset) -> list[str]:
-    """The solver's warnings about a result (e.g. displacements outside the small-displacement
-    model): its ``warnings`` attribute, a JSON list in a file, a list in memory."""
-    warnings = ds.attrs.get("warnings", [])
-    if isinstance(warnings, str):
-        try:
-            warnings = json.loads(warnings) if warnings.strip() else []
-        except ValueError:
-            warnings = [warnings]
-    if isinstance(warnings, str):
-        warnings = [warnings]
-    return [str(w) for w in warnings]
-
-
-def _digest(case_ids: Sequence[str]) -> str:
-    return hashlib.sha256(",".join(case_ids).encode()).hexdigest()[:12]
-
-
-def netcdf_encoding(ds: xr.Dataset, *, compress: bool = True) -> dict[str, dict[str, Any]]:
-    """netCDF encoding: no ``_FillValue`` where the data set has none; compressed integer arrays.
-
-    xarray would otherwise add ``_FillValue = NaN`` to every float variable, which is
-    a pure encoding artefact and would break the exact round trip. Only the integer
-    arrays (connectivity, indices, flags) are deflated: on the default case's file,
-    compressing the float fields as well took the write from 39 to 70 ms for 13 % of
-    the size (1.33 MB against 1.16 MB; 1.51 MB with nothing compressed), and the write
-    is most of what a case on a shared model costs a worker.
-    """
-    enc: dict[str, dict[str, Any]] = {}
-    for name, var in ds.variables.items():
-        e: dict[str, Any] = {}
-        if "_FillValue" not in var.attrs and "_FillValue" not in var.encoding:
-            e["_FillValue"] = None
-        if compress and var.ndim and var.size > 1000 and var.dtype.kind in "iu":
-            e.update(zlib=True, complevel=4, shuffle=True)
-        enc[str(name)] = e
-    return enc
+    """``root`` itself if it is a :class:`ResultStore`, else the store at that path (or of those files)."""
+    if isinstance(root, ResultStore):
+        return root
+    return ResultStore(root.root if isinstance(root, StoreFiles) else root)
 
 
 # -- conveniences of the package (``workflows.run_and_store``, ``workflows.open_case``) -------
@@ -528,3 +246,40 @@ def open_case(root: StoreLike, case_id: str) -> xr.Dataset:
         If the case is not stored.
     """
     return as_store(root).open_case(case_id)
+
+
+def open_results(root: StoreLike, case_ids: Sequence[str] | None = None) -> xr.Dataset:
+    """Stack stored cases into one Dataset with dimension ``case``.
+
+    Answers from the store's index (:mod:`workflows.index`), which is brought up to
+    date with the case files first; the result is identical to :func:`combine_files`.
+
+    Parameters
+    ----------
+    root : the result store, or the path of its folder.
+    case_ids : cases to combine, in this order (duplicates dropped); default: every
+        stored case, sorted by id.
+
+    Returns
+    -------
+    xr.Dataset
+        Dimension ``case`` with coordinate ``case_id``; every case parameter whose
+        value differs between the cases as a coordinate along ``case`` named
+        ``<section>_<field>`` (``ground_young`` for ``ground.young``, ``geometry_gap``
+        for ``geometry.gap``; the one exception is ``geometry.thickness``, named
+        ``lining_thickness``, see :mod:`workflows.parameters`); every interface
+        quantity of the cases (:func:`interface_quantities`: e.g. ``contact_pressure``,
+        ``thrust``, ``moment`` interpolated linearly, ``in_contact`` from the nearest
+        station; a segmental lining's ``utilization`` NaN at its joints) on ``(case, theta)``
+        with ``theta`` = 0, 1, ..., 180 deg; every 0-d scalar of the cases on ``case`` (the
+        joints' maxima among them; the per-joint variables stay in the case files); and
+        ``case_spec`` (canonical JSON) on ``case``.
+
+    Raises
+    ------
+    FileNotFoundError
+        If a requested case is not stored.
+    ValueError
+        If a case id is malformed or no case is given.
+    """
+    return as_store(root).open_results(case_ids)

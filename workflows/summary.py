@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import xarray as xr
 
+from .store_files import FilesLike, files_of
+
 
 def summarize(ds: xr.Dataset) -> dict[str, float]:
     """``{name: value}`` of every 0-d data variable of a result (SPEC §3 scalars)."""
@@ -10,9 +12,8 @@ def summarize(ds: xr.Dataset) -> dict[str, float]:
             if var.ndim == 0 and var.dtype.kind in "biuf" and name != "mesh"}
 
 
-def read_summary(root, case_id: str) -> dict[str, float]:
+def read_summary(root: FilesLike, case_id: str) -> dict[str, float]:
     """Summary of a stored case, reading only its scalars (older spelling of
     :meth:`workflows.result_store.ResultStore.read_summary`)."""
-    from .result_store import as_store
-
-    return as_store(root).read_summary(case_id)
+    with files_of(root).opened(case_id) as ds:
+        return summarize(ds)

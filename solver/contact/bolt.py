@@ -31,7 +31,7 @@ import scipy.linalg as la
 from scipy.optimize import nnls
 from scipy.sparse.linalg import eigsh
 
-from ..errors import NoAdmissibleBoltError, NotConvergedError, SolverError  # noqa: F401 (re-exported)
+from ..errors import NoAdmissibleBoltError, NotConvergedError
 from ..limits import check_time
 
 

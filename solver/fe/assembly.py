@@ -19,7 +19,7 @@ import scipy.sparse as sp
 from skfem import Basis, BilinearForm, ElementTriP2, ElementVector, FacetBasis, LinearForm, asm
 from skfem.models.elasticity import lame_parameters
 
-from ..geometry.mesh import BodyMesh
+from ..geometry.bodies import BodyMesh
 
 #: Quadrature degree (exact for the geostatic equilibrium on quadratic geometry, see above).
 INTORDER = 4

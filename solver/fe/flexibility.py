@@ -27,7 +27,7 @@ import scipy.sparse as sp
 
 from .assembly import Body
 from .linalg import InterfaceFactor, nested_dissection
-from ..geometry.mesh import Interface
+from ..geometry.bodies import Interface
 
 
 def interface_rows(iface: Interface) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -4,51 +4,16 @@ the faces and segments the cut makes."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..spec import CaseSpec
+from .bodies import BodyMesh, Joints
 from .sizing import lining_layers
-
-if TYPE_CHECKING:
-    from .mesh import BodyMesh
-
 
 def polar_angle(p: np.ndarray, center) -> np.ndarray:
     """Angle at the tunnel axis in degrees, 0 at the crown, 180 at the invert (x >= 0)."""
     return np.degrees(np.arctan2(p[0] - center[0], p[1] - center[1]))
-
-
-@dataclass(frozen=True)
-class Joints:
-    """The longitudinal joints of a segmental lining (SPEC §1.6), ordered crown to invert.
-
-    theta : (J,) deg at the tunnel axis.
-    before, after : per joint, the lining nodes of the face on the crown side (θ < θj) and on
-        the invert side, ordered from the intrados out (vertices and edge nodes). A joint on the
-        symmetry line has one face in the half model: ``after`` at the crown, ``before`` at the
-        invert, the other empty (the mirror segment's face moves symmetrically).
-    segment : (N,) the segment of each lining node, numbered crown to invert.
-    """
-
-    theta: np.ndarray
-    before: tuple[np.ndarray, ...]
-    after: tuple[np.ndarray, ...]
-    segment: np.ndarray
-
-    @property
-    def size(self) -> int:
-        return self.theta.size
-
-    @property
-    def segments(self) -> int:
-        return int(self.segment.max()) + 1
-
-    def on_axis(self, j: int) -> bool:
-        """Whether joint ``j`` lies on the symmetry line (crown or invert)."""
-        return self.before[j].size == 0 or self.after[j].size == 0
 
 
 def joint_angles(spec: CaseSpec) -> list[float]:

@@ -19,7 +19,6 @@ scalar DOF ``j`` of its P2 basis.
 from __future__ import annotations
 
 import threading
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -30,83 +29,12 @@ from .sizing import (
 )
 from ..spec import CaseSpec
 from ..ground.strata import layer_lines
+from .bodies import BodyMesh, Interface, TunnelMesh
+from .joints import cut_along, joint_angles, joint_faces, joint_layers, polar_angle as _theta
 from .profile_mesh import curve_placer, profile_geometry, profile_interface
-from .section import Profile
-from .joints import Joints, cut_along, joint_angles, joint_faces, joint_layers, polar_angle as _theta
 
 # gmsh keeps global state: one meshing at a time per process.
 _GMSH_LOCK = threading.Lock()
-
-
-@dataclass(frozen=True)
-class BodyMesh:
-    """A body's quadratic triangles.
-
-    ``p`` (2, N) node coordinates in m, vertices first then edge nodes; ``t`` (6, E)
-    0-based node indices per triangle: vertices counter-clockwise, then the edge nodes
-    of edges (0, 1), (1, 2), (0, 2) (scikit-fem's order).
-    """
-
-    p: np.ndarray
-    t: np.ndarray
-
-    @property
-    def n_vertices(self) -> int:
-        return int(self.t[:3].max()) + 1
-
-    def skfem_mesh(self):
-        """The isoparametric scikit-fem mesh (``MeshTri2``) of this body."""
-        from skfem import MeshTri2
-
-        return MeshTri2(self.p, self.t[:3].copy(), validate=False)
-
-
-@dataclass(frozen=True)
-class Interface:
-    """Interface Γ, ordered crown (theta = 0) to invert (theta = 180).
-
-    Attributes
-    ----------
-    theta : (m,) deg, at the tunnel axis, 0 at the crown.
-    ground_node, lining_node : (m,) node indices into the ground / lining mesh.
-    normal : (2, m) unit outward normal of the ground (points to the tunnel axis).
-    weight : (m,) m, the nodal quadrature I of the quadratic edges (Simpson's rule:
-        L/6 at each vertex, 2L/3 at the edge node, L the arc length of the edge).
-    vertex : (m,) bool, True at element vertices (every other node, crown and invert
-        included); the lining's radial lines of nodes lie below these stations.
-    """
-
-    theta: np.ndarray
-    ground_node: np.ndarray
-    lining_node: np.ndarray
-    normal: np.ndarray
-    weight: np.ndarray
-    vertex: np.ndarray
-
-    @property
-    def tangent(self) -> np.ndarray:
-        """(2, m) unit tangent τ: ν turned 90° so that it points towards increasing θ."""
-        return np.stack([-self.normal[1], self.normal[0]])
-
-    @property
-    def size(self) -> int:
-        return self.theta.size
-
-
-@dataclass(frozen=True)
-class TunnelMesh:
-    ground: BodyMesh
-    lining: BodyMesh
-    interface: Interface
-    center: tuple[float, float]
-    layers: int
-    #: (E,) index of the ground band (layer) of each ground triangle, surface down.
-    ground_band: np.ndarray | None = None
-    #: the lining's joints (None: a monolithic ring)
-    joints: Joints | None = None
-    #: a section that is not a circle: its intrados (:class:`~solver.geometry.section.Profile`,
-    #: relative to ``center``); None for a circle
-    profile: Profile | None = None
 
 
 def build_mesh(spec: CaseSpec) -> TunnelMesh:

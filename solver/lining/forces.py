@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fe.assembly import Body, element_nodal_forces
-from ..geometry.mesh import Interface
+from ..geometry.bodies import Interface
 from ..spec import CaseSpec
 
 

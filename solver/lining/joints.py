@@ -30,7 +30,7 @@ import scipy.sparse as sp
 
 from ..fe.assembly import Body
 from ..fe.flexibility import interface_operator
-from ..geometry.mesh import Joints, TunnelMesh
+from ..geometry.bodies import Joints, TunnelMesh
 
 
 @dataclass(frozen=True)

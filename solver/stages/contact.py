@@ -10,11 +10,10 @@ a bonded interface a tie (:func:`tie`), a segmental lining :mod:`solver.contact.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 import scipy.linalg as la
 
+from ..build import BuiltModel
 from ..contact import floating, friction
 from ..contact.bolt import BoltedSolution, DualProblem, pressure_scale, solve_contact
 from ..errors import SolverError
@@ -23,11 +22,8 @@ from ..spec import CaseSpec
 from .loads import stage_loads
 from .state import Forward
 
-if TYPE_CHECKING:  # typing only
-    from ..model import TunnelModel
 
-
-def forward_stage(model: "TunnelModel", spec: CaseSpec, rows: Rows | None = None):
+def forward_stage(model: BuiltModel, spec: CaseSpec, rows: Rows | None = None):
     """Loads, both bodies' loads of the contact stage solved forward (:class:`Forward`),
     ``d = B K⁺ f`` at the rows the factorization serves and the lining's load on its modes F2.
 
@@ -51,7 +47,7 @@ def forward_stage(model: "TunnelModel", spec: CaseSpec, rows: Rows | None = None
     return loads, stage, d, model.mode_loads(loads.lining)
 
 
-def contact_tractions(model: "TunnelModel", spec: CaseSpec, d: np.ndarray, F2) -> tuple[BoltedSolution, np.ndarray]:
+def contact_tractions(model: BuiltModel, spec: CaseSpec, d: np.ndarray, F2) -> tuple[BoltedSolution, np.ndarray]:
     """The contact problem of the interface jumps ``d`` (and the lining's load on its modes
     ``F2``): its solution and the interface tractions ``t`` (normal, then tangential rows)."""
     iface, m, g0, sv = model.mesh.interface, model.m, spec.geometry.gap, spec.solver
@@ -72,7 +68,7 @@ def contact_tractions(model: "TunnelModel", spec: CaseSpec, d: np.ndarray, F2) -
     return sol, sol.t
 
 
-def _row_kinds(model: "TunnelModel", spec: CaseSpec, size: int):
+def _row_kinds(model: BuiltModel, spec: CaseSpec, size: int):
     """Each row's kind (unilateral, equality, friction), friction partner and coefficient."""
     m, jr, R = model.m, model.joint_rows, model.w.size
     kind = np.full(size, floating.UNILATERAL, np.int8)
@@ -92,7 +88,7 @@ def _row_kinds(model: "TunnelModel", spec: CaseSpec, size: int):
     return kind, partner, mu
 
 
-def floating_contact(model: "TunnelModel", spec: CaseSpec, d: np.ndarray, F, rows: Rows):
+def floating_contact(model: BuiltModel, spec: CaseSpec, d: np.ndarray, F, rows: Rows):
     """The segmental lining's contact problem (:mod:`solver.contact.floating`) at ``rows``: its
     solution and the tractions on every row (zero where ``rows`` has none)."""
     iface, m, jr = model.mesh.interface, model.m, model.joint_rows
@@ -116,14 +112,14 @@ def floating_contact(model: "TunnelModel", spec: CaseSpec, d: np.ndarray, F, row
     return sol, t
 
 
-def dual(model: "TunnelModel", d: np.ndarray, F2: float, g0: float) -> DualProblem:
+def dual(model: BuiltModel, d: np.ndarray, F2: float, g0: float) -> DualProblem:
     """The frictionless problem in interface form (normal rows only)."""
     m, iface = model.m, model.mesh.interface
     return DualProblem(S=model.S_normal, d=d[:m], g0=np.full(m, g0), w=iface.weight.copy(),
                        nu2=iface.normal[1].copy(), F2=F2)
 
 
-def dual_problem(model: "TunnelModel", spec: CaseSpec) -> DualProblem:
+def dual_problem(model: BuiltModel, spec: CaseSpec) -> DualProblem:
     """The frictionless contact stage of ``spec`` in interface form (:class:`DualProblem`; a
     monolithic lining's: a segmental one's is :mod:`solver.contact.floating`'s)."""
     if model.joint_rows is not None:
@@ -134,7 +130,7 @@ def dual_problem(model: "TunnelModel", spec: CaseSpec) -> DualProblem:
     return dual(model, d, F2, spec.geometry.gap)
 
 
-def tie(model: "TunnelModel", d: np.ndarray, F2: float) -> tuple[np.ndarray, float]:
+def tie(model: BuiltModel, d: np.ndarray, F2: float) -> tuple[np.ndarray, float]:
     """Bonded interface: J = 0 at every row and the lining balance; no bolt needed."""
     w, r, S = model.w, model.r, model.S
     R = r.size

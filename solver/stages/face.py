@@ -13,8 +13,6 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
@@ -24,25 +22,9 @@ from ..ground.ldp import ldp_ratio
 from ..ground.strata import strata
 from ..spec import CaseSpec
 from .plastic import release_unsupported
-
-if TYPE_CHECKING:  # typing only
-    from ..model import TunnelModel
+from .state import Installation
 
 log = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True)
-class Installation:
-    """How λd was found: the profile's u*, the radius R (m) and R* it used, and, for ground that
-    can yield, the full-release wall convergence u_max (m; NaN for elastic ground, where only
-    the ratio matters) and the full-release ground reaction curve [(released, convergence)]."""
-
-    deconfinement: float
-    ldp_ratio: float
-    radius: float
-    plastic_ratio: float
-    full_release_convergence: float = float("nan")
-    full_release_curve: tuple = ()
 
 
 def excavation_radius(spec: CaseSpec) -> float:
@@ -63,7 +45,7 @@ def with_deconfinement(spec: CaseSpec, deconfinement: float) -> CaseSpec:
     return spec.model_copy(update={"excavation": spec.excavation.model_copy(update={"deconfinement": deconfinement})})
 
 
-def install(model: "TunnelModel", spec: CaseSpec, rows) -> Installation:
+def install(model, spec: CaseSpec, rows) -> Installation:
     """λd of a face-distance case on its built ``model`` (factorized for ``rows``)."""
     exc = spec.excavation
     radius = excavation_radius(spec)

@@ -9,18 +9,14 @@ effective traction is released.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
+from ..build import BuiltModel
 from ..ground import water
 from ..ground.loads import load_coefficients as _layer_coefficients
 from ..ground.strata import layer_at, strata
 from ..spec import CaseSpec
 from .state import StageLoads
-
-if TYPE_CHECKING:  # typing only: the model is built above the stages
-    from ..model import TunnelModel
 
 
 def load_coefficients(spec: CaseSpec) -> np.ndarray:
@@ -28,12 +24,12 @@ def load_coefficients(spec: CaseSpec) -> np.ndarray:
     return _layer_coefficients(spec, strata(spec))
 
 
-def ground_loads(model: "TunnelModel", spec: CaseSpec) -> np.ndarray:
+def ground_loads(model: BuiltModel, spec: CaseSpec) -> np.ndarray:
     """Full-DOF external loads on the ground (N/m): gravity, surface load, a 'pressure' side."""
     return model.shapes("wished-in-place") @ load_coefficients(spec)
 
 
-def excavation_load(model: "TunnelModel", spec: CaseSpec) -> np.ndarray:
+def excavation_load(model: BuiltModel, spec: CaseSpec) -> np.ndarray:
     """Full-DOF excavation load (N/m): what the in-situ state leaves unbalanced, ``f_ext -
     ∫Bᵀσ0``, and below a water table the water's share, so that the effective traction
     is released (:func:`solver.ground.water.effective_release`)."""
@@ -43,7 +39,7 @@ def excavation_load(model: "TunnelModel", spec: CaseSpec) -> np.ndarray:
     return r
 
 
-def effective_release(model: "TunnelModel", spec: CaseSpec) -> np.ndarray:
+def effective_release(model: BuiltModel, spec: CaseSpec) -> np.ndarray:
     """The water's share of the excavation load below the table (full DOFs, N/m)."""
     layers, w = strata(spec), spec.water
     k0 = np.array([s.k0 for s in layers])
@@ -52,7 +48,7 @@ def effective_release(model: "TunnelModel", spec: CaseSpec) -> np.ndarray:
                                    lambda x: k0[layer_at(layers, -x[1])])
 
 
-def stage_loads(model: "TunnelModel", spec: CaseSpec) -> StageLoads:
+def stage_loads(model: BuiltModel, spec: CaseSpec) -> StageLoads:
     """Free-DOF loads of the case's stages: the contact stage's ground and lining loads and the
     whole excavation load (stage 1 releases λd of it, the contact stage the rest)."""
     ground, lining = model.ground.body, model.lining.body
@@ -71,19 +67,19 @@ def stage_loads(model: "TunnelModel", spec: CaseSpec) -> StageLoads:
     return StageLoads(stage2, f_l, loads, seep)
 
 
-def water_on_lining(model: "TunnelModel", table: float, unit_weight: float) -> np.ndarray:
+def water_on_lining(model: BuiltModel, table: float, unit_weight: float) -> np.ndarray:
     """Full-DOF load of the hydrostatic water on the lining's extrados (watertight)."""
     return water.pressure_load(model.lining.body, model.mesh.interface.lining_node, model.mesh.center,
                                table, unit_weight)
 
 
-def seepage(model: "TunnelModel", spec: CaseSpec) -> water.Seepage:
+def seepage(model: BuiltModel, spec: CaseSpec) -> water.Seepage:
     """Steady seepage of a drained case (:class:`solver.ground.water.SeepageModel`)."""
     k = np.array([s.permeability for s in strata(spec)])
     return model.seepage_model(spec.water.table, k).solve(spec.water.unit_weight)
 
 
-def seepage_force(model: "TunnelModel", spec: CaseSpec) -> np.ndarray:
+def seepage_force(model: BuiltModel, spec: CaseSpec) -> np.ndarray:
     """Full-DOF seepage force of a drained case: the excess pore pressure over hydrostatic."""
     k = np.array([s.permeability for s in strata(spec)])
     sm = model.seepage_model(spec.water.table, k)
@@ -92,6 +88,6 @@ def seepage_force(model: "TunnelModel", spec: CaseSpec) -> np.ndarray:
     return water.seepage_load(model.ground.body.basis, sm.basis, seep.pore - u0)
 
 
-def lining_weight(model: "TunnelModel", density: float, gravity: float) -> float:
+def lining_weight(model: BuiltModel, density: float, gravity: float) -> float:
     """The (half) lining's weight (N/m, positive)."""
     return density * gravity * float(model.vertical @ model.lining.body.restrict(model.lining_shape()))

@@ -4,10 +4,9 @@ conditions, the balance of the lining's modes) and the water state of the result
 from __future__ import annotations
 
 import time
-from typing import TYPE_CHECKING
-
 import numpy as np
 
+from ..build import BuiltModel
 from ..contact.bolt import pressure_scale
 from ..contact.kkt import kkt_residual
 from ..fe.flexibility import Rows
@@ -18,11 +17,8 @@ from .contact import contact_tractions
 from .loads import lining_weight, seepage
 from .state import CONTACT_GAP_TOL, Forward, Solution, StageLoads
 
-if TYPE_CHECKING:  # typing only
-    from ..model import TunnelModel
 
-
-def _displacements(model: "TunnelModel", rows: Rows, stage: Forward, Wt: np.ndarray, u1: np.ndarray | None):
+def _displacements(model: BuiltModel, rows: Rows, stage: Forward, Wt: np.ndarray, u1: np.ndarray | None):
     """Free-DOF displacements of the contact stage (ground, lining without its rigid motion) and
     of stage 1: ``u1`` if given (the yielding ground's), else ``λd K⁻¹ r`` from the same sweep."""
     ground, lining = model.ground, model.lining
@@ -39,7 +35,7 @@ def _displacements(model: "TunnelModel", rows: Rows, stage: Forward, Wt: np.ndar
     return u_g, lining.backward(stage.lining, rows, Wt), u1
 
 
-def _balance(model: "TunnelModel", F2, Wt: np.ndarray) -> tuple[float, float]:
+def _balance(model: BuiltModel, F2, Wt: np.ndarray) -> tuple[float, float]:
     """The lining's balance on its rigid modes and its scale (:func:`kkt_residual`)."""
     if model.joint_rows is None:
         return F2 + float(np.sum(model.r * Wt)), abs(F2) + float(np.sum(np.abs(model.r * Wt)))
@@ -49,7 +45,7 @@ def _balance(model: "TunnelModel", F2, Wt: np.ndarray) -> tuple[float, float]:
     return float(np.max(np.abs(wrench) / scale)), 1.0
 
 
-def finish(model: "TunnelModel", spec: CaseSpec, rows: Rows, loads: StageLoads, stage: Forward, d: np.ndarray,
+def finish(model: BuiltModel, spec: CaseSpec, rows: Rows, loads: StageLoads, stage: Forward, d: np.ndarray,
            F2, t0: float, u1: np.ndarray | None = None) -> Solution:
     """The contact stage solved from its forward-solved loads: the contact problem, the
     backward solves, the checks. ``u1`` (free DOFs) is a stage-1 displacement computed
@@ -98,7 +94,7 @@ def finish(model: "TunnelModel", spec: CaseSpec, rows: Rows, loads: StageLoads, 
                     joints=joint_state, **water_state(model, spec, F_vertical))
 
 
-def water_state(model: "TunnelModel", spec: CaseSpec, F2: float) -> dict:
+def water_state(model: BuiltModel, spec: CaseSpec, F2: float) -> dict:
     """The lining's weight and water uplift (N/m), the ground's pore pressure after stage 2
     at its nodes, the water pressure on the extrados and the inflow (:class:`Solution`)."""
     w = spec.water

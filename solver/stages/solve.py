@@ -11,8 +11,7 @@ Yielding ground follows the same stages incrementally (:func:`.plastic.solve_sta
 from __future__ import annotations
 
 import time
-from typing import TYPE_CHECKING
-
+from ..build import BuiltModel
 from ..errors import SolverError
 from ..fe.flexibility import rows_of_model
 from ..fe.linalg import blas_threads
@@ -23,11 +22,8 @@ from .plastic import solve_staged
 from .recovery import finish
 from .state import KKT_ACCEPT, Solution, accepted_residual
 
-if TYPE_CHECKING:  # typing only
-    from ..model import TunnelModel
 
-
-def solve_case(model: "TunnelModel", spec: CaseSpec) -> Solution:
+def solve_case(model: BuiltModel, spec: CaseSpec) -> Solution:
     """Solve ``spec`` on ``model`` (which must share its :func:`~solver.model.model_key`)."""
     if not model.accepts(spec):
         raise ValueError("the case does not share this model's geometry, mesh, boundaries and materials")

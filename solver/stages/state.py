@@ -2,16 +2,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
-
 import numpy as np
 
+from ..contact.bolt import BoltTrial
+from ..lining.joints import JointResults
 from ..spec import CaseSpec
 
-if TYPE_CHECKING:  # typing only
-    from ..contact.bolt import BoltTrial
-    from ..lining.joints import JointResults
-    from .face import Installation
 
 #: Relative gap (to the largest displacement) below which a node counts as closed.
 CONTACT_GAP_TOL = 1e-6
@@ -48,6 +44,21 @@ class Forward:
     lining: np.ndarray
     release: np.ndarray | None = None
     deconfinement: float = 0.0
+
+
+@dataclass(frozen=True)
+class Installation:
+    """How a face-distance case's λd was found (:mod:`solver.stages.face`): the profile's u*,
+    the radius R (m) and R* it used, and, for ground that can yield, the full-release wall
+    convergence u_max (m; NaN for elastic ground, where only the ratio matters) and the
+    full-release ground reaction curve [(released, convergence)]."""
+
+    deconfinement: float
+    ldp_ratio: float
+    radius: float
+    plastic_ratio: float
+    full_release_convergence: float = float("nan")
+    full_release_curve: tuple = ()
 
 
 @dataclass
@@ -95,7 +106,7 @@ class Solution:
     #: a segmental lining's joints (:class:`solver.lining.joints.JointResults`) and its bolt set
     joints: "JointResults | None" = None
     #: a face-distance case: how its λd was found (:class:`solver.stages.face.Installation`)
-    installation: "Installation | None" = None
+    installation: Installation | None = None
 
     @property
     def gap(self) -> np.ndarray:

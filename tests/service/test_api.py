@@ -216,10 +216,28 @@ def test_report_is_a_printable_pdf_of_every_figure_rendered_once(client, app, do
     eta = done_case["summary"]["max_utilization"]
     assert ("PASS" if eta <= 1 else "FAIL") in first and f"{eta:.3g}" in first
     assert "max_thrust" in first and "kN/m" in first
-    assert "ground_young" in pdf[1].get_textpage().get_text_range()
-    for i, name in enumerate(PLOTS, start=2):  # a page per figure, named
+    assert "model" in pdf[1].get_textpage().get_text_range()  # page 2: the whole model
+    assert "ground_young" in pdf[2].get_textpage().get_text_range()
+    for i, name in enumerate([n for n in PLOTS if n != "model"], start=3):  # a page per figure, named
         assert name.replace("_", " ") in pdf[i].get_textpage().get_text_range()
     pdf.close()
+
+
+@pytest.mark.parametrize("stage", ["1", "2", "total"])
+def test_the_deformed_mesh_shows_each_construction_stage_each_cached_apart(client, app, done_case, stage):
+    url = f"/cases/{done_case['id']}/plots/deformed_mesh.png?stage={stage}"
+    response = client.get(url)
+    assert response.status_code == 200 and response.content.startswith(PNG_MAGIC)
+    name = "deformed_mesh" if stage == "total" else f"deformed_mesh-stage{stage}"
+    assert (app.state.jobs.root / "plots" / done_case["id"] / f"{name}.png").read_bytes() == response.content
+
+
+def test_a_stage_is_refused_naming_it_where_a_plot_has_none_or_it_is_unknown(client, done_case):
+    for url in (f"/cases/{done_case['id']}/plots/contact_pressure.png?stage=1",
+                f"/cases/{done_case['id']}/plots/deformed_mesh.png?stage=3"):
+        response = client.get(url)
+        assert response.status_code == 422
+        assert any(e["field"].endswith("stage") for e in response.json()["errors"]), response.json()
 
 
 def test_unknown_plot_name_is_404(client, done_case):

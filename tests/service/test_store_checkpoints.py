@@ -13,7 +13,7 @@ import time
 
 import pytest
 
-from service import job_records as store_module
+from service import job_tables as store_module
 from service.job_records import JobStore
 
 #: Pages SQLite's automatic checkpoint lets the WAL reach (its default ``wal_autocheckpoint``).

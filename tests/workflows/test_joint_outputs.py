@@ -324,7 +324,7 @@ def test_report_has_the_joints_page_and_the_joint_verdict(mixed, monolithic):
     assert len(pdf) == 3 + len(PLOTS)
     first = pdf[0].get_textpage().get_text_range()
     assert "PASS" in first and "away from the joints" in first and "all 3 joints" in first
-    joints = pdf[2].get_textpage().get_text_range()
+    joints = pdf[3].get_textpage().get_text_range()  # after the summary, the model and the inputs
     assert "Joints of the segmental lining" in joints and "PASS" in joints
     for heading in ("θ (°)", "N (kN/m)", "M (kN·m/m)", "|M|/(N·a/2)", "opening (mm)", "rotation (mrad)", "state"):
         assert heading in joints
@@ -334,7 +334,7 @@ def test_report_has_the_joints_page_and_the_joint_verdict(mixed, monolithic):
         assert f"{mixed['joint_moment'].values[j] / 1e3:.2f}" in joints
         assert f"{mixed['joint_eccentricity'].values[j]:.3f}" in joints
     assert [r[-1] for r in joint_rows(mixed)] == ["closed", "open", "open"]
-    assert "lining forces" in pdf[4].get_textpage().get_text_range()  # the figures follow
+    assert "lining forces" in pdf[5].get_textpage().get_text_range()  # the figures follow
     pdf.close()
     # a joint whose thrust leaves its strip fails the case, whatever the section's utilization
     outside = mixed.copy(deep=True)
