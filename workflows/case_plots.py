@@ -370,7 +370,7 @@ def ground_reaction(ds: xr.Dataset) -> dict:
     ring, from ``u_in``, the convergence when it is placed, plus the gap); the FE end state
     (``u_end``: mean wall convergence, ``p_end``: mean pressure on the extrados, water
     included); the closed-form curve under isotropic p0 (``closed_u``, ``closed_p``: Salençon's,
-    Kirsch's for elastic ground) for one homogeneous layer, None otherwise; and, for a case whose λd
+    Kirsch's for elastic ground) for a circle in one homogeneous layer, None otherwise; and, for a case whose λd
     was found from its face distance, ``installation`` (the attribute of SPEC §9.5) with the
     curve on to full release (``full_u``, ``full_p``), None otherwise."""
     from solver.analytic import interface_mean, salencon
@@ -400,7 +400,7 @@ def ground_reaction(ds: xr.Dataset) -> dict:
         out["installation"] = found
         out["full_u"] = np.array([0.0] + [c["wall_convergence_m"] for c in full])
         out["full_p"] = p0 * np.array([1.0] + [1.0 - c["released"] for c in full])
-    if len(layers) == 1 and not layers[0].young_gradient:  # a homogeneous ground has a closed form
+    if len(layers) == 1 and not layers[0].young_gradient and g.circle:  # a homogeneous ground has a closed form
         ground, closed_p = layers[0], np.linspace(p0, 0.0, 60)
         if ground.model == "mohr-coulomb":
             closed_u = [salencon(p0, ground.cohesion, ground.friction_angle, ground.dilatancy, ground.young,

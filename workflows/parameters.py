@@ -49,6 +49,7 @@ PARAMETER_ATTRS: dict[str, tuple[str | None, str]] = {
     "excavation.face_distance": ("m", "distance behind the face at which the lining is installed"),
     "excavation.ldp": (None, "longitudinal displacement profile"),
     "geometry.section.shape": (None, "shape of the section's intrados"),
+    "geometry.section.arcs": (None, "arcs of a polycentric section, crown to invert (radius, angle)"),
     "geometry.section.width": ("m", "width of the elliptical intrados"),
     "geometry.section.height": ("m", "height of the elliptical intrados"),
     "geometry.section.crown_radius": ("m", "horseshoe crown arc radius"),
