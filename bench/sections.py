@@ -22,6 +22,8 @@ import json  # noqa: E402
 import math  # noqa: E402
 import time  # noqa: E402
 
+import numpy as np  # noqa: E402
+
 from solver import CaseSpec, run_case  # noqa: E402
 from solver.model import TunnelModel  # noqa: E402
 
@@ -61,7 +63,7 @@ def measure(repeat: int) -> dict:
             whole[name], nxt[name] = min(whole[name], t1 - t0), min(nxt[name], t2 - t1)
     out = {}
     for name, ds in results.items():
-        k = int(abs(ds["moment"]).argmax())
+        k = int(np.argmax(np.abs(ds["moment"].values)))
         out[name] = {"run_case_s": whole[name], "ratio": whole[name] / whole["circle"], "next_case_s": nxt[name],
                      "next_ratio": nxt[name] / nxt["circle"], "faces": int(ds.sizes["face"]),
                      "stations": int(ds.sizes["interface"]),
