@@ -6,7 +6,7 @@ import json
 from pydantic import model_validator
 
 from ..geometry.sizing import MAX_ELEMENTS, estimated_elements
-from ..ground.strata import geostatic_errors, strata
+from ..ground.strata import geostatic_errors, layer_lines, strata
 from ..lining.design import section_errors
 from .canonical import MAX_STIFFNESS_RATIO, _Frozen, content_id
 from .ground import LAYER_FIELDS, Ground, Strength
@@ -105,12 +105,10 @@ class CaseSpec(_Frozen):
             raise ValueError(f"lining.joints.count: a '{self.geometry.section.shape}' section's lining is "
                              "monolithic so far (segment joints are cut on circles only)")
         up, down, _ = self.geometry.hole_extent
-        for i, layer in enumerate(self.ground.layers[:-1]):
-            z = sum(lay.thickness for lay in self.ground.layers[:i + 1])
-            if self.geometry.depth - up - self.mesh.interface_size <= z <= self.geometry.depth + down + \
-                    self.mesh.interface_size:
-                raise ValueError(f"ground.layers.{i}.thickness: the layer boundary {z:.6g} m deep cuts (or touches) "
-                                 f"the '{self.geometry.section.shape}' section; so far only a circle may be cut")
+        for i, z in enumerate(layer_lines(self)):  # lines near the crown or invert level are moved off it
+            if self.geometry.depth - up < z < self.geometry.depth + down:
+                raise ValueError(f"ground.layers.{i}.thickness: the layer boundary {z:.6g} m deep cuts the "
+                                 f"'{self.geometry.section.shape}' section; so far only a circle may be cut")
 
     @property
     def plastic(self) -> bool:
