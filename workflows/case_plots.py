@@ -40,11 +40,17 @@ def _contact_spans(ax, ds: xr.Dataset) -> None:
     _spans(ax, ds["theta"].values, ds["in_contact"].values.astype(bool), color=_CONTACT_COLOR, label="in contact")
 
 
-def theta_axis(ax) -> None:
+def theta_axis(ax, ds: xr.Dataset | None = None) -> None:
+    """θ from crown to invert; for a section that is not a circle (SPEC §9.4), the stations' arc
+    length along the extrados on a second axis above (θ alone hides how long each arc is)."""
     ax.set_xlim(0, 180)
     ax.set_xticks(np.arange(0, 181, 30))
     ax.set_xlabel("θ (deg from crown; 90 springline, 180 invert)")
     ax.grid(True, alpha=0.3)
+    if ds is not None and "arc_length" in ds.coords and mid_surface(ds) is not None:
+        theta, s = ds["theta"].values, ds["arc_length"].values
+        top = ax.secondary_xaxis("top", functions=(lambda t: np.interp(t, theta, s), lambda a: np.interp(a, s, theta)))
+        top.set_xlabel("arc length along the extrados from the crown (m)", fontsize="small")
 
 
 def _title(ds: xr.Dataset) -> str:
@@ -88,7 +94,7 @@ def plot_contact_pressure(ds: xr.Dataset) -> Figure:
     joint_plots.draw_on_theta(ax, ds)
     ax.set_ylabel("pressure on the extrados (kPa)")
     ax.set_ylim(bottom=0.0, top=1.15 * max(top / 1e3, 1e-3))
-    theta_axis(ax)
+    theta_axis(ax, ds)
     ax.set_xlabel("")
     gap_ax = ax.twinx()
     gap_ax.plot(theta, ds["gap"] * 1e3, color="tab:blue", lw=1, ls="--", label="gap g0 − [u]ν")
