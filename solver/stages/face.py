@@ -53,8 +53,7 @@ def install(model, spec: CaseSpec, rows) -> Installation:
     if not spec.plastic:
         ratio = ldp_ratio(exc.ldp, x, plastic_ratio=1.0, poisson=axis_poisson(spec))
         return Installation(deconfinement=ratio, ldp_ratio=ratio, radius=radius, plastic_ratio=1.0)
-    curve, points = _full_release(model, spec, rows)
-    plastic_ratio = plastic_radius(points, radius)
+    curve, plastic_ratio = full_release(model, spec, rows, radius)
     ratio = ldp_ratio(exc.ldp, x, plastic_ratio=plastic_ratio, poisson=axis_poisson(spec))
     u_max = curve[-1][1]
     found = invert_curve(curve, ratio * u_max)
@@ -89,9 +88,25 @@ def invert_curve(curve, convergence: float) -> float:
     return float(np.clip(PchipInterpolator(c, f)(convergence), 0.0, f[-1]))
 
 
+def full_release(model, spec: CaseSpec, rows, radius: float) -> tuple[list, float]:
+    """The full-release ground reaction curve and R* of ``spec``'s ground on ``model``, solved once
+    per physics (the case less its stages: its face distance, profile and λd do not enter) and
+    kept on the model (:meth:`~solver.build.BuiltModel.kept_release`), so that a sweep over the
+    face distance solves it once."""
+    released = with_deconfinement(spec, 1.0)
+    released = released.model_copy(update={"excavation": released.excavation.model_copy(
+        update={"face_distance": None, "ldp": "vlachopoulos-diederichs"})})
+
+    def compute():
+        curve, points = _full_release(model, released, rows)
+        return curve, plastic_radius(points, radius)
+
+    return model.kept_release(released.canonical_json(), compute)
+
+
 def _full_release(model, spec: CaseSpec, rows):
     try:
-        return release_unsupported(model, with_deconfinement(spec, 1.0), rows, 1.0)
+        return release_unsupported(model, spec, rows, 1.0)
     except NotConvergedError as exc:
         raise NotConvergedError(
             f"excavation.face_distance: the unsupported ground collapses before the full release that the "

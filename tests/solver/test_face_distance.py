@@ -114,3 +114,19 @@ def test_yielding_ground_reaches_the_profiles_convergence():
     assert reached["released"] == pytest.approx(float(ds["deconfinement"]), rel=1e-12)
     assert reached["wall_convergence_m"] == pytest.approx(ratio * u_max, rel=0.01)
     assert float(ds["deconfinement"]) > ratio  # the curve bends: more convergence per share released
+
+
+def test_a_built_model_solves_the_full_release_once():
+    """Cases on one built model that differ only in their face distance or profile share one
+    full-release solve (a sweep over the construction sequence), with the answer of a fresh model."""
+    from solver.model import TunnelModel
+
+    near = CaseSpec.model_validate({**MC, "excavation": {"face_distance": 1.0}})
+    far = CaseSpec.model_validate({**MC, "excavation": {"face_distance": 3.0, "ldp": "hoek"}})
+    model = TunnelModel(near)
+    run_case(near, model=model)
+    shared = run_case(far, model=model)
+    assert len(model._releases) == 1
+    alone = run_case(far)
+    assert float(shared["deconfinement"]) == float(alone["deconfinement"])
+    assert float(shared["max_abs_moment"]) == float(alone["max_abs_moment"])
