@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
+
 from pydantic import model_validator
 
 from ..geometry.sizing import MAX_ELEMENTS, estimated_elements
@@ -155,6 +157,13 @@ class CaseSpec(_Frozen):
             raise ValueError(
                 f"mesh.interface_size: {m.interface_size} m is too coarse for the lining "
                 f"(at most outer radius / 4 = {g.outer_radius / 4:.4g} m)")
+        if not g.circle:  # the curves' sharpest bend must span a few interface elements
+            hole = g.profile(g.thickness + g.gap)
+            sharpest = float(1.0 / np.max(hole.curvature(np.linspace(0.0, np.pi, 721))))
+            if m.interface_size > 0.5 * sharpest:
+                raise ValueError(
+                    f"mesh.interface_size: {m.interface_size} m is too coarse for the section's sharpest bend "
+                    f"(radius {sharpest:.4g} m on the excavation; at most half of it)")
         n = estimated_elements(self)
         if n > MAX_ELEMENTS:
             raise ValueError(

@@ -64,7 +64,11 @@ class Geometry(_Frozen):
     @model_validator(mode="after")
     def _fits(self) -> "Geometry":
         if not self.circle:  # the intrados is the section's: inner_radius is its equal-area radius
-            object.__setattr__(self, "inner_radius", equal_area_radius(self.profile()))
+            radius = equal_area_radius(_profile(self.section, 1.0, 0.0))
+            if not 0.1 <= radius <= 50.0:  # the bounds of inner_radius, which the canonical JSON holds
+                raise ValueError(f"section: the intrados encloses the area of a circle of radius {radius:.4g} m, "
+                                 "outside [0.1, 50] m")
+            object.__setattr__(self, "inner_radius", radius)
         up, down, side = self.hole_extent
         r = self.hole_radius
         if self.thickness > 0.5 * self.inner_radius:

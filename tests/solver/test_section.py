@@ -141,3 +141,19 @@ def test_what_a_shaped_section_does_not_have_yet_is_refused():
     assert field_errors(err.value)[0][0] == "lining.joints.count"
     # layers above it are fine
     CaseSpec.model_validate({"geometry": geometry, "ground": {"layers": [{"thickness": 10.0}, {"thickness": 0.0}]}})
+
+
+def test_a_bend_sharper_than_the_mesh_and_a_section_out_of_bounds_are_refused():
+    plain = {"design": {"reinforcement_area": 0.0}}
+    with pytest.raises(ValidationError) as err:  # the sidewall bends on 0.14 m: 0.1 m elements cannot follow
+        CaseSpec.model_validate({"geometry": {"section": {"shape": "ellipse", "width": 12.0, "height": 1.5},
+                                              "thickness": 0.05}, **plain})
+    assert field_errors(err.value)[0][0] == "mesh.interface_size"
+    with pytest.raises(ValidationError) as err:  # larger than inner_radius may be
+        CaseSpec.model_validate({"geometry": {"section": {"shape": "polycentric", "arcs": [{"radius": 60.0, "angle": 90.0},
+                                                                                          {"angle": 90.0}]}}})
+    assert field_errors(err.value)[0][0] == "geometry.section"
+    # the canonical JSON of a shaped section holds its equal-area radius and validates again
+    spec = CaseSpec.model_validate({"geometry": {"section": {"shape": "ellipse", "width": 6.0, "height": 4.0}}})
+    assert spec.geometry.inner_radius == pytest.approx(math.sqrt(3.0 * 2.0))
+    assert CaseSpec.model_validate_json(spec.canonical_json()).case_id == spec.case_id
