@@ -67,6 +67,10 @@ def model_key(spec: CaseSpec) -> str:
     return json.dumps(shared, sort_keys=True, separators=(",", ":"))
 
 
+#: Full-release solves a built model keeps (:meth:`BuiltModel.kept_release`).
+KEPT_RELEASES = 16
+
+
 class BuiltModel:
     """Mesh, stiffness, factorizations and interface flexibility of one geometry and material pair.
 
@@ -134,6 +138,7 @@ class BuiltModel:
         self._units: dict[str, np.ndarray] = {}
         self._point_bases: dict = {}
         self._gradients: dict = {}
+        self._releases: "OrderedDict[str, tuple]" = OrderedDict()
         self._seepage: "OrderedDict[tuple, water.SeepageModel]" = OrderedDict()
         self._lock = threading.Lock()
 
@@ -250,6 +255,21 @@ class BuiltModel:
 
     def accepts(self, spec: CaseSpec) -> bool:
         return model_key(spec) == self.key
+
+    def kept_release(self, key: str, compute):
+        """A full-release stage-1 solve of yielding ground (:mod:`solver.stages.face`), by ``key``
+        (the case's physics less its stages): ``compute()`` once, then kept (the last
+        :data:`KEPT_RELEASES`), so that a sweep over the face distance solves one."""
+        with self._lock:
+            if key in self._releases:
+                self._releases.move_to_end(key)
+                return self._releases[key]
+        found = compute()
+        with self._lock:
+            self._releases[key] = found
+            while len(self._releases) > KEPT_RELEASES:
+                self._releases.popitem(last=False)
+        return found
 
     def for_case(self, spec: CaseSpec) -> "BuiltModel":
         """This model as ``spec``'s: itself, or, when the case's ground is this model's with

@@ -40,11 +40,17 @@ def _contact_spans(ax, ds: xr.Dataset) -> None:
     _spans(ax, ds["theta"].values, ds["in_contact"].values.astype(bool), color=_CONTACT_COLOR, label="in contact")
 
 
-def theta_axis(ax) -> None:
+def theta_axis(ax, ds: xr.Dataset | None = None) -> None:
+    """θ from crown to invert; for a section that is not a circle (SPEC §9.4), the stations' arc
+    length along the extrados on a second axis above (θ alone hides how long each arc is)."""
     ax.set_xlim(0, 180)
     ax.set_xticks(np.arange(0, 181, 30))
     ax.set_xlabel("θ (deg from crown; 90 springline, 180 invert)")
     ax.grid(True, alpha=0.3)
+    if ds is not None and "arc_length" in ds.coords and mid_surface(ds) is not None:
+        theta, s = ds["theta"].values, ds["arc_length"].values
+        top = ax.secondary_xaxis("top", functions=(lambda t: np.interp(t, theta, s), lambda a: np.interp(a, s, theta)))
+        top.set_xlabel("arc length along the extrados from the crown (m)", fontsize="small")
 
 
 def _title(ds: xr.Dataset) -> str:
@@ -88,7 +94,7 @@ def plot_contact_pressure(ds: xr.Dataset) -> Figure:
     joint_plots.draw_on_theta(ax, ds)
     ax.set_ylabel("pressure on the extrados (kPa)")
     ax.set_ylim(bottom=0.0, top=1.15 * max(top / 1e3, 1e-3))
-    theta_axis(ax)
+    theta_axis(ax, ds)
     ax.set_xlabel("")
     gap_ax = ax.twinx()
     gap_ax.plot(theta, ds["gap"] * 1e3, color="tab:blue", lw=1, ls="--", label="gap g0 − [u]ν")
@@ -137,16 +143,34 @@ def _mid_radius(ds: xr.Dataset) -> float:
     return float(np.max(np.hypot(ds["interface_x"].values, ds["interface_y"].values - cy)))
 
 
+def mid_surface(ds: xr.Dataset) -> tuple[np.ndarray, np.ndarray] | None:
+    """The lining's mid-surface points (m, 2) relative to the section's centre and their outward
+    normals (m, 2), for a section that is not a circle (SPEC §9.4); None for a circle."""
+    spec = case_spec(ds)
+    geometry = spec.get("geometry", {})
+    if geometry.get("section", {"shape": "circle"}).get("shape", "circle") == "circle":
+        return None
+    from solver.spec import CaseSpec
+
+    g = CaseSpec.model_validate(spec).geometry
+    outward = -np.column_stack([ds["normal_x"].values, ds["normal_y"].values])
+    hole = np.column_stack([ds["interface_x"].values, ds["interface_y"].values + g.depth])
+    return hole - (g.gap + 0.5 * g.thickness) * outward, outward
+
+
 def _force_diagram(ax, theta_deg: np.ndarray, values: np.ndarray, radius: float, *, symbol: str, unit: str,
-                   title: str, outward: str, joints: xr.Dataset | None = None) -> None:
+                   title: str, outward: str, joints: xr.Dataset | None = None, shape=None) -> None:
     """``values`` drawn as offsets from the half ring, scaled so the largest is 0.35 radius;
-    the joints of ``joints`` (a segmental lining's result) as radial ticks."""
+    the joints of ``joints`` (a segmental lining's result) as radial ticks. ``shape``: the
+    mid-surface and its normals (:func:`mid_surface`) of a section that is not a circle."""
     theta = np.radians(theta_deg)
     nx, ny = np.sin(theta), np.cos(theta)
     peak = float(np.max(np.abs(values))) if values.size else 0.0
     values = np.where(np.abs(values) < 1e-6 * peak, 0.0, values)  # round-off at the symmetry axis
     scale = 0.35 * radius / peak if peak > 0 else 0.0
     ring = np.column_stack([radius * nx, radius * ny])
+    if shape is not None:
+        ring, (nx, ny) = shape[0], shape[1].T
     ax.plot(ring[:, 0], ring[:, 1], color="0.3", lw=2.0, solid_capstyle="butt")
     for part, color in ((np.maximum(values, 0.0), "tab:blue"), (np.minimum(values, 0.0), "tab:red")):
         curve = ring + (scale * part)[:, None] * np.column_stack([nx, ny])
@@ -159,8 +183,7 @@ def _force_diagram(ax, theta_deg: np.ndarray, values: np.ndarray, radius: float,
     ax.axvline(0.0, color="0.6", lw=0.8, ls="-.")
     for name, where in STATIONS.items():
         i = int(np.argmin(np.abs(theta_deg - where)))
-        tip = radius + max(scale * values[i], 0.0) + 0.06 * radius
-        x, y = tip * nx[i], tip * ny[i]
+        x, y = ring[i] + (max(scale * values[i], 0.0) + 0.06 * radius) * np.array([nx[i], ny[i]])
         align = {"crown": ("left", "bottom"), "springline": ("left", "center"), "invert": ("left", "top")}[name]
         ax.annotate(f"{name}\n{values[i]:.1f} {unit}", (x, y), ha=align[0], va=align[1], fontsize="small",
                     xytext=(3 if name != "springline" else 0, 0), textcoords="offset points")
@@ -192,6 +215,9 @@ def plot_lining_forces(ds: xr.Dataset) -> Figure:
     are radial ticks through the diagrams (closed dashed, open orange; :mod:`workflows.joint_plots`).
     """
     radius = _mid_radius(ds)
+    shape = mid_surface(ds)
+    if shape is not None:  # the scale and the frame of the section's largest reach
+        radius = float(np.max(np.hypot(*shape[0].T)))
     theta = ds["theta"].values
     fig = Figure(figsize=(12, 5.4), layout="constrained")
     axes = fig.subplots(1, 3)
@@ -201,14 +227,15 @@ def plot_lining_forces(ds: xr.Dataset) -> Figure:
               ("shear", "V", "shear force V (kN/m)", "kN/m", "+ drawn outward"))
     for ax, (name, symbol, title, unit, outward) in zip(axes, panels):
         _force_diagram(ax, theta, ds[name].values / 1e3, radius, symbol=symbol, unit=unit, title=title,
-                       outward=outward, joints=ds)
+                       outward=outward, joints=ds, shape=shape)
     joints = joint_plots.summary(ds)
     if joints:
         fig.legend(handles=joint_plots.ring_legend_handles(ds), loc="outside lower center", ncols=2,
                    fontsize="small", title=f"segmental lining: {joints} (ticks across the ring)",
                    title_fontsize="small")
-    fig.suptitle(f"Lining forces, {_title(ds)} (half ring, symmetry axis dash-dotted; "
-                 f"mid-surface radius {radius:.3g} m)", fontsize="medium")
+    where = f"mid-surface radius {radius:.3g} m" if shape is None else \
+        f"{case_spec(ds)['geometry']['section']['shape']} section, largest mid-surface reach {radius:.3g} m"
+    fig.suptitle(f"Lining forces, {_title(ds)} (half ring, symmetry axis dash-dotted; {where})", fontsize="medium")
     return fig
 
 
@@ -365,8 +392,10 @@ def ground_reaction(ds: xr.Dataset) -> dict:
     (1 − released)·p0, from (0, p0)); the lining's characteristic line (``k_s`` of the thick
     ring, from ``u_in``, the convergence when it is placed, plus the gap); the FE end state
     (``u_end``: mean wall convergence, ``p_end``: mean pressure on the extrados, water
-    included); and the closed-form curve under isotropic p0 (``closed_u``, ``closed_p``: Salençon's,
-    Kirsch's for elastic ground) for one homogeneous layer, None otherwise."""
+    included); the closed-form curve under isotropic p0 (``closed_u``, ``closed_p``: Salençon's,
+    Kirsch's for elastic ground) for a circle in one homogeneous layer, None otherwise; and, for a case whose λd
+    was found from its face distance, ``installation`` (the attribute of SPEC §9.5) with the
+    curve on to full release (``full_u``, ``full_p``), None otherwise."""
     from solver.analytic import interface_mean, salencon
     from solver.spec import CaseSpec
     from solver.ground.strata import geostatic_state, strata
@@ -386,8 +415,15 @@ def ground_reaction(ds: xr.Dataset) -> dict:
     k_s = lining.young * (b**2 - a**2) / ((1 + lining.poisson) * b * ((1 - 2 * lining.poisson) * b**2 + a**2))
     out = {"p0": p0, "convergence": convergence, "pressure": pressure, "k_s": k_s,
            "u_in": float(convergence[-1]) + g.gap, "u_end": interface_mean(ds, inward),
-           "p_end": interface_mean(ds, support), "closed_u": None, "closed_p": None}
-    if len(layers) == 1 and not layers[0].young_gradient:  # a homogeneous ground has a closed form
+           "p_end": interface_mean(ds, support), "closed_u": None, "closed_p": None, "installation": None}
+    if "installation" in ds.attrs:
+        found = json.loads(ds.attrs["installation"])
+        full = found["full_release_curve"] or [  # elastic ground: the straight line on to full release
+            {"released": 1.0, "wall_convergence_m": float(convergence[-1]) / max(found["deconfinement"], 1e-12)}]
+        out["installation"] = found
+        out["full_u"] = np.array([0.0] + [c["wall_convergence_m"] for c in full])
+        out["full_p"] = p0 * np.array([1.0] + [1.0 - c["released"] for c in full])
+    if len(layers) == 1 and not layers[0].young_gradient and g.circle:  # a homogeneous ground has a closed form
         ground, closed_p = layers[0], np.linspace(p0, 0.0, 60)
         if ground.model == "mohr-coulomb":
             closed_u = [salencon(p0, ground.cohesion, ground.friction_angle, ground.dilatancy, ground.young,
@@ -417,8 +453,16 @@ def plot_ground_reaction(ds: xr.Dataset) -> Figure:
     if grc["closed_u"] is not None:
         ax.plot(grc["closed_u"] * mm, grc["closed_p"] * kpa, color="0.45", ls="--", lw=1.2,
                 label="ground reaction, closed form (isotropic p0)")
+    found = grc["installation"]
+    if found is not None:
+        ax.plot(grc["full_u"] * mm, grc["full_p"] * kpa, color="tab:blue", lw=1.0, ls=":",
+                label="ground reaction on to full release (u_max, the profile's scale)")
     ax.plot(grc["convergence"] * mm, grc["pressure"] * kpa, color="tab:blue", lw=2.0, marker="o", ms=3,
             label="ground reaction, FE stage 1 (unsupported ground)")
+    where = (f"lining installed {found['face_distance_m']:g} m behind the face ({found['ldp']}: "
+             f"u* = {found['ldp_ratio']:.3g})" if found is not None else "lining installed")
+    ax.plot([grc["convergence"][-1] * mm], [grc["pressure"][-1] * kpa], marker="D", ms=8, color="tab:orange",
+            ls="none", label=f"{where}: {grc['convergence'][-1] * mm:.3g} mm")
     u_end = max(grc["u_end"], grc["u_in"])
     line_u = np.array([grc["u_in"], u_end + 1.3 * (u_end - grc["u_in"]) + 1e-9])
     ax.plot(line_u * mm, grc["k_s"] * (line_u - grc["u_in"]) * kpa, color="tab:green", lw=1.8,

@@ -46,6 +46,16 @@ PARAMETER_ATTRS: dict[str, tuple[str | None, str]] = {
     "loads.lateral_ratio": ("1", "lateral earth pressure ratio K0"),
     "excavation.method": (None, "excavation method"),
     "excavation.deconfinement": ("1", "deconfinement ratio released before lining placement"),
+    "excavation.face_distance": ("m", "distance behind the face at which the lining is installed"),
+    "excavation.ldp": (None, "longitudinal displacement profile"),
+    "geometry.section.shape": (None, "shape of the section's intrados"),
+    "geometry.section.arcs": (None, "arcs of a polycentric section, crown to invert (radius, angle)"),
+    "geometry.section.width": ("m", "width of the elliptical intrados"),
+    "geometry.section.height": ("m", "height of the elliptical intrados"),
+    "geometry.section.crown_radius": ("m", "horseshoe crown arc radius"),
+    "geometry.section.crown_angle": ("degree", "horseshoe crown arc angle"),
+    "geometry.section.side_radius": ("m", "horseshoe side arc radius"),
+    "geometry.section.side_angle": ("degree", "horseshoe side arc angle"),
     "interface.model": (None, "interface contact model"),
     "interface.friction": ("1", "interface Coulomb friction coefficient"),
     "boundaries.side": (None, "side boundary condition"),
@@ -93,6 +103,8 @@ LAYER_ATTRS: dict[str, tuple[str | None, str]] = {
        for path, (units, name) in PARAMETER_ATTRS.items() if path.startswith("ground.")},
 }
 _LAYER_PATH = re.compile(r"^ground\.layers\.(\d+)\.(\w+)$")
+#: An arc of a polycentric section (SPEC §9.4), ``geometry.section.arcs.<i>.radius|angle``.
+_ARC_PATH = re.compile(r"^geometry\.section\.arcs\.(\d+)\.(radius|angle)$")
 
 
 def canonical_path(path: str) -> str:
@@ -132,6 +144,10 @@ def is_parameter(path: str, base: dict[str, Any] | None = None) -> bool:
     if layer:
         layers = ((base or {}).get("ground") or {}).get("layers") or []
         return int(layer.group(1)) < len(layers) and layer.group(2) in LAYER_ATTRS
+    arc = _ARC_PATH.match(path)
+    if arc:
+        arcs = (((base or {}).get("geometry") or {}).get("section") or {}).get("arcs") or []
+        return int(arc.group(1)) < len(arcs)
     return path in _leaf_paths()
 
 
@@ -144,9 +160,13 @@ def parameter_attrs(name: str, *, numeric: bool = True) -> dict[str, str]:
     """
     path = _paths_by_flat_name().get(name, canonical_path(name))
     layer = _LAYER_PATH.match(path) or re.match(r"^ground_layers_(\d+)_(\w+)$", name)
+    arc = _ARC_PATH.match(path) or re.match(r"^geometry_section_arcs_(\d+)_(radius|angle)$", name)
     if layer and layer.group(2) in LAYER_ATTRS:
         units, long_name = LAYER_ATTRS[layer.group(2)]
         long_name = f"{long_name} (layer {layer.group(1)})"
+    elif arc:
+        units = "m" if arc.group(2) == "radius" else "degree"
+        long_name = f"{arc.group(2)} of arc {arc.group(1)} of the polycentric section"
     else:
         units, long_name = PARAMETER_ATTRS.get(path, (None, f"case parameter {name}"))
     return {"units": units, "long_name": long_name} if numeric and units else {"long_name": long_name}

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .section import Profile
+
 
 @dataclass(frozen=True)
 class BodyMesh:
@@ -103,3 +105,6 @@ class TunnelMesh:
     ground_band: np.ndarray | None = None
     #: the lining's joints (None: a monolithic ring)
     joints: Joints | None = None
+    #: a section that is not a circle: its intrados (:class:`~solver.geometry.section.Profile`,
+    #: relative to ``center``); None for a circle
+    profile: Profile | None = None

@@ -44,6 +44,7 @@ from .joints import (
     polar_angle as _theta,
     radial_pieces,
 )
+from .profile_mesh import curve_placer, profile_geometry, profile_interface
 
 # gmsh keeps global state: one meshing at a time per process.
 _GMSH_LOCK = threading.Lock()
@@ -59,21 +60,29 @@ def build_mesh(spec: CaseSpec) -> TunnelMesh:
             gmsh.option.setNumber("General.Terminal", 0)
             gmsh.option.setNumber("General.Verbosity", 0)
             gmsh.model.add("tunnel")
-            ground_surfs, lining_surfs, hole_arcs, outer_arcs, inner_arcs = _geometry(spec)
+            g = spec.geometry
+            shaped = not g.circle  # a section of arcs or an ellipse (SPEC §9.4): :mod:`.profile_mesh`
+            ground_surfs, lining_surfs, hole_arcs, outer_arcs, inner_arcs = (profile_geometry if shaped
+                                                                              else _geometry)(spec)
             gmsh.model.mesh.generate(2)
-            center = (0.0, -spec.geometry.depth)
+            center = (0.0, -g.depth)
+            on = [curve_placer(g.profile(o), center) for o in (g.thickness + g.gap, g.thickness, 0.0)] if shaped \
+                else [None] * 3
             model_nodes = _model_nodes()
-            ground, (ground_ring,), band = _body_mesh(ground_surfs, [hole_arcs], center, model_nodes)
+            ground, (ground_ring,), band = _body_mesh(ground_surfs, [hole_arcs], center, model_nodes, onto=on[:1])
             cuts = [t for t in joint_angles(spec) if 0.0 < t < 180.0]
             lining, (lining_ring, _), _ = _body_mesh(lining_surfs, [outer_arcs, inner_arcs], center, model_nodes,
-                                                     cuts=cuts)
+                                                     cuts=cuts, onto=on[1:])
         finally:
             gmsh.finalize()
     check_mesh_size(ground.t.shape[1] + lining.t.shape[1])
     joints = joint_faces(lining, joint_angles(spec), center) if spec.lining.joints.count else None
     band = band_layers(spec)[band]  # a band between a table line and a layer line is in that layer
-    return TunnelMesh(ground, lining, _interface(ground, lining, ground_ring, lining_ring, center),
-                      center, joint_layers(spec), band, joints)
+    iface = (Interface(**profile_interface(ground, lining, ground_ring, lining_ring, center,
+                                           g.profile(g.thickness + g.gap)))
+             if shaped else _interface(ground, lining, ground_ring, lining_ring, center))
+    return TunnelMesh(ground, lining, iface, center, joint_layers(spec), band, joints,
+                      g.profile() if shaped else None)
 
 
 def sector_angles(spec: CaseSpec) -> list[float]:
@@ -250,7 +259,7 @@ def _model_nodes() -> tuple[np.ndarray, np.ndarray]:
 
 
 def _body_mesh(surfaces, arcs: list, center, model_nodes: tuple[np.ndarray, np.ndarray],
-               cuts: list[float] = ()) -> tuple[BodyMesh, list[np.ndarray], np.ndarray]:
+               cuts: list[float] = (), onto: list | None = None) -> tuple[BodyMesh, list[np.ndarray], np.ndarray]:
     """A body's P2 mesh from gmsh's linear triangles on ``surfaces``, the nodes on each
     group of circle ``arcs`` (vertices and edge nodes) and the index into ``surfaces`` of each
     triangle; ``model_nodes``: :func:`_model_nodes`.
@@ -263,6 +272,9 @@ def _body_mesh(surfaces, arcs: list, center, model_nodes: tuple[np.ndarray, np.n
     ``cuts`` (deg): radial lines along which the body is cut (a segmental lining's joints): the
     triangles on the invert side of each get their own copies of the vertices on it
     (:func:`_cut`), so the edges on it, and their edge nodes, are made twice.
+
+    ``onto``: per group of curves, None (a circle about ``center``) or a function of the edge's
+    vertices giving its node on the true curve (a section's profile: :func:`.profile_mesh.curve_placer`).
     """
     import gmsh
     from skfem import MeshTri1
@@ -294,14 +306,17 @@ def _body_mesh(surfaces, arcs: list, center, model_nodes: tuple[np.ndarray, np.n
     c = np.asarray(center, dtype=float)[:, None]
     rings = []
     boundary = facets.boundary_facets()
-    for group in arcs:
+    for k, group in enumerate(arcs):
         on_arc = np.zeros(nv, bool)
         on_arc[_arc_vertices(group, tags)] = True
         on_arc[n_tagged:] = on_arc[origin]  # a cut's copies of the arc's vertices are on it too
         arc_facets = boundary[on_arc[f[0, boundary]] & on_arc[f[1, boundary]]]
-        radius = np.mean(np.hypot(*(p[:, on_arc] - c)))
-        rel = edge[:, arc_facets] - c
-        edge[:, arc_facets] = c + radius * rel / np.hypot(*rel)
+        if onto is not None and onto[k] is not None:
+            edge[:, arc_facets] = onto[k](p[:, f[0, arc_facets]], p[:, f[1, arc_facets]])
+        else:
+            radius = np.mean(np.hypot(*(p[:, on_arc] - c)))
+            rel = edge[:, arc_facets] - c
+            edge[:, arc_facets] = c + radius * rel / np.hypot(*rel)
         # one node per station: a cut's copy of a vertex is left out (the original stands for both)
         rings.append(np.r_[np.flatnonzero(on_arc[:n_tagged]), nv + arc_facets])
     mesh = BodyMesh(p=np.ascontiguousarray(np.hstack([p, edge])),

@@ -55,7 +55,8 @@ def layer_lines(spec) -> list[float]:
     :func:`moved_lines`); every other line lies where the layers put it."""
     g = spec.geometry
     layers = spec.ground.layers
-    crown, invert = g.depth - g.hole_radius, g.depth + g.hole_radius
+    up, down, _ = g.hole_extent  # the hole radius for a circle
+    crown, invert = g.depth - up, g.depth + down
     clear = TANGENT_CLEARANCE * spec.mesh.interface_size
     lines, z = [], 0.0
     for layer in layers[:-1]:

@@ -35,6 +35,8 @@ from ..lining.design import design_utilization, governing_thrust, joint_utilizat
 from ..model import Solution, TunnelModel
 from ..spec.plausible import plausibility_warnings
 from ..lining.forces import lining_forces
+from ..geometry.profile_mesh import extrados_arc_length
+from .installation import installation_attrs, installation_scalars
 from .post import contact_extent, mean_convergence, surface_trough
 
 log = logging.getLogger(__name__)
@@ -241,6 +243,8 @@ def _interface_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict]
         "theta": _var("interface", iface.theta, "degree", "interface position at the tunnel axis from the crown"),
         "interface_x": _var("interface", p_ground[0, iface.ground_node], "m", "x of interface node"),
         "interface_y": _var("interface", p_ground[1, iface.ground_node], "m", "y of interface node"),
+        "arc_length": _var("interface", extrados_arc_length(model.mesh, sol.spec), "m",
+                           "length along the lining's extrados from the crown"),
     }
     data = {
         "water_pressure": _var("interface", sol.water_pressure, "Pa", "water pressure on the lining's extrados (0 when dry or drained)"),
@@ -263,7 +267,8 @@ def _interface_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict]
 def _lining_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict]:
     """``(data, scalars)`` of the lining's section forces and their EN 1992 check."""
     spec, iface = sol.spec, model.mesh.interface
-    forces = lining_forces(spec, model.lining.body, iface, model.mesh.center, sol.u_lining, sol.lam, sol.shear)
+    forces = lining_forces(spec, model.lining.body, iface, model.mesh.center, sol.u_lining, sol.lam, sol.shear,
+                           profile=model.mesh.profile)
     h, design = spec.geometry.thickness, spec.design
     eta, env_n, env_m = design_utilization(forces.thrust, forces.moment, h, design)
     n_ed = governing_thrust(forces.thrust, forces.moment, h, design)
@@ -425,6 +430,7 @@ def _attrs(model: TunnelModel, sol: Solution, warnings: list[str], software_vers
         attrs["lining_modes"] = list(model.modes.label)
         attrs["joint_contact_height_m"] = float(sol.joints.contact_height)
     attrs.update(_stage_attrs(model, sol))
+    attrs.update(installation_attrs(sol))
     now = datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
     return {
         "Conventions": "CF-1.10 UGRID-1.0",
@@ -446,7 +452,7 @@ def to_dataset(model: TunnelModel, sol: Solution, *, software_version: str, star
     lining_data, lining_scalars = _lining_variables(model, sol)
     surf_coords, surf_data, surf_scalars, surface = _surface_variables(model, sol)
     joint_coords, joint_data, joint_scalars = _joint_results(sol)
-    scalars = {**_contact_scalars(model, sol), **lining_scalars, **surf_scalars,
+    scalars = {**_contact_scalars(model, sol), **lining_scalars, **surf_scalars, **installation_scalars(sol),
                **_plastic_scalars(sol, geo["node_xy"], geo["ground_faces"], model.mesh.center), **joint_scalars}
     coords = {**mesh_coords, **iface_coords, **surf_coords, **joint_coords}
     data = {**mesh_data, **iface_data, **lining_data, **surf_data, **joint_data}

@@ -45,6 +45,10 @@ SCALARS = {
     "max_joint_rotation": ("rad", "largest absolute rotation across a joint (0 for a monolithic lining)"),
     "max_joint_eccentricity": ("1", "largest |M|/(N a/2) at a joint: <= 1 when every joint carries its thrust "
                                "within its contact strip of height a (0 for a monolithic lining)"),
+    "deconfinement": ("1", "share of the excavation load released before the lining is placed (lambda_d: given, "
+                           "or found from the face distance; 0 for 'wished-in-place')"),
+    "ldp_ratio": ("1", "u*: the wall convergence at the lining's installation over that far behind the face, of "
+                       "the longitudinal displacement profile (0 unless excavation.face_distance is given)"),
     "max_joint_utilization": ("1", "largest EN 1992-1-1 (12.10) utilization of a joint's contact strip at its "
                               "thrust (<= 1 passes; 0 for a monolithic lining)"),
 }

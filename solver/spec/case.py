@@ -4,13 +4,15 @@ from __future__ import annotations
 import json
 from typing import Optional
 
+import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from ..geometry.sizing import MAX_ELEMENTS, estimated_elements
-from ..ground.strata import geostatic_errors, strata
+from ..ground.strata import geostatic_errors, layer_lines, strata
 from ..lining.design import section_errors
 from .canonical import MAX_STIFFNESS_RATIO, _Frozen, content_id
 from .ground import LAYER_FIELDS, Ground, Strength
+from .section import Section
 from .parts import (Boundaries, Design, Excavation, Geometry, Interface, Joints, Lining, Loads, MeshSettings,
                     Settlement, SolverSettings, Water)
 
@@ -21,6 +23,9 @@ def _round3_defaults() -> dict[str, dict]:
         "lining": {"joints": Joints().model_dump(mode="json")},
         "solver": {"load_steps": SolverSettings.model_fields["load_steps"].default, "mesh_check": False},
         "water": Water().model_dump(mode="json"),
+        # fourth round (SPEC §9.4, §9.5): the section's shape, the face distance and its profile
+        "geometry": {"section": Section().model_dump(mode="json")},
+        "excavation": {"face_distance": None, "ldp": Excavation.model_fields["ldp"].default},
     }
     return defaults
 
@@ -83,6 +88,8 @@ class CaseSpec(_Frozen):
         if errors:
             field, reason = errors[0]
             raise ValueError(f"{field}: {reason}")
+        if not self.geometry.circle:
+            self._section_supported()
         return self._mesh_fits()
 
     def _ground_fits(self) -> None:
@@ -115,6 +122,18 @@ class CaseSpec(_Frozen):
         if errors:
             field, reason = errors[0]
             raise ValueError(f"{field}: {reason}")
+
+    def _section_supported(self) -> None:
+        """What a non-circular section does not have yet: joints (cuts normal to the
+        mid-surface) and layer lines cutting the section."""
+        if self.lining.joints.count:
+            raise ValueError(f"lining.joints.count: a '{self.geometry.section.shape}' section's lining is "
+                             "monolithic so far (segment joints are cut on circles only)")
+        up, down, _ = self.geometry.hole_extent
+        for i, z in enumerate(layer_lines(self)):  # lines near the crown or invert level are moved off it
+            if self.geometry.depth - up < z < self.geometry.depth + down:
+                raise ValueError(f"ground.layers.{i}.thickness: the layer boundary {z:.6g} m deep cuts the "
+                                 f"'{self.geometry.section.shape}' section; so far only a circle may be cut")
 
     @property
     def plastic(self) -> bool:
@@ -161,6 +180,13 @@ class CaseSpec(_Frozen):
             raise ValueError(
                 f"mesh.interface_size: {m.interface_size} m is too coarse for the lining "
                 f"(at most outer radius / 4 = {g.outer_radius / 4:.4g} m)")
+        if not g.circle:  # the curves' sharpest bend must span a few interface elements
+            hole = g.profile(g.thickness + g.gap)
+            sharpest = float(1.0 / np.max(hole.curvature(np.linspace(0.0, np.pi, 721))))
+            if m.interface_size > 0.5 * sharpest:
+                raise ValueError(
+                    f"mesh.interface_size: {m.interface_size} m is too coarse for the section's sharpest bend "
+                    f"(radius {sharpest:.4g} m on the excavation; at most half of it)")
         n = estimated_elements(self)
         if n > MAX_ELEMENTS:
             raise ValueError(
@@ -172,8 +198,9 @@ class CaseSpec(_Frozen):
         """Defaults filled, keys sorted, no whitespace: the text the case id hashes.
 
         Round-3 fields (SPEC §2: strata, water, plasticity, joints, load steps) and round-4 ones
-        (SPEC §9.3: crack width limit, bar diameter, design trough) are left out while they hold
-        their defaults, so every case that gives none of them keeps its id; ``name`` is never in it.
+        (SPEC §9.3: crack width limit, bar diameter, design trough; §9.4-9.5: the section, the face
+        distance) are left out while they hold their defaults, so every case that gives none of them
+        keeps its id; ``name`` is never in it. A face-distance case carries no deconfinement: it is found.
         """
         data = self.model_dump(mode="json", exclude={"name"})
         for section, fields in (*ROUND3_DEFAULTS.items(), *ROUND4_DEFAULTS.items()):
@@ -183,6 +210,8 @@ class CaseSpec(_Frozen):
         for section in ("water", "settlement"):
             if data[section] == {}:
                 del data[section]
+        if self.excavation.face_distance is not None:  # found, not given (SPEC §9.5)
+            data["excavation"].pop("deconfinement", None)
         return json.dumps(data, sort_keys=True, separators=(",", ":"))
 
     def named_json(self) -> str:

@@ -1,12 +1,18 @@
 """The geometry, lining, water, loads, stages, interface, design and numerical settings of a case."""
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import Literal, Optional, Union
+
+import numpy as np
 
 from pydantic import Field, field_validator, model_validator
 
+from ..geometry.section import equal_area_radius
+from ..ground.ldp import PROFILES
 from .canonical import MAX_DENSITY, MAX_POISSON, MAX_SEGMENTS, MAX_YOUNG, MIN_YOUNG, _Frozen, _ignorable, is_number
 from .ground import Material
+from .section import Section
 
 
 class Geometry(_Frozen):
@@ -18,19 +24,52 @@ class Geometry(_Frozen):
     width: float = Field(40.0, gt=0, le=10000.0, description="ground model width from the symmetry axis (m)")
     height: float = Field(50.0, gt=0, le=10000.0, description="ground model height (m)")
     gap: float = Field(0.0, ge=0, description="initial radial clearance g0 between lining and ground (m)")
+    section: Section = Field(Section(), description="the intrados's shape (SPEC §9.4); circle: inner_radius")
+
+    @property
+    def circle(self) -> bool:
+        """Whether the section is a circle of radius ``inner_radius`` (every case before §9.4)."""
+        return self.section.shape == "circle"
+
+    def profile(self, offset: float = 0.0):
+        """The intrados moved ``offset`` (m) along its outward normal, as a
+        :class:`~solver.geometry.section.Profile` centred on the section's centre."""
+        return _profile(self.section, self.inner_radius, offset)
 
     @property
     def outer_radius(self) -> float:
-        """Lining outer radius b = a + t (m)."""
-        return self.inner_radius + self.thickness
+        """Lining outer radius b = a + t (m); for another shape, the radius of the circle of the
+        extrados's area."""
+        if self.circle:
+            return self.inner_radius + self.thickness
+        return equal_area_radius(self.profile(self.thickness))
 
     @property
     def hole_radius(self) -> float:
-        """Radius of the excavation in the ground, b + g0 (m)."""
-        return self.outer_radius + self.gap
+        """Radius of the excavation in the ground, b + g0 (m); for another shape, the radius of
+        the circle of the excavated area (the extrados's offset by the gap)."""
+        if self.circle:
+            return self.outer_radius + self.gap
+        return equal_area_radius(self.profile(self.thickness + self.gap))
+
+    @property
+    def hole_extent(self) -> tuple[float, float, float]:
+        """The excavation's reach from the section's centre (m): up to the crown, down to the
+        invert, sideways (the hole radius three times for a circle)."""
+        if self.circle:
+            r = self.hole_radius
+            return r, r, r
+        return _extent(self.section, self.inner_radius, self.thickness + self.gap)
 
     @model_validator(mode="after")
     def _fits(self) -> "Geometry":
+        if not self.circle:  # the intrados is the section's: inner_radius is its equal-area radius
+            radius = equal_area_radius(_profile(self.section, 1.0, 0.0))
+            if not 0.1 <= radius <= 50.0:  # the bounds of inner_radius, which the canonical JSON holds
+                raise ValueError(f"section: the intrados encloses the area of a circle of radius {radius:.4g} m, "
+                                 "outside [0.1, 50] m")
+            object.__setattr__(self, "inner_radius", radius)
+        up, down, side = self.hole_extent
         r = self.hole_radius
         if self.thickness > 0.5 * self.inner_radius:
             raise ValueError(
@@ -44,22 +83,34 @@ class Geometry(_Frozen):
             raise ValueError(
                 f"gap: {self.gap} m exceeds 10 % of inner_radius; the small-displacement "
                 "contact model does not hold for such clearances")
-        cover = self.depth - r
+        cover = self.depth - up
         if cover <= 0.25 * r:
             raise ValueError(
                 f"depth: cover above the tunnel is {cover:.4g} m; it must exceed a quarter "
                 f"of the excavation radius ({0.25 * r:.4g} m)")
-        below = self.height - self.depth - r
+        below = self.height - self.depth - down
         if below <= 0.25 * r:
             raise ValueError(
                 f"height: room below the tunnel is {below:.4g} m; it must exceed a quarter "
                 f"of the excavation radius ({0.25 * r:.4g} m)")
-        beside = self.width - r
+        beside = self.width - side
         if beside <= 0.25 * r:
             raise ValueError(
                 f"width: room beside the tunnel is {beside:.4g} m; it must exceed a quarter "
                 f"of the excavation radius ({0.25 * r:.4g} m)")
         return self
+
+
+@lru_cache(maxsize=256)
+def _profile(section: Section, inner_radius: float, offset: float):
+    return section.profile(inner_radius).offset_by(offset)
+
+
+@lru_cache(maxsize=256)
+def _extent(section: Section, inner_radius: float, offset: float) -> tuple[float, float, float]:
+    hole = _profile(section, inner_radius, offset)
+    p = hole.points(np.linspace(0.0, np.pi, 2001))
+    return float(p[1, 0]), float(-p[1, -1]), float(p[0].max())
 
 
 class Joints(_Frozen):
@@ -139,26 +190,54 @@ class Loads(_Frozen):
 
 
 class Excavation(_Frozen):
-    """How the tunnel is built (SPEC §1.1)."""
+    """How the tunnel is built (SPEC §1.1), and where the lining is installed (§9.5)."""
 
     method: Literal["deconfinement", "wished-in-place"] = Field(
         "deconfinement",
         description="'deconfinement': in-situ stress, excavation, lining placed after a release "
                     "of lambda_d; 'wished-in-place': the paper's model, both bodies stress-free")
-    deconfinement: float = Field(
+    deconfinement: Optional[float] = Field(
         0.3, ge=0, le=1,
         description="lambda_d: fraction of the excavation load released before the lining is placed "
-                    "(no meaning for 'wished-in-place', where it is recorded as 0)")
+                    "(no meaning for 'wished-in-place', where it is recorded as 0; found, not given, "
+                    "with face_distance)")
+    face_distance: Optional[float] = Field(
+        None, ge=0, le=1000.0,
+        description="distance behind the face at which the lining is installed (m); lambda_d is then "
+                    "found from the longitudinal displacement profile 'ldp' and the ground reaction curve")
+    ldp: Literal[PROFILES] = Field(
+        "vlachopoulos-diederichs", description="longitudinal displacement profile for face_distance")
 
     @model_validator(mode="before")
     @classmethod
     def _deconfinement_only_when_staged(cls, data):
         # as interface.friction: a value the model ignores must not split one physical case
         # into several ids (nor be kept in the record as if it had acted)
-        if isinstance(data, dict) and data.get("method") == "wished-in-place" \
+        if not isinstance(data, dict):
+            return data
+        if data.get("method") == "wished-in-place" \
                 and ("deconfinement" not in data or _ignorable(data["deconfinement"])):
             data = {**data, "deconfinement": 0.0}
+        if data.get("face_distance") is None:
+            if "ldp" in data and data["ldp"] in PROFILES:  # the profile only serves a face distance
+                data = {**data, "ldp": "vlachopoulos-diederichs"}
+        elif data.get("method", "deconfinement") == "deconfinement":
+            if data.get("deconfinement") is not None:
+                raise ValueError(
+                    "deconfinement: give excavation.deconfinement or excavation.face_distance, not both "
+                    "(with a face distance the deconfinement is found from the longitudinal displacement "
+                    "profile and the ground reaction curve)")
+            data = {**data, "deconfinement": None}
         return data
+
+    @model_validator(mode="after")
+    def _stage_defined(self) -> "Excavation":
+        if self.face_distance is not None and self.method != "deconfinement":
+            raise ValueError("face_distance: a face distance needs excavation.method = 'deconfinement' (the "
+                             "'wished-in-place' lining is placed before any release)")
+        if self.face_distance is None and self.deconfinement is None:
+            raise ValueError("deconfinement: a number from 0 to 1 (or give excavation.face_distance)")
+        return self
 
 
 class Interface(_Frozen):

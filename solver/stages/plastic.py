@@ -206,6 +206,22 @@ def _stage_two_load(loads, steps: int, F2, ref1: float) -> float:
     return max((float(np.linalg.norm(loads.ground)) + float(np.sum(np.abs(F2)))) / steps, ref1)
 
 
+def release_unsupported(model, spec, rows, fraction: float = 1.0):
+    """Stage 1 alone: ``fraction`` of the excavation load released on the unsupported ground in
+    ``solver.load_steps`` increments (as :func:`solve_staged` begins). Returns the ground reaction
+    curve [(released, convergence)] and the quadrature points' history (:class:`Points`: where
+    the ground yielded). Raises :class:`NotConvergedError` where the ground collapses."""
+    gauss = Points(model, spec, "gauss")
+    release = stage_loads(model, spec).release
+
+    def commit(state):
+        gauss.commit(state[0])
+
+    curve = _stage_one(model, rows, release, fraction, spec.solver.load_steps, plastic_tolerance(spec), gauss,
+                       commit)[3]
+    return curve, gauss
+
+
 def solve_staged(model, spec, rows, t0: float):
     """Solve a case whose ground can yield (see the module's docstring): a
     :class:`~solver.model.Solution` with ``plastic`` results filled."""

@@ -17,6 +17,7 @@ from ..fe.flexibility import rows_of_model
 from ..fe.linalg import blas_threads
 from ..spec import CaseSpec
 from .contact import forward_stage
+from .face import install, with_deconfinement
 from .plastic import solve_staged
 from .recovery import finish
 from .state import KKT_ACCEPT, Solution, accepted_residual
@@ -31,11 +32,16 @@ def solve_case(model: BuiltModel, spec: CaseSpec) -> Solution:
     with blas_threads():
         rows = rows_of_model(spec.interface.model)
         model.factorize(rows)
+        installed = None
+        if spec.excavation.face_distance is not None:  # λd found, not given (SPEC §9.5)
+            installed = install(model, spec, rows)
+            spec = with_deconfinement(spec, installed.deconfinement)
         if spec.plastic:
             sol = solve_staged(model, spec, rows, t0)
         else:
             loads, stage, d, F2 = forward_stage(model, spec, rows)
             sol = finish(model, spec, rows, loads, stage, d, F2, t0)
+        sol.installation = installed
     limit = accepted_residual(spec.solver.tolerance)
     if not sol.kkt_residual <= limit:  # NaN too: never a result above the tolerance
         raise SolverError(

@@ -46,6 +46,21 @@ class Forward:
     deconfinement: float = 0.0
 
 
+@dataclass(frozen=True)
+class Installation:
+    """How a face-distance case's λd was found (:mod:`solver.stages.face`): the profile's u*,
+    the radius R (m) and R* it used, and, for ground that can yield, the full-release wall
+    convergence u_max (m; NaN for elastic ground, where only the ratio matters) and the
+    full-release ground reaction curve [(released, convergence)]."""
+
+    deconfinement: float
+    ldp_ratio: float
+    radius: float
+    plastic_ratio: float
+    full_release_convergence: float = float("nan")
+    full_release_curve: tuple = ()
+
+
 @dataclass
 class Solution:
     """The solved contact stage of one case, in SI units.
@@ -92,6 +107,8 @@ class Solution:
     plastic: dict | None = None
     #: a segmental lining's joints (:class:`solver.lining.joints.JointResults`) and its bolt set
     joints: "JointResults | None" = None
+    #: a face-distance case: how its λd was found (:class:`solver.stages.face.Installation`)
+    installation: Installation | None = None
 
     @property
     def gap(self) -> np.ndarray:

@@ -318,6 +318,11 @@ def test_unknown_or_malformed_ids_are_404(client, url):
      "exceeds the lining thickness"),
     (coarse_case(lining={"joints": {"count": 6, "contact_height": -0.1}}), "lining.joints.contact_height",
      "greater than 0"),
+    (coarse_case(excavation={"face_distance": 1.5, "deconfinement": 0.3}), "excavation.deconfinement", "not both"),
+    (coarse_case(geometry={"section": {"shape": "polycentric", "arcs": [{"radius": 1.0, "angle": 150.0},
+                                                                         {"radius": 10.0, "angle": 20.0},
+                                                                         {"angle": 10.0}]}}),
+     "geometry.section.arcs.2.radius", "cannot close"),
 ])
 def test_invalid_case_is_422_naming_the_field(client, body, field, words):
     response = client.post("/cases", json=body)

@@ -87,8 +87,11 @@ def _patch(path, value):
     return data
 
 
-#: Fields where null means something (a dry ground, a strip as high as the lining, the case's own ground loss).
-NULLABLE = {"water.table", "lining.joints.contact_height", "settlement.volume_loss"}
+#: Fields where null means something (a dry ground, a strip as high as the lining, the case's own ground
+#: loss, no face distance, a field the section's shape does not use).
+NULLABLE = {"water.table", "lining.joints.contact_height", "settlement.volume_loss", "excavation.face_distance",
+            *(f"geometry.section.{k}" for k in ("width", "height", "crown_radius", "crown_angle", "side_radius",
+                                                 "side_angle"))}
 
 
 def test_every_numeric_field_is_found():
