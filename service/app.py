@@ -15,7 +15,7 @@ from fastapi import FastAPI
 from fastapi.exceptions import RequestValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from . import cases, health, pages, searches, studies, sweeps
+from . import cases, health, pages, reliability, searches, studies, sweeps
 from .cluster import cluster_connection
 from .errors import http_error_handler, overflow_handler, request_validation_handler, store_error_handler
 from .guards import BodyLimitMiddleware, SameOriginMiddleware, TokenReadsMiddleware, openapi_auth_as_configured
@@ -44,6 +44,7 @@ async def lifespan(app: FastAPI):
             app.state.jobs = jobs
             app.state.searches = Searches(jobs)
             app.state.searches.resume()  # searches left running by an earlier run go on
+            reliability.resume(app)  # and reliability studies
             # Everything imported and built so far lives as long as the process. Taking it
             # out of the collector's view keeps full collections (~0.1 s over the ~200k
             # objects of dask, xarray, pydantic) from stalling requests.
@@ -53,6 +54,7 @@ async def lifespan(app: FastAPI):
             try:
                 yield
             finally:
+                await app.state.reliability.stop()
                 await app.state.searches.stop()
                 await jobs.stop()
     finally:
@@ -85,7 +87,7 @@ def create_app(settings: Optional[Settings] = None) -> FastAPI:
     app.add_exception_handler(OverflowError, overflow_handler)
     app.add_exception_handler(StarletteHTTPException, http_error_handler)
     openapi_auth_as_configured(app)
-    for module in (cases, sweeps, studies, searches, health, pages):
+    for module in (cases, sweeps, studies, searches, reliability, health, pages):
         app.include_router(module.router)
     pages.mount_static(app)
     serve_docs_offline(app)
