@@ -72,6 +72,7 @@ def render_plot(root: StoreLike, case_id: str, name: str, ds=None) -> Path:
 def render_report(root: StoreLike, case_id: str, ds=None) -> Path:
     """The cached PDF report of a stored case (:func:`workflows.report.case_report`), written
     first if missing; kept beside the case's plots (removed with them when the case is)."""
+    from .reliability.records import design_point_notes
     from .report import case_report
 
     store = as_store(root)
@@ -80,7 +81,7 @@ def render_report(root: StoreLike, case_id: str, ds=None) -> Path:
         return target
     with _BUILD_LOCK:
         if not target.is_file():
-            pdf = case_report(store.open_case(case_id) if ds is None else ds)
+            pdf = case_report(store.open_case(case_id) if ds is None else ds, design_point_notes(store, case_id))
             write_atomically(target, lambda tmp: Path(tmp).write_bytes(pdf))
             logger.info("wrote the report of case %s", case_id)
     return target

@@ -13,6 +13,7 @@ import io
 import json
 import textwrap
 from datetime import datetime, timezone
+from typing import Sequence
 
 import numpy as np
 import xarray as xr
@@ -75,7 +76,7 @@ def _table(fig: Figure, top: float, rows: list[tuple[str, str, str]], *, title: 
     return y - 0.012
 
 
-def _summary_page(ds: xr.Dataset, spec: dict, page: int, pages: int) -> Figure:
+def _summary_page(ds: xr.Dataset, spec: dict, page: int, pages: int, notes: Sequence[str] = ()) -> Figure:
     fig = _page()
     _margins(fig, ds, page, pages)
     fig.text(0.06, 0.955, "Case report", fontsize=20, weight="bold", va="top")
@@ -86,7 +87,7 @@ def _summary_page(ds: xr.Dataset, spec: dict, page: int, pages: int) -> Figure:
     segments = spec.get("lining", {}).get("joints", {}).get("count", 0)
     if segments:
         what += f"; segmental lining of {segments} segments"
-    fig.text(0.06, 0.915, "\n".join(textwrap.wrap(what, 95)), fontsize=9, va="top", color="0.25")
+    fig.text(0.06, 0.915, "\n".join(textwrap.wrap(what, 95) + list(notes)), fontsize=9, va="top", color="0.25")
     word, colour, lines = _verdict(ds)
     wrapped = [part for line in lines for part in textwrap.wrap(line, 78, subsequent_indent="    ")]
     bottom = min(0.78, 0.866 - 0.0112 * len(wrapped) - 0.008)  # room for the joints' lines
@@ -215,8 +216,9 @@ def _figure_page(ds: xr.Dataset, figure: Figure, name: str, page: int, pages: in
     return fig
 
 
-def case_report(ds: xr.Dataset) -> bytes:
-    """The PDF report of a case result (bytes)."""
+def case_report(ds: xr.Dataset, notes: Sequence[str] = ()) -> bytes:
+    """The PDF report of a case result (bytes); ``notes``: lines said under its description
+    (that it is a reliability study's design point)."""
     from .plots import PLOTS
 
     spec = json.loads(ds.attrs.get("case_spec", "{}"))
@@ -227,7 +229,7 @@ def case_report(ds: xr.Dataset) -> bytes:
     with PdfPages(buffer, metadata={"Title": f"tunnel-contact case {ds.attrs.get('case_id', '')}",
                                      "Creator": f"tunnel-contact {ds.attrs.get('software_version', '')}",
                                      "CreationDate": created}) as pdf:
-        pdf.savefig(_summary_page(ds, spec, 1, pages))
+        pdf.savefig(_summary_page(ds, spec, 1, pages, notes))
         pdf.savefig(_inputs_page(ds, 2, pages))
         if joints:
             pdf.savefig(_joints_page(ds, spec, 3, pages))

@@ -60,7 +60,11 @@ def read_record(root: StoreLike, ident: str) -> Optional[ReliabilityRecord]:
 
 
 def write_record(root: StoreLike, record: ReliabilityRecord) -> None:
+    """Write the record; a finished study's design case loses its cached report, which is
+    written again saying that the case is a design point."""
     write_atomically(record_path(root, record.id), lambda tmp: tmp.write_text(record.model_dump_json(indent=1)))
+    if record.status == "done" and record.design_case:
+        (as_store(root).plot_dir(record.design_case) / "report.pdf").unlink(missing_ok=True)
 
 
 def all_records(root: StoreLike) -> list[ReliabilityRecord]:
@@ -79,6 +83,12 @@ def new_record(study) -> ReliabilityRecord:
                              budget=study.budget, submitted_at=time.time())
 
 
-def design_point_of(root: StoreLike, case_id: str) -> list[ReliabilityRecord]:
-    """The finished studies whose design point is the case ``case_id`` (its report says so)."""
-    return [r for r in all_records(root) if r.design_case == case_id and r.status == "done"]
+def design_point_notes(root: StoreLike, case_id: str) -> list[str]:
+    """What a case's report says when the case is the design point of finished studies."""
+    folder = Path(as_store(root).root) / FOLDER
+    if not folder.is_dir():
+        return []
+    return [f"Design point of reliability study '{r.name}' ({r.id}): {r.study.get('method')}, "
+            f"beta = {r.beta:.3f}, P = {r.probability:.3g}" if r.beta is not None and r.probability is not None
+            else f"Design point of reliability study '{r.name}' ({r.id})"
+            for r in all_records(root) if r.design_case == case_id and r.status == "done"]
