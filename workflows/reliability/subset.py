@@ -7,9 +7,11 @@ modified (component-wise) Metropolis algorithm: each coordinate of a candidate i
 from a unit-variance normal about the current one and kept with probability
 min(1, φ(ξ)/φ(u)); the candidate, if any coordinate moved, is one FE call and is accepted if it
 lies below b_j. A step of every chain at once is one batch of cases. The last level counts the
-failed samples. The coefficient of variation follows Au & Beck's estimate, the chains'
-correlation included (γ_j), summed over levels as if they were independent (a lower bound of
-the true one; the interval is taken lognormal).
+failed samples. The coefficient of variation is Au & Beck's: each level's, the chains'
+correlation included (γ_j), then their upper bound for the product, δ ≤ Σ δ_j (levels fully
+correlated); their estimate with independent levels, sqrt(Σ δ_j²), is too small here: at β 3.8
+and 3 000 calls it gives 0.42 where 40 seeds scatter by 0.70 (their 95 % intervals covered the
+exact P 27 times in 40, the bound's 38 times). The interval is taken lognormal.
 """
 from __future__ import annotations
 
@@ -114,7 +116,7 @@ def subset_simulation(g: LimitState, *, seed: int = 0, samples: Optional[int] = 
         # (chains, steps) order, so that a chain's states are contiguous for γ
         U = np.stack(chain_u, axis=1).reshape(n, d)
         G = np.stack(chain_g, axis=1).reshape(n)
-    cov = math.sqrt(sum(deltas2)) if converged else None
+    cov = sum(math.sqrt(x) for x in deltas2) if converged else None
     if converged:
         low, high = lognormal_interval(probability, cov) if probability > 0 else (0.0, float("nan"))
     else:
