@@ -94,8 +94,17 @@ class CaseLimitState(LimitState):
         self.outputs: dict[str, float] = {}
 
     def spec(self, u: np.ndarray):
-        x = self.space.to_physical(np.atleast_2d(u))[0]
-        return self.study.case_at(dict(zip(self.study.paths, x)))
+        from pydantic import ValidationError
+
+        from solver.errors import field_errors, format_errors
+
+        values = self.values(u)
+        try:
+            return self.study.case_at(values)
+        except ValidationError as exc:  # the distributions reach values the case model refuses
+            where = ", ".join(f"{p} = {v:.6g}" for p, v in values.items())
+            raise CaseFailed(f"the variables at {where} give no valid case: "
+                             f"{format_errors(field_errors(exc))}") from None
 
     def key(self, u: np.ndarray) -> str:
         return self.spec(u).case_id
