@@ -14,7 +14,7 @@ from service.app import create_app
 from service.settings import Settings
 from solver import CaseSpec, run_case
 
-#: Weightless ground, light lining: max_utilization = q γF η1 exactly (see tests/workflows/reliability_cases.py)
+#: Weightless ground, light lining: max_utilization = q γF η1 exactly (see bench/exact_limit_state.py)
 EXACT = {"mesh": {"interface_size": 0.25, "far_size": 8.0}, "ground": {"density": 0.0}, "lining": {"density": 1.0},
          "geometry": {"thickness": 0.2}, "design": {"concrete_strength": 1.6e7, "load_factor": 1.0}}
 GAMMA = {"distribution": "lognormal", "mean": 1.35, "std": 0.1}

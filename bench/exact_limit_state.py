@@ -1,4 +1,4 @@
-"""The exact limit state of issue 41, shared by the reliability tests and ``bench.study``.
+"""The exact limit state of issue 41, shared by the reliability tests and ``bench.study --reliability``.
 
 Weightless ground, a light lining (1 kg/m³: the lining must weigh something, SPEC §1),
 frictionless contact: every load is the surface load q times a fixed field, so N and M are
