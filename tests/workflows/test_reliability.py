@@ -203,3 +203,11 @@ def test_bad_studies_name_the_field(change, field):
     assert where == field or where.startswith(field + ".") or where == ""
     if where == "":
         assert str(info.value).split("\n")[1].strip().removeprefix("Value error, ").startswith(field)
+
+
+def test_the_example_study_is_valid():
+    from pathlib import Path
+
+    study = ReliabilityStudy.model_validate_json((Path(__file__).parents[2] / "examples" / "reliability-form.json")
+                                                .read_text())
+    assert study.method == "form" and study.budget == 300 and len(study.variables) == 3
