@@ -28,7 +28,7 @@ from workflows.plots import PLOTS, SWEEP_PLOT_NAMES
 from workflows.studies import MIN_SAMPLES, SENSITIVITY_MIN_SAMPLES
 from workflows.units import DIAGNOSTICS
 
-from . import cases, searches, studies
+from . import cases, reliability, searches, studies
 from .comparison import comparison_table, ordered_scalars, scalar_column, shown
 from .form import case_form
 from .params import CaseId, SearchId, SweepId, jobs_of, sweep_or_404
@@ -101,10 +101,11 @@ async def _render(request: Request, name: str, **context) -> HTMLResponse:
 async def index(request: Request) -> HTMLResponse:
     sweep_page = await studies.list_sweeps(request, limit=20, offset=0)
     search_list = (await searches.list_searches(request, limit=20, offset=0)).items
+    studies_list = (await reliability.list_reliability(request, limit=20, offset=0)).items
     case_page = await cases.list_cases(request, status=None, limit=20, offset=0, newest_first=True)
     workers = (await jobs_of(request).cluster_state())[1]
     return await _render(request, "index.html", sweeps=sweep_page, cases=case_page, workers=workers,
-                         searches=search_list)
+                         searches=search_list, reliability=studies_list)
 
 
 async def error_page(request: Request, status_code: int, detail: str) -> HTMLResponse:

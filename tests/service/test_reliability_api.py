@@ -97,6 +97,7 @@ def test_a_form_study_over_rest_and_across_a_restart(tmp_path):
         png = client.get(f"/reliability/{ident}/convergence.png")
         assert png.status_code == 200 and png.headers["content-type"] == "image/png"
         assert any(item["id"] == ident for item in client.get("/reliability").json()["items"])
+        assert f"/ui/reliability/{ident}" in client.get("/").text  # listed on the dashboard
     # the answer is the one its stored cases give, replayed without solving anything
     from workflows.reliability import ReliabilityStudy, StoreRunner, run_study
 

@@ -67,7 +67,8 @@ def design_point(g: LimitState, *, step: float = STEP, tolerance: float = TOLERA
         if norm == 0.0:
             raise ValueError("the output does not change with the variables at the mean point (zero gradient)")
         beta = float(np.linalg.norm(u))
-        history.append({"calls": g.calls, "beta": beta, "g": float(gu), "stage": f"design point, iteration {iterations}"})
+        history.append({"calls": g.calls, "beta": beta, "g": float(gu),
+                        "stage": f"design point, iteration {iterations}"})
         if on_progress:
             on_progress(history[-1])
         alpha = grad / norm
@@ -151,7 +152,8 @@ def form(g: LimitState, *, seed: int = 0, on_progress: Optional[Callable[[dict],
     if sampled["samples"] == 0:
         note = (note + "; " if note else "") + "no budget left for the importance-sampling check"
     elif sampled["probability"] == 0.0:
-        note = (note + "; " if note else "") + "no importance sample failed: the probability is below what the sample sees"
+        note = ((note + "; " if note else "")
+                + "no importance sample failed: the probability is below what the sample sees")
     history = found["history"] + sampled["history"]
     return ReliabilityResult(
         method="form", probability=sampled["probability"], ci_low=sampled["ci_low"], ci_high=sampled["ci_high"],
