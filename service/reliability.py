@@ -15,9 +15,10 @@ import concurrent.futures
 import logging
 import time
 from pathlib import Path
-from typing import Sequence
+from typing import Annotated, Sequence
 
 from fastapi import APIRouter, Depends, Query, Request, Response
+from fastapi import Path as PathParam
 from fastapi.responses import HTMLResponse
 from pydantic import BaseModel
 
@@ -28,10 +29,13 @@ from workflows.result_store import estimated_result_bytes
 
 from .errors import responses
 from .guards import check_capacity, require_token
-from .params import Offset, SearchId, not_found
+from .params import Offset, not_found
+from .schemas import CASE_ID_PATTERN
 
 logger = logging.getLogger(__name__)
 router = APIRouter(tags=["studies"])
+
+StudyId = Annotated[str, PathParam(pattern=CASE_ID_PATTERN, description="study id, 16 lowercase hex digits")]
 
 #: Seconds between looks at the cases a study waits for.
 POLL = 0.25
@@ -176,7 +180,7 @@ async def list_reliability(request: Request, limit: int = Query(20, ge=1, le=200
 
 
 @router.get("/reliability/{study_id}", response_model=ReliabilityRecord, responses=responses(404, 422))
-async def get_reliability(study_id: SearchId, request: Request) -> ReliabilityRecord:
+async def get_reliability(study_id: StudyId, request: Request) -> ReliabilityRecord:
     """A study's progress (``calls`` of ``budget``, ``stage``, ``history``) and, when done,
     ``beta``, ``probability`` with ``ci_low``/``ci_high`` (95 %), ``design_point`` and its
     case ``design_case``, ``importance`` (α²) and ``calls``."""
@@ -188,7 +192,7 @@ async def get_reliability(study_id: SearchId, request: Request) -> ReliabilityRe
 
 @router.get("/reliability/{study_id}/convergence.png", response_class=Response,
             responses={200: {"content": {"image/png": {}}}, **responses(404, 422)})
-async def get_convergence_plot(study_id: SearchId, request: Request) -> Response:
+async def get_convergence_plot(study_id: StudyId, request: Request) -> Response:
     """The estimate against FE calls, and the importance factors."""
     from workflows.reliability.plots import plot_study
     from workflows.study_plots import png
@@ -198,7 +202,7 @@ async def get_convergence_plot(study_id: SearchId, request: Request) -> Response
 
 
 @router.get("/ui/reliability/{study_id}", response_class=HTMLResponse, include_in_schema=False)
-async def reliability_page(study_id: SearchId, request: Request) -> HTMLResponse:
+async def reliability_page(study_id: StudyId, request: Request) -> HTMLResponse:
     """The dashboard's page of a study: progress, β with its interval, importance, convergence."""
     from .pages import _render
 

@@ -57,6 +57,13 @@ def study_at(beta: float, budget: int, name: str) -> dict:
     ({"output": "moment"}, "output"),
     ({"limit": "inf"}, "limit"),
     ({"base": {"geometry": {"depth": -3}}}, "base.geometry.depth"),
+    ({"variables": ["ground.young"]}, "variables"),
+    ({"variables": {"ground.young": {"distribution": "truncated-normal", "mean": 1e7, "std": 1e6, "low": 2e7,
+                                     "high": 1e7}}}, "variables.ground.young"),
+    ({"seed": -1}, "seed"),
+    ({"budget": 100, "method": "subset", "samples_per_level": 500}, "samples_per_level"),
+    ({"colour": "red"}, "colour"),
+    ({"name": ""}, "name"),
 ])
 def test_bad_studies_are_422_naming_the_field(client, change, field):
     good = {"name": "x", "base": EXACT, "variables": {"design.load_factor": GAMMA}}
