@@ -70,9 +70,6 @@ def main(argv=None) -> None:
     print("P(max_utilization > 1) = {:.4f} [{:.4f}, {:.4f}]".format(*out["probability_of_failure"]))
 
 
-if __name__ == "__main__":
-    main()
-
 
 #: Budgets of the --reliability runs (the tests' ceilings for β 3.8).
 BUDGETS = {"form": 300, "subset": 3000, "ak-mcs": 300}
@@ -108,3 +105,7 @@ def reliability_cost(methods: list[str], beta: float, workers: int, *, as_json: 
         beta_found = "-" if row["beta"] is None else f"{row['beta']:.3f}"
         print(f"{row['method']:<8} {row['calls']:>6} {row['minutes']:>8.2f} {beta_found:>7} {shown:>17} "
               f"{row['exact_beta']:>7.3f}")
+
+
+if __name__ == "__main__":
+    main()
