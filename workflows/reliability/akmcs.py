@@ -3,8 +3,9 @@ actively on a Monte Carlo population, and the probability counted on the surroga
 
 The population is drawn in the standard normal space; the surrogate is scikit-learn's
 ``GaussianProcessRegressor`` (constant × anisotropic Matérn 5/2 kernel, hyperparameters by
-maximum likelihood, correlation lengths at most 10 standard deviations). Each iteration adds the population point whose sign is least certain,
-the minimum of the U criterion U = |μ|/σ, as one FE call. Learning stops when every point has
+maximum likelihood, correlation lengths at most 10 standard deviations). Each iteration adds
+the population point whose sign is least certain, the minimum of the U criterion U = |μ|/σ, as
+one FE call. Learning stops when every point has
 U ≥ 2 (each sign wrong with probability below Φ(−2) = 2.3 %); then, if the population is too
 small for the estimate (c.o.v. of P over 5 %), it grows and learning goes on. The interval is
 the exact binomial one of the population count: the surrogate's own error, once U ≥ 2

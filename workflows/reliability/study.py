@@ -42,7 +42,8 @@ class ReliabilityStudy(BaseModel):
                         description="most FE cases the study uses, checks included (a stored case counts once)")
     seed: int = Field(0, ge=0, le=2**32 - 1, description="seed of every random draw (same seed, same cases)")
     samples_per_level: Optional[int] = Field(
-        None, ge=20, le=MAX_BUDGET, description="subset: samples per level (default: budget / 4.6, room for five levels)")
+        None, ge=20, le=MAX_BUDGET,
+        description="subset: samples per level (default: budget / 4.6, room for five levels)")
 
     @model_validator(mode="after")
     def _consistent(self) -> "ReliabilityStudy":
