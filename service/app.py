@@ -17,7 +17,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from workflows.files import DamagedFile
 from workflows.result_store import ResultStore
 
-from . import case_tables, cases, health, pages, searches, studies, sweeps
+from . import case_tables, cases, health, pages, reliability, searches, studies, sweeps
 from .cluster import cluster_connection
 from .errors import (damaged_file_handler, http_error_handler, overflow_handler, request_validation_handler,
                      store_error_handler)
@@ -49,6 +49,7 @@ async def lifespan(app: FastAPI):
             app.state.jobs = jobs
             app.state.searches = Searches(jobs)
             app.state.searches.resume()  # searches left running by an earlier run go on
+            reliability.resume(app)  # and reliability studies
             # Everything imported and built so far lives as long as the process. Taking it
             # out of the collector's view keeps full collections (~0.1 s over the ~200k
             # objects of dask, xarray, pydantic) from stalling requests.
@@ -58,6 +59,7 @@ async def lifespan(app: FastAPI):
             try:
                 yield
             finally:
+                await app.state.reliability.stop()
                 await app.state.searches.stop()
                 await jobs.stop()
     finally:
@@ -104,7 +106,7 @@ def create_app(settings: Optional[Settings] = None) -> FastAPI:
     app.add_exception_handler(DamagedFile, damaged_file_handler)
     app.add_exception_handler(StarletteHTTPException, http_error_handler)
     openapi_auth_as_configured(app)
-    for module in (cases, case_tables, sweeps, studies, searches, health, pages):
+    for module in (cases, case_tables, sweeps, studies, searches, reliability, health, pages):
         app.include_router(module.router)
     mount_static(app)
     serve_docs_offline(app)

@@ -69,6 +69,12 @@ def build_parser() -> argparse.ArgumentParser:
     scheduler(p)
     results(p)
 
+    p = sub.add_parser("reliability", help="probability of failure by FORM, subset simulation or AK-MCS")
+    p.add_argument("study", metavar="STUDY.json", help="reliability study file (SPEC §9.6)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    scheduler(p)
+    results(p)
+
     p = sub.add_parser("analyse", help="sensitivity or reliability of a stored sweep's result")
     p.add_argument("sweep_id", metavar="SWEEP_ID", help="a sweep id or a unique prefix of one")
     what = p.add_mutually_exclusive_group(required=True)
@@ -115,6 +121,11 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "search":
             return commands.search_command(args.search, args.results, scheduler=args.scheduler,
                                            progress=not args.no_progress)
+        if args.command == "reliability":
+            from workflows.reliability_methods.command import reliability_command
+
+            return reliability_command(args.study, args.results, scheduler=args.scheduler,
+                                       progress=not args.no_progress)
         if args.command == "analyse":
             return commands.analyse_command(args.sweep_id, args.results, sensitivity=args.sensitivity,
                                             reliability=args.reliability, limit=args.limit)

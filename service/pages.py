@@ -26,7 +26,7 @@ from workflows.plots import PLOTS, SWEEP_PLOT_NAMES
 from workflows.studies import MIN_SAMPLES, SENSITIVITY_MIN_SAMPLES
 from workflows.units import DIAGNOSTICS
 
-from . import cases, searches, studies
+from . import cases, reliability, searches, studies
 from .comparison import comparison_table, ordered_scalars, scalar_column
 from .form import case_form
 from .params import CaseId, SearchId, SweepId, jobs_of, sweep_or_404
@@ -54,10 +54,11 @@ EXAMPLE_CASE = {"geometry": {"thickness": 0.3, "gap": 0.01}, "mesh": {"interface
 async def index(request: Request) -> HTMLResponse:
     sweep_page = await studies.list_sweeps(request, limit=20, offset=0)
     search_list = (await searches.list_searches(request, limit=20, offset=0)).items
+    studies_list = (await reliability.list_reliability(request, limit=20, offset=0)).items
     case_page = await cases.list_cases(request, status=None, limit=20, offset=0, newest_first=True)
     workers = (await jobs_of(request).cluster_state())[1]
     return await render(request, "index.html", sweeps=sweep_page, cases=case_page, workers=workers,
-                         searches=search_list)
+                         searches=search_list, reliability=studies_list)
 
 
 @router.get("/ui/sweeps/{sweep_id}", response_class=HTMLResponse)

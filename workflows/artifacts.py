@@ -83,6 +83,7 @@ def render_report(root: StoreLike, case_id: str, ds=None, *, title: dict | None 
     per title."""
     from solver.spec import content_id
 
+    from .reliability_methods.records import design_point_notes
     from .report import case_report, title_block
 
     store = as_store(root)
@@ -95,7 +96,8 @@ def render_report(root: StoreLike, case_id: str, ds=None, *, title: dict | None 
         return target
     with _BUILD_LOCK:
         if not _intact(target):
-            pdf = case_report(store.open_case(case_id) if ds is None else ds, title=given)
+            pdf = case_report(store.open_case(case_id) if ds is None else ds, title=given,
+                              notes=design_point_notes(store, case_id))
             write_atomically(target, lambda tmp: Path(tmp).write_bytes(pdf), checksum=True)
             logger.info("wrote the report of case %s", case_id)
     return target

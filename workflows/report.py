@@ -17,6 +17,7 @@ import io
 import json
 import textwrap
 from datetime import datetime, timezone
+from typing import Sequence
 
 import numpy as np
 import xarray as xr
@@ -120,7 +121,8 @@ def _title_block(fig: Figure, ds: xr.Dataset, title: dict[str, str]) -> None:
                  fontsize=8.5, va="bottom", gid=f"title-{label.lower().rstrip('.')}")
 
 
-def _summary_page(ds: xr.Dataset, spec: dict, page: int, pages: int, title: dict[str, str]) -> Figure:
+def _summary_page(ds: xr.Dataset, spec: dict, page: int, pages: int, title: dict[str, str],
+                  notes: Sequence[str] = ()) -> Figure:
     fig = _page()
     _margins(fig, ds, page, pages)
     _title_block(fig, ds, title)
@@ -136,7 +138,7 @@ def _summary_page(ds: xr.Dataset, spec: dict, page: int, pages: int, title: dict
     segments = spec.get("lining", {}).get("joints", {}).get("count", 0)
     if segments:
         what += f"; segmental lining of {segments} segments"
-    fig.text(0.06, 0.86, "\n".join(textwrap.wrap(what, 95)), fontsize=9, va="top", color="0.25")
+    fig.text(0.06, 0.86, "\n".join(textwrap.wrap(what, 95) + list(notes)), fontsize=9, va="top", color="0.25")
     word, colour, lines = _verdict(ds)
     wrapped = [part for line in lines for part in textwrap.wrap(line, 78, subsequent_indent="    ")]
     bottom = min(0.72, 0.81 - 0.0112 * len(wrapped) - 0.008)  # room for the joints' lines
@@ -360,9 +362,10 @@ def _figure_page(ds: xr.Dataset, figure: Figure, name: str, page: int, pages: in
     return figure
 
 
-def case_report(ds: xr.Dataset, title: dict | None = None) -> bytes:
+def case_report(ds: xr.Dataset, title: dict | None = None, notes: Sequence[str] = ()) -> bytes:
     """The PDF report of a case result (bytes): a calculation record with the title block's
-    fields (:data:`TITLE_FIELDS`, optional) on page 1."""
+    fields (:data:`TITLE_FIELDS`, optional) on page 1; ``notes``: lines said under its
+    description (that it is a reliability study's design point)."""
     from .plots import PLOTS
 
     title = title_block(title)
@@ -375,7 +378,7 @@ def case_report(ds: xr.Dataset, title: dict | None = None) -> bytes:
     with PdfPages(buffer, metadata={"Title": f"tunnel-contact case {ds.attrs.get('case_id', '')}",
                                      "Creator": f"tunnel-contact {ds.attrs.get('software_version', '')}",
                                      "CreationDate": created}) as pdf:
-        pdf.savefig(_summary_page(ds, spec, 1, pages, title))
+        pdf.savefig(_summary_page(ds, spec, 1, pages, title, notes))
         # page 2: the whole model, as the engineer checks it before any result
         pdf.savefig(_figure_page(ds, PLOTS["model"](ds), "model", 2, pages, 1))
         pdf.savefig(_inputs_page(ds, 3, pages))

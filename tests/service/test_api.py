@@ -67,7 +67,8 @@ def test_openapi_lists_every_endpoint_with_response_models(client):
         "/sweeps/{sweep_id}/summary.xlsx", "/sweeps/{sweep_id}/plots/{name}.png",
         "/sweeps/{sweep_id}/cancel", "/sweeps/{sweep_id}/sensitivity", "/sweeps/{sweep_id}/sensitivity.png",
         "/sweeps/{sweep_id}/reliability", "/sweeps/{sweep_id}/reliability.png", "/searches", "/searches/{search_id}",
-        "/searches/{search_id}/trials.png"}
+        "/searches/{search_id}/trials.png", "/reliability", "/reliability/{study_id}",
+        "/reliability/{study_id}/convergence.png"}
     post = schema["paths"]["/cases"]["post"]
     assert "202" in post["responses"] and "422" in post["responses"]
     assert {"Case", "CaseAccepted", "CasePage", "SweepStatus", "SweepAccepted", "Health"} <= set(
