@@ -20,7 +20,7 @@ from sqlalchemy.engine import make_url
 logger = logging.getLogger(__name__)
 
 #: The newest schema revision (:mod:`service.migrations.versions`).
-HEAD = "0002"
+HEAD = "0003"
 _MIGRATIONS = Path(__file__).with_name("migrations")
 
 

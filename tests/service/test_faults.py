@@ -89,7 +89,7 @@ def test_post_is_503_with_the_reason_when_the_job_records_are_full(client, app, 
 def test_plot_write_on_a_full_disk_is_503_without_server_paths(client, app, done_case, monkeypatch):
     import service.cases
 
-    def enospc(root, case_id, name, *args):
+    def enospc(root, case_id, name, *args, **kwargs):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(root / "plots" / case_id / f"{name}.png"))
     monkeypatch.setattr(service.cases, "render_plot", enospc)
     response = client.get(f"/cases/{done_case['id']}/plots/contact_pressure.png")
