@@ -75,6 +75,12 @@ def build_parser() -> argparse.ArgumentParser:
     scheduler(p)
     results(p)
 
+    _study_and_serve_commands(sub, results, scheduler)
+    return parser
+
+
+def _study_and_serve_commands(sub, results, scheduler) -> None:
+    """The ``analyse`` and ``serve`` commands."""
     p = sub.add_parser("analyse", help="sensitivity or reliability of a stored sweep's result")
     p.add_argument("sweep_id", metavar="SWEEP_ID", help="a sweep id or a unique prefix of one")
     what = p.add_mutually_exclusive_group(required=True)
@@ -92,7 +98,6 @@ def build_parser() -> argparse.ArgumentParser:
                    help="result store folder (default: $TUNNEL_CONTACT_RESULTS or ./results)")
     p.add_argument("--access-log", action="store_true", default=None,
                    help="log every request (default: $TUNNEL_CONTACT_ACCESS_LOG, or off)")
-    return parser
 
 
 def main(argv: list[str] | None = None) -> int:
