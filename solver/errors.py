@@ -14,7 +14,7 @@ from __future__ import annotations
 import re
 from typing import Any, Callable, Iterable, Sequence
 
-__all__ = ["SolverError", "NotConvergedError", "GroundCollapseError", "NoAdmissibleBoltError", "field_errors",
+__all__ = ["SolverError", "NotConvergedError", "NoAdmissibleBoltError", "field_errors",
            "field_path", "format_errors", "did_you_mean"]
 
 
@@ -114,18 +114,3 @@ def format_errors(errors: Iterable[tuple[str, str]], *, whole: str = "value") ->
     """One line: ``field: reason; field: reason`` (``whole`` names an empty path)."""
     return "; ".join(f"{field or whole}: {reason}" for field, reason in errors)
 
-
-class GroundCollapseError(NotConvergedError):
-    """The yielding ground found no equilibrium beyond a load: a collapse (a limit load), with the
-    largest load fraction it held (``held``: the deconfinement λd in stage 1)."""
-
-    def __init__(self, where: str, held: float, tried: float, force: float, atol: float, reason: str):
-        self.where, self.held, self.tried = where, held, tried
-        if where.startswith("stage 1"):
-            text = (f"excavation.deconfinement: the unsupported ground collapses: it held λd = {held:.4g} and finds "
-                    f"no equilibrium at λd = {tried:.4g} ({where})")
-        else:
-            text = (f"excavation.deconfinement: the lined ground collapses in {where}: it held {held:.4g} of the "
-                    f"stage's load and finds no equilibrium at {tried:.4g}")
-        super().__init__(f"{text} (out-of-balance force {force:.3g} N/m > {atol:.3g}: {reason}); raise the "
-                         "ground's strength or the support (a lower excavation.deconfinement)")

@@ -1,32 +1,39 @@
-"""Yielding ground through the construction stages (SPEC §1.5, §9.1): the staged, incremental solve.
+"""Yielding ground through the construction stages (SPEC §1.5): the staged, incremental solve.
 
-Method: each load increment's equilibrium ``K u = f + p(u)`` (``p`` the plastic load,
-:mod:`.points`) is solved by Newton's method on the consistent tangent of the ground's laws, its
-linear systems by GMRES preconditioned by the elastic factorization the model already holds, with
-a line search (:func:`.newton.newton`): the preconditioned Jacobian ``I - K⁻¹P′`` is the identity
-but for the points that yield, so a Newton step costs a few triangular solve pairs, and no matrix
-is assembled or factorized per case. A sweep over loads, K0, λd or strength therefore still shares
-one model per geometry. In stage 2 the contact problem is solved on the interface flexibility at
-every iterate, as in an elastic case (every interface model, water, layers and segmental joints
-unchanged); its derivative enters the Jacobian's action by a difference of two contact solves
-(the contact problem is piecewise linear in its load). The stop test is the out-of-balance force
-``‖K u - f - p(u) + Bᵀ W t‖`` against the increment's load, at ``solver.tolerance`` (not finer
-than :data:`MIN_TOLERANCE`).
+Method: the constant-stiffness ("initial stress") iteration on the model's factorized elastic
+stiffness, accelerated by Anderson mixing (:class:`_Anderson`). With ``ε_p`` the plastic
+strain, the ground's equilibrium ``∫Bᵀ(σ - σ0′) = f`` reads ``K u = f + p(u)`` with the
+plastic load ``p = ∫Bᵀ(σ0′ + D ε(u) - σ(u))``, non-zero only where the ground yields. Each
+iteration solves the *elastic* problem with the load ``f + p``: one forward and one backward
+triangular solve on the factors the model already holds and, in stage 2, the contact problem on
+the same interface flexibility (so the bolt search, every interface model, water and layers
+work unchanged). A sweep over loads, K0, λd or strength therefore still shares one model per
+geometry. The stop test is the equilibrium residual: the out-of-balance force
+``‖K u - f - p(u)‖`` of the iterate, relative to the increment's load, at most ``solver.tolerance``
+floored at :data:`MIN_TOLERANCE`; the plastic consistency holds at every point by the return
+mapping (:mod:`solver.ground.mohr_coulomb`).
 
-Load stepping is automatic: an increment whose Newton iteration fails is split in halves (down to
-1/2^:data:`MAX_SPLITS` of it) and the sub-increments grow again as they converge in a few steps
-(:func:`_follow`). An increment that fails even then is a collapse of the ground (a limit load: no
-equilibrium beyond it), reported with the largest deconfinement it held
-(:class:`~solver.errors.GroundCollapseError`).
+Where an increment stalls (:data:`STAGNATION`) it is split in halves, down to 1/64 of it,
+and the sub-increments grow again as they converge (:func:`_follow`; the automatic step
+control of commercial codes). Why: with flow far from associated (ψ = 0 against φ = 25°) a
+thin plastic zone can sit beyond the loss of stability of non-associated perfect plasticity.
+The consistent tangent stiffness then has a few eigenvalues of slightly negative real part
+(``K⁻¹J`` down to -0.013 in the stalling case of issue 25), carried by shear-band modes
+of the plastic zone: the iteration's map has a dozen eigenvalues at or just above 1, more than
+Anderson mixing can cancel, and a Newton step on that tangent (measured) moves a hundredth of
+the displacement along those modes, far outside where its linearization holds (hundreds of
+points change state). Shorter increments keep the iterates where the mixing still works.
 
-Stages (SPEC §1.1): stage 1 releases λd of the excavation load in ``solver.load_steps`` equal
-increments on the unsupported ground (those below the first yield, :func:`.points.first_yield`,
-in one elastic solve; each increment starts from the last one's displacement change, scaled to
-its length); the yield state at its end is kept for the results (``stage1_plastic``); the lining
-is placed on the ground as it stands; stage 2 releases the rest (with the lining's weight, the
-water and a drained lining's seepage) in as many increments. The stress history lives at the
-quadrature points (degree 4, six per triangle); the stored face stresses are followed, with the
-same history, at the sub-triangle centroids.
+Stages (SPEC §1.1): stage 1 releases λd of the excavation load in ``solver.load_steps``
+equal increments on the unsupported ground (those below the first yield, :func:`first_yield`,
+in one elastic solve; each increment starts from the last one's displacement change, scaled
+to its length); the lining is placed on the ground as it stands; stage 2
+releases the rest (with the lining's weight, the water and a drained lining's seepage) in as
+many increments, each with its contact solve. The stress history lives at the quadrature
+points (degree 4, six per triangle); the stored face stresses are followed, with the same
+history, at the sub-triangle centroids. Strains come from one sparse gradient operator per
+set of points (:meth:`~solver.model.TunnelModel.gradient_operator`), whose transpose
+integrates the plastic load.
 """
 from __future__ import annotations
 
@@ -34,230 +41,422 @@ import logging
 
 import numpy as np
 
-from ..errors import GroundCollapseError
+from ..errors import NotConvergedError
+from ..ground.loads import in_situ_stress, moduli
+from ..ground.mohr_coulomb import Material, equivalent, return_stress
+from ..ground.strata import strata
+from ..limits import check_time
 from ..results.post import mean_convergence
 from .contact import contact_tractions
 from .loads import stage_loads
-from .newton import Stalled, solve_increment
-from .points import Points, first_yield
 from .recovery import finish
 from .state import Forward, StageLoads
 
 log = logging.getLogger(__name__)
 
-#: The finest plastic equilibrium tolerance: ``solver.tolerance`` is honoured down to it (the
-#: out-of-balance force relative to the increment's load; rounding in the force of a case at
-#: 60k unknowns is about 1e-10 of it).
-MIN_TOLERANCE = 1e-6
-#: Newton's iteration that stalls below this fraction of the increment's load is finished by
-#: active-set steps (:func:`.newton.solve_increment`); above it the increment is split.
-ENDGAME = 5e-2
-#: A failing increment is halved at most this many times (sub-increments of 1/256 of it).
-MAX_SPLITS = 8
-#: A sub-increment that converged in at most this many residual evaluations is followed by one
-#: twice as long (else by one as long).
-GROW_BELOW = 4
+#: The plastic equilibrium tolerance: the out-of-balance force relative to the increment's
+#: load (``solver.tolerance`` if coarser). The constant-stiffness iteration converges linearly;
+#: with non-associated flow (ψ < φ) it stalls near 1e-4, where points cross the yield surface
+#: from one iterate to the next (far from associated, sooner: then the increment is split).
+#: 1e-3 is ten times tighter than the 1 % commercial codes default to; Salençon's wall
+#: convergence is met to 0.4 % with it (tests).
+MIN_TOLERANCE = 1e-3
+#: Iterations allowed per load increment: its sub-increments and their stalled attempts together.
+MAX_STEP_ITERATIONS = 1000
+#: An iteration has stalled when its least out-of-balance force has not fallen by a tenth in
+#: this many iterations: the increment is then split (:func:`_follow`); the smallest
+#: sub-increments have what is left of :data:`MAX_STEP_ITERATIONS`.
+STAGNATION = 20
+#: A sub-increment that converged in at most this many iterations is followed by one twice as
+#: long (else by one as long).
+GROW_BELOW = 15
+#: A stalled increment is halved at most this many times (sub-increments of 1/64 of it).
+MAX_SPLITS = 6
+#: Anderson mixing depth.
+DEPTH = 8
 
 
-def plastic_tolerance(spec) -> float:
-    """The plastic stop test's tolerance: ``solver.tolerance``, not finer than :data:`MIN_TOLERANCE`."""
-    return max(spec.solver.tolerance, MIN_TOLERANCE)
+class _Points:
+    """The ground's stress history at one set of points (quadrature or output points)."""
+
+    def __init__(self, model, spec, where: str):
+        basis = model.ground.body.basis if where == "gauss" else model.point_basis("ground")
+        self.basis = basis
+        self.G = model.gradient_operator(where)
+        self.weights = basis.dx
+        layers = strata(spec)
+        self.layers = layers
+        band = model.band
+        y = np.asarray(basis.global_coordinates())[1]  # (E, Q)
+        self.shape = y.shape
+        young, poisson = moduli(layers, band, y)  # the case's (the model's may differ by a scale)
+        young = np.broadcast_to(young, y.shape)
+        poisson = np.broadcast_to(poisson, y.shape)
+        lam = young * poisson / ((1 + poisson) * (1 - 2 * poisson))
+        mu = young / (2 * (1 + poisson))
+        self.lam, self.mu, self.mu2 = lam, mu, 2 * mu
+        per = lambda name: np.broadcast_to(  # noqa: E731
+            np.array([getattr(s, name) for s in layers])[band][:, None], y.shape).ravel()
+        self.yielding = np.broadcast_to(np.array([s.model == "mohr-coulomb" for s in layers])[band][:, None],
+                                        y.shape).ravel()
+        sel = self.yielding
+        self.material = Material.of(int(sel.sum()), lam.ravel()[sel], mu.ravel()[sel],
+                                    *(per(k)[sel] for k in ("cohesion", "friction_angle", "dilatancy",
+                                                            "tensile_strength")))
+        self.sigma0 = (in_situ_stress(spec, layers, band, y)["effective"]  # (4, E, Q)
+                       if spec.excavation.method == "deconfinement" else np.zeros((4,) + y.shape))
+        self.sigma = self.sigma0.copy()  # at the last converged increment
+        self.grad = np.zeros((2, 2) + y.shape)
+        self.tau = np.zeros((4,) + y.shape)  # σ0′ + D ε - σ = D ε_p
+        self.eqps = np.zeros(y.shape)
+        self.at_yield = np.zeros(y.shape, bool)
+        #: the elements that have had a plastic strain so far, their points and those points'
+        #: rows of ``G``, transposed (:func:`_plastic_load`)
+        self.yielded = (np.zeros(y.shape[0], bool), None, None)
+        #: a point within this (relative) distance of the yield surface counts as at yield: the
+        #: equilibrium iteration's tolerance leaves yielding points a hair inside it
+        self.flag_tolerance = max(spec.solver.tolerance, MIN_TOLERANCE)
+
+    def hooke(self, grad: np.ndarray, onto: np.ndarray | None = None) -> np.ndarray:
+        """The elastic stress (4, E, Q) of a displacement gradient (2, 2, E, Q), plane strain;
+        added to a copy of ``onto`` (4, E, Q) if given (in place: the trial of every iterate)."""
+        out = np.zeros((4,) + grad.shape[2:]) if onto is None else onto.copy()
+        lt = grad[0, 0] + grad[1, 1]
+        lt *= self.lam
+        out[3] += lt
+        out[0] += lt
+        out[1] += lt
+        out[0] += self.mu2 * grad[0, 0]
+        out[1] += self.mu2 * grad[1, 1]
+        shear = grad[0, 1] + grad[1, 0]
+        shear *= self.mu
+        out[2] += shear
+        return out
+
+    def gradient(self, u_free: np.ndarray) -> np.ndarray:
+        """The displacement gradient (2, 2, E, Q) of the ground's unknowns ``u_free``."""
+        return (self.G @ u_free).reshape((2, 2) + self.shape)
+
+    def trial(self, grad: np.ndarray):
+        """Stress, plastic strain increment, yield flags and ``D ε_p`` of a displacement
+        gradient since excavation, from the last converged increment."""
+        trial = self.hooke(grad - self.grad, onto=self.sigma)
+        flat = trial.reshape(4, -1)
+        dep = np.zeros((3, flat.shape[1]))
+        flags = np.zeros(flat.shape[1], bool)
+        sel = self.yielding
+        if sel.all():
+            stress, dep, flags = return_stress(flat, self.material, self.flag_tolerance)
+        else:
+            stress = flat.copy()
+            if sel.any():
+                stress[:, sel], dep[:, sel], flags[sel] = return_stress(flat[:, sel], self.material,
+                                                                       self.flag_tolerance)
+        # (a point flowing in this increment is at yield: return_stress flags every point it returns)
+        stress = stress.reshape(trial.shape)
+        return stress, dep, flags.reshape(self.shape), self.tau + (trial - stress)
+
+    def commit(self, grad, stress, dep, flags, tau) -> None:
+        self.grad, self.sigma, self.tau = grad, stress, tau
+        self.eqps = self.eqps + equivalent(dep).reshape(self.shape)
+        self.at_yield = flags
 
 
-def _follow(solve, commit, x, x_prev, h_prev: float, start: float, end: float, where: str, size: int):
+def _plastic_load(points: _Points, tau: np.ndarray) -> np.ndarray:
+    """``∫Bᵀ(σ0′ + D ε(u) - σ)`` on the ground's unknowns, at the quadrature points of
+    ``points``, from ``tau`` = the bracket (4, E, Q): non-zero only where the ground has yielded,
+    so only the rows of the gradient operator at the points of the elements that have yielded
+    so far are used (:attr:`_Points.yielded`, grown when others yield)."""
+    elements, at, GT = points.yielded
+    now = (tau.reshape(4, -1) != 0).any(axis=0).reshape(points.shape).any(axis=1)  # (E,)
+    if (now & ~elements).any():
+        elements = elements | now
+        E, Q = points.shape
+        at = (np.flatnonzero(elements)[:, None] * Q + np.arange(Q)).ravel()  # their points
+        GT = points.G[(np.arange(4)[:, None] * (E * Q) + at[None, :]).ravel()].T
+        points.yielded = elements, at, GT
+    if GT is None:
+        return np.zeros(points.G.shape[1])
+    w = points.weights.reshape(-1)[at]
+    t = tau.reshape(4, -1)[:, at]
+    return GT @ np.concatenate([t[0] * w, t[2] * w, t[2] * w, t[1] * w])
+
+
+def first_yield(points: _Points, u_unit: np.ndarray, limit: float) -> float:
+    """The largest fraction ``f`` ≤ ``limit`` of the displacement ``u_unit`` (added to the last
+    converged state) for which every point's stress stays inside its yield surface. The stress
+    is linear in ``f`` and the yield function convex in the stress, so each point's admissible
+    fractions are an interval ``[0, f_i]``: a point inside at ``limit`` is inside all the way,
+    and the bisection (to 1e-4 of ``limit``, from below) looks only at the points that are not."""
+    if not points.yielding.any():
+        return limit
+    rate = points.hooke(points.gradient(u_unit)).reshape(4, -1)[:, points.yielding]
+    start = points.sigma.reshape(4, -1)[:, points.yielding]
+
+    def at_yield(f: float, where, material) -> np.ndarray:
+        return return_stress(start[:, where] + f * rate[:, where], material, points.flag_tolerance)[2]
+
+    everywhere = slice(None)
+    out = np.flatnonzero(at_yield(limit, everywhere, points.material))
+    if out.size == 0:
+        return limit
+    material = points.material.at(out)
+    low, high = 0.0, limit
+    while high - low > 1e-4 * limit:
+        mid = 0.5 * (low + high)
+        low, high = (low, mid) if at_yield(mid, out, material).any() else (mid, high)
+    return low
+
+
+class _Anderson:
+    """Anderson acceleration (type II, depth ``m``) of a fixed-point iteration ``x ← G(x)``:
+    the next iterate mixes the last ``m`` iterates so that their residuals ``G(x) - x``
+    combine to the least one. The constant-stiffness iteration converges linearly, slowly
+    when much of the ground yields; mixing turns it into a secant (multisecant) method at the
+    cost of a small least-squares problem per iteration."""
+
+    def __init__(self, m: int = 8):
+        self.m, self.count = m, 0
+        self.last = None  # the last G(x) and residual
+        self.dG = self.dR = None  # (m, n) their differences, the newest at row (count - 1) % m
+
+    def step(self, x: np.ndarray, gx: np.ndarray) -> np.ndarray:
+        r = gx - x
+        last, self.last = self.last, (gx, r)
+        if last is None or self.m == 0:
+            return gx
+        if self.dR is None:
+            self.dG, self.dR = np.empty((self.m, r.size)), np.empty((self.m, r.size))
+        row = self.count % self.m
+        np.subtract(gx, last[0], out=self.dG[row])
+        np.subtract(r, last[1], out=self.dR[row])
+        self.count += 1
+        k = min(self.count, self.m)
+        dR, dG = self.dR[:k], self.dG[:k]
+        # the least-squares mix from its normal equations (k ≤ m unknowns; lstsq: the least-norm
+        # solution if the differences are dependent)
+        gamma = np.linalg.lstsq(dR @ dR.T, dR @ r, rcond=None)[0]
+        return gx - gamma @ dG
+
+
+class _Stalled(Exception):
+    """The iteration of one (sub-)increment stopped short of equilibrium: its last
+    out-of-balance force and the iterations it took."""
+
+    def __init__(self, force: float, atol: float, iterations: int):
+        super().__init__(force, atol, iterations)
+        self.force, self.atol, self.iterations = force, atol, iterations
+
+
+def _fixed_point(G, x0: np.ndarray, K, atol: float, patience: int | None = STAGNATION,
+                 limit: int = MAX_STEP_ITERATIONS):
+    """Solve ``x = G(x)`` by constant-stiffness iterations with Anderson mixing, until the
+    out-of-balance force ``‖K (G(x) - x)‖`` of an iterate ``x`` is at most ``atol``. ``G``
+    returns the new iterate, the plastic load and the yield state at ``x``; the answer is that
+    iterate with its plastic load, yield state (the state the stop test measured) and the
+    iterations taken. Raises :class:`_Stalled` when the least force so far has not fallen by a
+    tenth in ``patience`` iterations (if given), is not finite, or after ``limit`` iterations."""
+    acc = _Anderson(DEPTH)
+    x, force = x0, float("inf")
+    mark, since = float("inf"), 0
+    for count in range(1, limit + 1):
+        check_time("plastic iteration", count)
+        gx, p, state = G(x)
+        force = float(np.linalg.norm(K @ (gx - x)))
+        if force <= atol:
+            return x, p, state, count
+        if not np.isfinite(force):
+            break
+        if force < 0.9 * mark:
+            mark, since = force, 0
+        else:
+            since += 1
+            if patience is not None and since >= patience:
+                break
+        x = acc.step(x, gx)
+    raise _Stalled(force, atol, count)
+
+
+def _follow(solve, commit, x: np.ndarray, x_prev: np.ndarray, h_prev: float, start: float, end: float, where: str,
+            size: int = 2**MAX_SPLITS):
     """Take the load from the fraction ``start`` to ``end`` (one increment): in one step, or,
-    where Newton's iteration fails, in sub-increments halved until they converge (down to
-    1/2^:data:`MAX_SPLITS` of the increment) and doubled again after each quick success.
+    where the iteration stalls, in sub-increments halved until they converge (down to
+    1/2^:data:`MAX_SPLITS` of the increment) and doubled again after each quick success
+    (:data:`GROW_BELOW`).
 
-    ``solve(frac, guess)`` is Newton's iteration at the load fraction ``frac``; ``commit`` stores
-    a converged state. Each step starts from the last one's displacement change, scaled to its
-    length; the first tries ``size`` (in 1/2^MAX_SPLITS of the increment). Returns the
-    displacement, its state, the residual evaluations and Krylov steps spent (failed attempts
-    included), the last step's start and length and the size the next increment tries first;
-    raises :class:`GroundCollapseError` with the largest fraction held when even the smallest
-    sub-increment fails."""
-    units = 2**MAX_SPLITS
-    pos, evaluations, krylov = 0, 0, 0
-    state = None
+    ``solve(frac, guess, patience, limit)`` is :func:`_fixed_point` at the load fraction ``frac``
+    (the smallest sub-increments without a ``patience``; all within the increment's
+    :data:`MAX_STEP_ITERATIONS`); ``commit`` stores a converged state.
+    Each step starts from the last one's displacement change, scaled to its length (``x -
+    x_prev`` over ``h_prev``); the first tries ``size`` (in 1/2^MAX_SPLITS of the increment:
+    where the last increment left off). Returns the displacement, the plastic load, the
+    iterations spent (failed attempts included), the last step's start and length and the
+    size the next increment tries first; raises :class:`NotConvergedError` with the reason
+    when even the smallest sub-increment stalls, or the increment's iterations run out."""
+    units = 2**MAX_SPLITS  # positions within the increment, in its smallest sub-increments
+    pos, iterations = 0, 0
+    p = None
     while pos < units:
         size = min(size, units - pos)
         h = (end - start) * size / units
         frac = end if pos + size == units else start + (end - start) * (pos + size) / units
+        left = MAX_STEP_ITERATIONS - iterations
         try:
-            new, state, its, kry = solve(frac, x + (h / h_prev) * (x - x_prev))
-        except Stalled as stall:
-            evaluations += stall.iterations
-            if size == 1:
-                held = start + (end - start) * pos / units
-                raise GroundCollapseError(where, held, frac, stall.force, stall.atol, stall.reason) from None
+            new, p, state, its = solve(frac, x + (h / h_prev) * (x - x_prev),
+                                       STAGNATION if size > 1 else None, left)
+        except _Stalled as stall:
+            iterations += stall.iterations
+            if size == 1 or iterations >= MAX_STEP_ITERATIONS:
+                raise NotConvergedError(
+                    f"solver.load_steps: the yielding ground did not reach equilibrium in {where} (out-of-balance "
+                    f"force {stall.force:.3g} N/m > {stall.atol:.3g} after {iterations} iterations, in "
+                    f"sub-increments down to 1/{units // size} of it): far above the tolerance the ground is "
+                    "collapsing (raise its strength or the support: a lower excavation.deconfinement); just above "
+                    "it the iteration has stalled where points cross the yield surface, as where flow without "
+                    "dilatancy localizes in shear bands (a dilatancy closer to the friction angle, or a coarser "
+                    f"solver.tolerance: the plastic iteration's is max(solver.tolerance, {MIN_TOLERANCE:g}))"
+                ) from None
             size //= 2
-            log.debug("%s: %s at %.3g N/m > %.3g; sub-increments of %d/%d", where, stall.reason, stall.force,
-                      stall.atol, size, units)
+            log.debug("%s: stalled at %.3g N/m > %.3g after %d iterations; sub-increments of %d/%d", where,
+                      stall.force, stall.atol, stall.iterations, size, units)
             continue
-        evaluations += its
-        krylov += kry
-        commit(state)
+        iterations += its
+        commit(*state)
         x_prev, x, h_prev = x, new, h
         pos += size
         size *= 2 if its <= GROW_BELOW else 1
-    return x, state, evaluations, krylov, x_prev, h_prev, min(size, units)
+    return x, p, iterations, x_prev, h_prev, min(size, units)
 
 
-def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: Points, commit):
+def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "_Points", stress_of, commit):
     """Stage 1: λd r on the unsupported ground in ``steps`` equal increments; those the ground
     takes elastically in one solve (up to its first yield). Returns the free-DOF displacement,
-    the plastic load, the residual evaluations and Krylov steps and the ground reaction curve
-    [(released, convergence)]."""
+    the plastic load, the iterations and the ground reaction curve [(released, convergence)]."""
     ground = model.ground
     body, iface = ground.body, model.mesh.interface
     K = ground.stiffness()
-    counts, curve = np.zeros(2, int), []
-    u1, p1 = np.zeros(body.n), np.zeros(body.n)
-    if release is None or ld <= 0:
-        return u1, p1, counts, curve
-    y_r = ground.forward(release, rows)
-    u_r = ground.backward(y_r, rows)
-    elastic = int(np.floor(first_yield(gauss, u_r, ld) / ld * steps * (1 + 1e-12)))
-    if elastic:
-        u1 = ld * elastic / steps * u_r
-        commit((gauss.state(u1), None))
-        reached = mean_convergence(body.expand(u1), iface)  # linear in the load up to here
-        curve.extend((ld * k / steps, reached * k / elastic) for k in range(1, elastic + 1))
-    u1_prev, h_prev = u1 - ld / steps * u_r, ld / steps
-    atol = tol * ld / steps * float(np.linalg.norm(release))  # the increment's load
+    iterations, curve = 0, []
+    u1 = np.zeros(body.n)
+    p1 = np.zeros(body.n)
+    if release is not None and ld > 0:
+        y_r = ground.forward(release, rows)
+        u_r = ground.backward(y_r, rows)
+        start = first_yield(gauss, u_r, ld)
+        elastic = int(np.floor(start / ld * steps * (1 + 1e-12)))
+        if elastic:
+            u1 = ld * elastic / steps * u_r
+            commit(*stress_of(u1))
+            reached = mean_convergence(body.expand(u1), iface)  # linear in the load up to here
+            curve.extend((ld * k / steps, reached * k / elastic) for k in range(1, elastic + 1))
+        u1_prev, h_prev = u1 - ld / steps * u_r, ld / steps
 
-    def solve1(frac, guess):
-        def residual(x, tangent, frozen=None):
-            state = gauss.state(x, tangent, frozen)
-            p = gauss.plastic_load(state.tau)
-            F = x - ground.backward(frac * y_r + ground.forward(p, rows), rows)
-            return F, float(np.linalg.norm(K @ F)), (state, p)
+        def solve1(frac, guess, patience, limit):
+            ref = frac * float(np.linalg.norm(release))
+            base = frac * y_r
 
-        def jacobian(at, F):
-            soften = gauss.softening(at[0])
-            return lambda v: v - ground.backward(ground.forward(soften(v), rows), rows)
+            def G(x):
+                state = stress_of(x)
+                p = _plastic_load(gauss, state[-1])
+                return ground.backward(base + ground.forward(p, rows), rows), p, state
 
-        return solve_increment(residual, jacobian, lambda at: gauss.flowing(at[0]), guess, atol, ENDGAME * atol / tol)
+            return _fixed_point(G, guess, K, tol * ref, patience, limit)
 
-    size = 2**MAX_SPLITS
-    for k in range(elastic + 1, steps + 1):
-        u1, at, its, kry, u1_prev, h_prev, size = _follow(
-            solve1, commit, u1, u1_prev, h_prev, ld * (k - 1) / steps, ld * k / steps,
-            f"stage 1, increment {k} of {steps}", size)
-        p1 = at[1]
-        counts += (its, kry)
-        curve.append((ld * k / steps, mean_convergence(body.expand(u1), iface)))
-    return u1, p1, counts, curve
-
-
-def _stage_two(model, spec, rows, loads, steps: int, tol: float, atol: float, u1, p1, gauss: Points, commit):
-    """Stage 2: the rest with the lining and contact, in ``steps`` increments. Returns the
-    stage's displacement, its last plastic load and the residual evaluations and Krylov steps."""
-    ground, lining = model.ground, model.lining
-    K = ground.stiffness()
-    full = StageLoads(loads.ground, loads.lining, None, loads.seepage)
-    y_g, y_l = ground.forward(full.ground, rows), lining.forward(full.lining, rows)
-    F2_full = model.mode_loads(full.lining)
-    w = model.w
-
-    def solve2(a, guess):
-        def residual(x, tangent, frozen=None):
-            state = gauss.state(u1 + x, tangent, frozen)
-            p = gauss.plastic_load(state.tau)
-            y = a * y_g + ground.forward(p - p1, rows)
-            d = ground.jumps(y, rows) + lining.jumps(a * y_l, rows)
-            t = contact_tractions(model, spec, d, a * F2_full)[1]
-            F = x - ground.backward(y, rows, w * t)
-            return F, float(np.linalg.norm(K @ F)), (state, p, d, t)
-
-        def jacobian(at, F):
-            state, _, d, t = at
-            soften = gauss.softening(state)
-
-            def apply(v):
-                y = ground.forward(soften(v), rows)
-                dd = ground.jumps(y, rows)
-                size = float(np.linalg.norm(dd))
-                dt = 0.0 * t
-                if size > 0.0:  # the contact problem is piecewise linear in its load
-                    h = 1e-6 * max(float(np.linalg.norm(d)), size) / size
-                    dt = (contact_tractions(model, spec, d + h * dd, a * F2_full)[1] - t) / h
-                return v - ground.backward(y, rows, w * dt)
-
-            return apply
-
-        return solve_increment(residual, jacobian, lambda at: gauss.flowing(at[0]), guess, atol,
-                               ENDGAME * atol / tol)
-
-    u2 = u2_prev = np.zeros(ground.body.n)
-    h_prev, size, p, counts = 1.0 / steps, 2**MAX_SPLITS, p1, np.zeros(2, int)
-    for k in range(1, steps + 1):
-        u2, at, its, kry, u2_prev, h_prev, size = _follow(
-            solve2, commit, u2, u2_prev, h_prev, (k - 1) / steps, k / steps, f"stage 2, increment {k} of {steps}",
-            size)
-        p = at[1]
-        counts += (its, kry)
-    return u2, p, counts
-
-
-def _stage_two_load(loads, steps: int, F2, ref1: float) -> float:
-    """The load of one stage-2 increment (N/m): the ground's and the lining's (on its rigid modes)
-    share, not below a stage-1 increment's (a stage that releases little)."""
-    return max((float(np.linalg.norm(loads.ground)) + float(np.sum(np.abs(F2)))) / steps, ref1)
+        size = 2**MAX_SPLITS
+        for k in range(elastic + 1, steps + 1):
+            u1, p1, its, u1_prev, h_prev, size = _follow(solve1, commit, u1, u1_prev, h_prev, ld * (k - 1) / steps,
+                                                         ld * k / steps, f"stage 1, increment {k} of {steps}", size)
+            iterations += its
+            curve.append((ld * k / steps, mean_convergence(body.expand(u1), iface)))
+    return u1, p1, iterations, curve
 
 
 def release_unsupported(model, spec, rows, fraction: float = 1.0):
     """Stage 1 alone: ``fraction`` of the excavation load released on the unsupported ground in
     ``solver.load_steps`` increments (as :func:`solve_staged` begins). Returns the ground reaction
-    curve [(released, convergence)] and the quadrature points' history (:class:`Points`: where
+    curve [(released, convergence)] and the quadrature points' history (:class:`_Points`: where
     the ground yielded). Raises :class:`NotConvergedError` where the ground collapses."""
-    gauss = Points(model, spec, "gauss")
+    gauss = _Points(model, spec, "gauss")
     release = stage_loads(model, spec).release
+    tol = max(spec.solver.tolerance, MIN_TOLERANCE)
 
-    def commit(state):
-        gauss.commit(state[0])
+    def stress_of(u_free):
+        grad = gauss.gradient(u_free)
+        return (u_free, grad) + gauss.trial(grad)
 
-    curve = _stage_one(model, rows, release, fraction, spec.solver.load_steps, plastic_tolerance(spec), gauss,
-                       commit)[3]
+    def commit(u_free, grad, stress, dep, flags, tau):
+        gauss.commit(grad, stress, dep, flags, tau)
+
+    curve = _stage_one(model, rows, release, fraction, spec.solver.load_steps, tol, gauss, stress_of, commit)[3]
     return curve, gauss
 
 
 def solve_staged(model, spec, rows, t0: float):
     """Solve a case whose ground can yield (see the module's docstring): a
     :class:`~solver.model.Solution` with ``plastic`` results filled."""
-    ground = model.ground
-    gauss = Points(model, spec, "gauss")
-    out = Points(model, spec, "points")
+    ground, lining = model.ground, model.lining
+    body = ground.body
+    gauss = _Points(model, spec, "gauss")
+    out = _Points(model, spec, "points")
     loads = stage_loads(model, spec)
     steps = spec.solver.load_steps
-    tol = plastic_tolerance(spec)
+    tol = max(spec.solver.tolerance, MIN_TOLERANCE)
     ld = spec.excavation.deconfinement if loads.release is not None else 0.0
+    K = ground.stiffness()
 
-    def commit(state):
-        gauss.commit(state[0])
-        out.commit(out.state(state[0].u))
+    def stress_of(u_free):
+        grad = gauss.gradient(u_free)
+        return (u_free, grad) + gauss.trial(grad)
 
-    u1, p1, counts, curve = _stage_one(model, rows, loads.release, ld, steps, tol, gauss, commit)
-    stage1 = out.at_yield.reshape(-1).copy()
-    ref1 = ld / steps * float(np.linalg.norm(loads.release)) if loads.release is not None else 0.0
+    def commit(u_free, grad, stress, dep, flags, tau):
+        gauss.commit(grad, stress, dep, flags, tau)
+        og = out.gradient(u_free)
+        out.commit(og, *out.trial(og))
+
+    u1, p1, iterations, curve = _stage_one(model, rows, loads.release, ld, steps, tol, gauss, stress_of, commit)
+    stage1 = out.at_yield.reshape(-1).copy()  # the ground that yielded before the lining was placed
+    # stage 2: the rest, with the lining and contact
     full = StageLoads(loads.ground, loads.lining, None, loads.seepage)
-    atol2 = tol * _stage_two_load(full, steps, model.mode_loads(full.lining), ref1)
-    u2, p, counts2 = _stage_two(model, spec, rows, loads, steps, tol, atol2, u1, p1, gauss, commit)
-    counts = counts + counts2
+    y_g = ground.forward(full.ground, rows)
+    y_l = lining.forward(full.lining, rows)
+    F2_full = model.mode_loads(full.lining)
+    u2 = u2_prev = np.zeros(body.n)
+    h_prev = 1.0 / steps
+    p = p1
+
+    def stage_of(p, a):
+        """The contact stage's loads at the fraction ``a``, their forward halves and interface jumps."""
+        extra = p - p1
+        stage = Forward(ground=a * y_g + ground.forward(extra, rows), lining=a * y_l)
+        jumps = ground.jumps(stage.ground, rows) + lining.jumps(stage.lining, rows)
+        return StageLoads(a * full.ground + extra, a * full.lining, None), stage, jumps
+
+    def solve2(a, guess, patience, limit):
+        ref = a * float(np.linalg.norm(full.ground)) + float(np.linalg.norm(p1)) + float(np.sum(np.abs(a * F2_full)))
+
+        def G(x):
+            state = stress_of(u1 + x)
+            p = _plastic_load(gauss, state[-1])
+            _, stage, d = stage_of(p, a)
+            _, t = contact_tractions(model, spec, d, a * F2_full)
+            return ground.backward(stage.ground, rows, model.w * t), p, state
+
+        return _fixed_point(G, guess, K, tol * ref, patience, limit)
+
+    size = 2**MAX_SPLITS
+    for k in range(1, steps + 1):
+        u2, p, its, u2_prev, h_prev, size = _follow(solve2, commit, u2, u2_prev, h_prev, (k - 1) / steps, k / steps,
+                                                    f"stage 2, increment {k} of {steps}", size)
+        iterations += its
     # the whole contact stage (both bodies, the checks) of the last increment's converged iterate
-    extra = p - p1
-    stage = Forward(ground=ground.forward(full.ground + extra, rows), lining=model.lining.forward(full.lining, rows))
-    jumps = ground.jumps(stage.ground, rows) + model.lining.jumps(stage.lining, rows)
-    sol = finish(model, spec, rows, StageLoads(full.ground + extra, full.lining, None), stage, jumps,
-                 model.mode_loads(full.lining), t0, u1=u1)
+    sol = finish(model, spec, rows, *stage_of(p, 1.0), F2_full, t0, u1=u1)
+    E = out.shape[0]
     sol.plastic = {
         "stress": out.sigma.reshape(4, -1),
         "at_yield": out.at_yield.reshape(-1),
         "stage1_at_yield": stage1,
         "eqps": out.eqps.reshape(-1),
-        "iterations": int(counts[0]),
-        "krylov": int(counts[1]),
+        "iterations": iterations,
         "ground_reaction": curve,
-        "elements": out.shape[0],
+        "elements": E,
     }
     return sol
