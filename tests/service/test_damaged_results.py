@@ -60,7 +60,8 @@ def _damage(root, case_id: str, what: str) -> None:
         checksum_path(path).write_text("0" * 32 + "\n")
     else:
         raw = bytearray(path.read_bytes())
-        raw[len(raw) // 2: len(raw) // 2 + 256] = bytes(256)
+        middle = slice(len(raw) // 2, len(raw) // 2 + 256)
+        raw[middle] = bytes(b ^ 0xFF for b in raw[middle])  # every byte changed (the file has zero padding)
         path.write_bytes(bytes(raw))
     for template in (root / "index" / "schemas").glob("*.nc"):
         template.write_bytes(b"not netCDF")
