@@ -316,13 +316,15 @@ def host_allowed(host: str, allowed: tuple[str, ...]) -> bool:
 
 class AllowedHostsMiddleware:
     """ASGI middleware answering 400 to a request whose ``Host`` header is not one of
-    ``settings.allowed_hosts``: what DNS rebinding sends (a page of another site whose name
+    ``settings.allowed_hosts`` (or the address the service is bound to, ``settings.host``): what DNS rebinding sends (a page of another site whose name
     now points at this machine carries that site's name), with or without a token. A request
     without a ``Host`` header (HTTP/1.0) is no browser's and passes."""
 
     def __init__(self, app, settings):
         self.app = app
-        self.allowed = settings.allowed_hosts
+        bound = settings.host.strip("[]").lower()
+        # the address it is bound to, when one (clients reach it by that address; rebinding uses names)
+        self.allowed = settings.allowed_hosts + (() if bound in ("", "0.0.0.0", "::") else (bound,))
 
     async def __call__(self, scope, receive, send):
         if scope["type"] != "http" or "*" in self.allowed:  # (the service has no websockets)

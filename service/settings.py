@@ -29,7 +29,7 @@ Environment variables
     Comma-separated host names (or addresses) the service answers to, checked against every
     request's ``Host`` header (a page of another site that rebinds its own name to this
     machine's address sends its own name and is refused, 400). Default: the loopback names
-    ``localhost``, ``127.0.0.1`` and ``::1``; add the name clients use behind a proxy or on a
+    ``localhost``, ``127.0.0.1`` and ``::1`` (and the address bound to, unless a wildcard); add the name clients use behind a proxy or on a
     network (``api.example.org``), a leading ``*.`` for a whole domain, or ``*`` for any.
 ``TUNNEL_CONTACT_TOKEN``
     When set, every ``POST`` needs ``Authorization: Bearer <token>`` (or HTTP basic

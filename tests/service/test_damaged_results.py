@@ -51,21 +51,33 @@ def test_reliability_of_an_output_the_cases_do_not_define_is_refused(client, bon
     assert defined["samples"] == 40 and defined["undefined"] == 0 and defined["probability"] == 0.0
 
 
-def _damage_case_and_index(root, case_id: str) -> None:
-    """The case file's checksum no longer matches it, and the index can vouch for no case."""
-    checksum_path(as_store(root).case_path(case_id)).write_text("0" * 32 + "\n")
+def _damage(root, case_id: str, what: str) -> None:
+    """Damage the case file's checksum (the file itself intact, never read by this process yet) or
+    the file itself (its middle overwritten, the size kept), and leave an index that can vouch for
+    no case."""
+    path = as_store(root).case_path(case_id)
+    if what == "checksum":
+        checksum_path(path).write_text("0" * 32 + "\n")
+    else:
+        raw = bytearray(path.read_bytes())
+        middle = slice(len(raw) // 2, len(raw) // 2 + 256)
+        raw[middle] = bytes(b ^ 0xFF for b in raw[middle])  # every byte changed (the file has zero padding)
+        path.write_bytes(bytes(raw))
     for template in (root / "index" / "schemas").glob("*.nc"):
         template.write_bytes(b"not netCDF")
     (root / "index" / "results.nc").unlink(missing_ok=True)
 
 
-@pytest.mark.parametrize("path, victim", [("result.nc", 0), ("plots/scalars.png", 1)])
-def test_a_damaged_case_file_is_recomputed_and_the_rest_served(client, app, bonded, path, victim):
+@pytest.mark.parametrize("path, victim, what", [("result.nc", 0, "checksum"), ("plots/scalars.png", 1, "file")])
+def test_a_damaged_case_file_is_recomputed_and_the_rest_served(client, app, bonded, path, victim, what):
+    """A checksum that no longer matches (a file the service has not read since it was written:
+    found while the combined file is built) or a file damaged in place: the case is computed
+    again, the rest served, no server error."""
     root = app.state.jobs.root
     case_id = bonded["case_ids"][victim]
     path_of = as_store(root).case_path(case_id)
     before = path_of.stat().st_ino
-    _damage_case_and_index(root, case_id)
+    _damage(root, case_id, what)
     response = client.get(f"/sweeps/{bonded['id']}/{path}")
     assert response.status_code == 200, response.text
     assert response.headers["x-cases-included"] in ("39/40", "40/40")

@@ -219,3 +219,13 @@ def test_python_m_service_server_serves(tmp_path):
         assert wait_until(answered, timeout=120, interval=0.2, what="python -m service.server to answer") == 503
     finally:
         stop(process)
+
+
+def test_the_address_bound_to_is_answered_to():
+    """``serve --host 10.1.2.3``: its clients call it by that address (a rebinding page sends a name)."""
+    from fastapi.testclient import TestClient
+
+    bare = create_app(Settings(host="10.1.2.3"))  # no lifespan: the host check answers first
+    with_client = TestClient(bare)
+    assert with_client.get("/health", headers={"host": "evil.example"}).status_code == 400
+    assert with_client.get("/openapi.json", headers={"host": "10.1.2.3:8000"}).status_code == 200
