@@ -61,11 +61,15 @@ def store_at(url: str, cache: Path):
     """The store at ``url`` as a process with the cache folder ``cache`` sees it."""
     from workflows.result_store import ResultStore
 
+    before = os.environ.get("TUNNEL_CONTACT_CACHE")
     os.environ["TUNNEL_CONTACT_CACHE"] = str(cache)
     try:
         return ResultStore(url)
     finally:
-        del os.environ["TUNNEL_CONTACT_CACHE"]
+        if before is None:
+            del os.environ["TUNNEL_CONTACT_CACHE"]
+        else:
+            os.environ["TUNNEL_CONTACT_CACHE"] = before
 
 
 def fill(store, n: int) -> float:
@@ -73,6 +77,7 @@ def fill(store, n: int) -> float:
     from bench.index import SCALED, solve_bases
     from solver import CaseSpec
     from workflows.files import write_atomically
+    from workflows.object_store import object_key
     from workflows.result_store import netcdf_encoding
 
     bases = solve_bases()
@@ -80,8 +85,8 @@ def fill(store, n: int) -> float:
 
     def land(case):  # what a worker does once its file is written: the objects, the index entry
         case_id, copy = case
-        store.remote.publish(store.case_path(case_id))
-        store.index.add(copy, store.version(case_id))
+        info = store.remote.publish(store.case_path(case_id))
+        store.index.add(copy, object_key(info) if info is not None else store.version(case_id))
 
     pool, landing = ThreadPoolExecutor(8), []  # as eight workers would, each writing its own cases
     for i in range(n):
@@ -131,6 +136,32 @@ def measure_open_results(n: int, workdir: Path) -> dict:
             "fresh_seconds": fresh_seconds, "warm_seconds": warm_seconds}
 
 
+def measure_local_open_results(n: int, workdir: Path) -> dict:
+    """The same over a local folder, the same way filled: what the bucket's figures compare to."""
+    from workflows import open_results
+    from workflows.result_store import ResultStore
+
+    class Local(ResultStore):  # the copies land as local files (publishing does nothing)
+        @property
+        def remote(self):
+            return _NoRemote()
+
+    store = Local(workdir / "local-index")
+    fill_seconds = fill(store, n)
+    start = time.perf_counter()
+    open_results(store)
+    first_seconds = time.perf_counter() - start
+    start = time.perf_counter()
+    assert open_results(store).sizes["case"] == n
+    return {"cases": n, "fill_seconds": fill_seconds, "first_seconds": first_seconds,
+            "index_seconds": time.perf_counter() - start}
+
+
+class _NoRemote:
+    def publish(self, path) -> None:
+        pass
+
+
 def sweep_seconds(client, root, specs) -> float:
     from distributed import wait
 
@@ -163,7 +194,8 @@ def measure_throughput(cases: int, workdir: Path) -> dict:
                     root = f"s3://bench-{uuid.uuid4().hex[:8]}/results"
                     store_at(root, workdir / "api").remote.make_bucket()
                 timings[kind].append(sweep_seconds(client, root, specs))
-    del os.environ["TUNNEL_CONTACT_CACHE"]
+                print(f"{kind}: {timings[kind][-1]:.1f} s", file=sys.stderr, flush=True)
+    os.environ.pop("TUNNEL_CONTACT_CACHE", None)
     local, s3 = min(timings["local"]), min(timings["s3"])
     return {"cases": cases, "local_seconds": timings["local"], "s3_seconds": timings["s3"],
             "local_cases_per_minute": 60 * cases / local, "s3_cases_per_minute": 60 * cases / s3,
@@ -175,15 +207,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cases", type=int, default=1000, help="cases in the bucket for open_results")
     parser.add_argument("--sweep", type=int, default=40, help="cases of the throughput sweep (0: skip)")
     parser.add_argument("--json", action="store_true")
+    parser.add_argument("--local", action="store_true", help="open_results over a local folder only")
     args = parser.parse_args(argv)
+    if args.local:
+        with tempfile.TemporaryDirectory(prefix="bench-object-store-") as folder:
+            print(json.dumps({"local_open_results": measure_local_open_results(args.cases, Path(folder))}))
+        return 0
     with s3_endpoint(), tempfile.TemporaryDirectory(prefix="bench-object-store-") as folder:
-        out = {"open_results": measure_open_results(args.cases, Path(folder))}
+        out = {"open_results": measure_open_results(args.cases, Path(folder))} if args.cases else {}
+        print(json.dumps(out), file=sys.stderr, flush=True)  # partial figures, as they come
         if args.sweep:
             out["throughput"] = measure_throughput(args.sweep, Path(folder))
     if args.json:
         json.dump(out, sys.stdout, indent=1)
         print()
-    else:
+    elif "open_results" in out:
         o = out["open_results"]
         print(f"open_results over {o['cases']} cases in the bucket: first {o['first_seconds']:.2f} s "
               f"(entries merged), from the index {o['fresh_seconds']:.2f} s (empty cache), "

@@ -95,14 +95,16 @@ class Remote:
 
     # -- objects -------------------------------------------------------------------------
 
-    def publish(self, path: Path) -> None:
+    def publish(self, path: Path) -> Optional[dict]:
         """Upload the cached file ``path`` as its object (with its checksum object first, if
-        it has one), recording the ETag the copy now matches."""
+        it has one), recording the ETag the copy now matches; the object's info (one HEAD)."""
         checksum = path.with_name(path.name + ".b2")
         if checksum.is_file():
             self.fs.put_file(str(checksum), self.key(checksum))
         self.fs.put_file(str(path), self.key(path))
-        self._remember(path, self.info(path))
+        info = self.info(path)
+        self._remember(path, info)
+        return info
 
     def info(self, path: Path) -> Optional[dict]:
         """The object's size and ETag (one HEAD), None if there is none."""

@@ -30,6 +30,7 @@ from solver.spec import CaseSpec
 
 from .files import remove_checksum, remove_stale_temporaries, write_atomically
 from .index import ResultIndex
+from .object_store import object_key
 from .store_files import (CONTENT_DIGEST, OPEN_OPTIONS, RESULT_BYTES_PER_ELEMENT, RESULT_MARGIN, STORE_FULL,
                           FileKey, StoreFiles, StoreFull, case_warnings, check_case_id, content_digest,
                           estimated_result_bytes, file_key, free_bytes, netcdf_encoding, netcdf_lock)
@@ -183,8 +184,7 @@ class ResultStore(StoreFiles):
         write_atomically(target, write, checksum=True)
         key = file_key(target.stat())
         if self.url:  # the object, checksum first; its key is the object's version
-            self.remote.publish(target)
-            key = self.version(case_id)
+            key = object_key(self.remote.publish(target))
             self.remote.remove(self.error_path(case_id))
         self.error_path(case_id).unlink(missing_ok=True)
         shutil.rmtree(self.plot_dir(case_id), ignore_errors=True)  # figures of an older result
