@@ -3,9 +3,9 @@
 Page 1: the design answer (PASS/FAIL with the utilization and where; for a segmental lining
 also whether every joint carries its thrust within its contact strip), the results in
 engineering units, the warnings. Page 2: every input with its unit, and the solver's
-diagnostics. Page 3: the lining forces every 5° (characteristic and design values, the section
-checks: :mod:`workflows.report_tables`). A segmental lining then has a page of its joints (θ, N, M, |M|/(N·a/2), opening,
-rotation, open). Then one page per figure of :data:`workflows.plots.PLOTS`, each fitted to an
+diagnostics. A segmental lining then has a page of its joints (θ, N, M, |M|/(N·a/2), opening,
+rotation, open). Then the lining forces every 5° (characteristic and design values, the section
+checks: :mod:`workflows.report_tables`), then one page per figure of :data:`workflows.plots.PLOTS`, each fitted to an
 A4 landscape page with the case id and the page number in the margin.
 """
 from __future__ import annotations
@@ -237,13 +237,13 @@ def case_report(ds: xr.Dataset) -> bytes:
                                      "CreationDate": created}) as pdf:
         pdf.savefig(_summary_page(ds, spec, 1, pages))
         pdf.savefig(_inputs_page(ds, 2, pages))
+        if joints:
+            pdf.savefig(_joints_page(ds, spec, 3, pages))
         if forces:  # the lining forces table (SPEC §9.3)
             fig = _page()
-            _margins(fig, ds, 3, pages)
+            _margins(fig, ds, 3 + joints, pages)
             draw_forces_table(fig, ds)
             pdf.savefig(fig)
-        if joints:
-            pdf.savefig(_joints_page(ds, spec, 3 + forces, pages))
         for k, (name, plot) in enumerate(PLOTS.items(), start=3 + forces + joints):
             pdf.savefig(_figure_page(ds, plot(ds), name, k, pages))
     return buffer.getvalue()

@@ -321,7 +321,7 @@ def test_report_has_the_joints_page_and_the_joint_verdict(mixed, monolithic):
     from workflows.report import _summary_page, _verdict, case_report, joint_rows
 
     pdf = pdfium.PdfDocument(case_report(mixed))
-    assert len(pdf) == 4 + len(PLOTS)  # summary, inputs, lining forces, joints, figures
+    assert len(pdf) == 4 + len(PLOTS)  # summary, inputs, joints, lining forces, figures
     first = pdf[0].get_textpage().get_text_range()
     assert "PASS" in first and "away from the joints" in first and "all 3 joints" in first
     joints = pdf[2].get_textpage().get_text_range()
