@@ -48,6 +48,29 @@ def chain_correlation(indicator: np.ndarray, p: float) -> float:
     return max(gamma, 0.0)
 
 
+def _grow_chains(g: LimitState, rng, seed_u: np.ndarray, seed_g: np.ndarray, ns: int, b: float, spread: float):
+    """Modified Metropolis chains of ``ns`` states from each seed, kept below the threshold ``b``:
+    the next level's samples (n, d) and their g, in (chain, step) order so that a chain's states
+    are contiguous (for the correlation γ of the estimate's c.o.v.)."""
+    chain_u, chain_g = [seed_u], [seed_g]
+    current_u, current_g = seed_u.copy(), seed_g.copy()
+    for _ in range(ns - 1):
+        xi = current_u + spread * rng.standard_normal(current_u.shape)
+        keep = rng.random(current_u.shape) < np.exp(-0.5 * (xi ** 2 - current_u ** 2))
+        candidate = np.where(keep, xi, current_u)
+        moved = np.any(keep, axis=1)
+        gc = current_g.copy()
+        if np.any(moved):
+            gc[moved] = g(candidate[moved])
+        accept = moved & (gc <= b)
+        current_u = np.where(accept[:, None], candidate, current_u)
+        current_g = np.where(accept, gc, current_g)
+        chain_u.append(current_u.copy())
+        chain_g.append(current_g.copy())
+    n, d = len(chain_u) * seed_u.shape[0], seed_u.shape[1]
+    return np.stack(chain_u, axis=1).reshape(n, d), np.stack(chain_g, axis=1).reshape(n)
+
+
 def subset_simulation(g: LimitState, *, seed: int = 0, samples: Optional[int] = None, p0: float = P0,
                       spread: float = 1.0, on_progress: Optional[Callable[[dict], None]] = None) -> ReliabilityResult:
     """P(g < 0) by subset simulation; ``samples`` per level (default :func:`default_samples`),
@@ -91,31 +114,11 @@ def subset_simulation(g: LimitState, *, seed: int = 0, samples: Optional[int] = 
                     "(the threshold had not reached the limit)")
             break
         # seeds: the nc samples below b, each the start of a chain of ns states
-        seeds = order[:nc]
-        chain_u = [U[seeds]]
-        chain_g = [G[seeds]]
-        current_u, current_g = U[seeds].copy(), G[seeds].copy()
         try:
-            for _ in range(ns - 1):
-                xi = current_u + spread * rng.standard_normal(current_u.shape)
-                keep = rng.random(current_u.shape) < np.exp(-0.5 * (xi ** 2 - current_u ** 2))
-
-                candidate = np.where(keep, xi, current_u)
-                moved = np.any(keep, axis=1)
-                gc = current_g.copy()
-                if np.any(moved):
-                    gc[moved] = g(candidate[moved])
-                accept = moved & (gc <= b)
-                current_u = np.where(accept[:, None], candidate, current_u)
-                current_g = np.where(accept, gc, current_g)
-                chain_u.append(current_u.copy())
-                chain_g.append(current_g.copy())
+            U, G = _grow_chains(g, rng, U[order[:nc]], G[order[:nc]], ns, b, spread)
         except BudgetExhausted:
             note = f"the budget ended inside level {level + 1}: the probability is below {probability:.3g}"
             break
-        # (chains, steps) order, so that a chain's states are contiguous for γ
-        U = np.stack(chain_u, axis=1).reshape(n, d)
-        G = np.stack(chain_g, axis=1).reshape(n)
     cov = sum(math.sqrt(x) for x in deltas2) if converged else None
     if converged:
         low, high = lognormal_interval(probability, cov) if probability > 0 else (0.0, float("nan"))
