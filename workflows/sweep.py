@@ -91,11 +91,11 @@ class Sweep(BaseModel):
     def canonical_json(self) -> str:
         """Defaults filled, keys sorted, no whitespace (a grid or zip sweep's without the sampling
         settings it ignores, so its id is what it was before sampled sweeps)."""
-        if self.mode in SAMPLED_MODES:
-            return canonical_json(self)
         data = json.loads(canonical_json(self))
-        data.pop("samples", None)
-        data.pop("seed", None)
+        _without_round4_defaults(data["base"])
+        if self.mode not in SAMPLED_MODES:
+            data.pop("samples", None)
+            data.pop("seed", None)
         return json.dumps(data, sort_keys=True, separators=(",", ":"))
 
     def definition_json(self) -> str:
@@ -115,6 +115,23 @@ class Sweep(BaseModel):
     def sweep_id(self) -> str:
         """Stable 16-hex-digit id of the sweep (sha256 of its canonical JSON)."""
         return content_id(self.canonical_json())
+
+
+#: Fourth-round fields of a case (SPEC §9) left out of a sweep's id while at their defaults, so every
+#: earlier sweep keeps its id (as :class:`solver.spec.CaseSpec` keeps its cases').
+_ROUND4_PATHS = (("solver", "mesh_check"), ("geometry", "section"), ("excavation", "face_distance"),
+                 ("excavation", "ldp"), ("design", "crack_width_limit"), ("design", "bar_diameter"),
+                 ("settlement", None), ("name", None))
+
+
+def _without_round4_defaults(base: dict) -> None:
+    default = json.loads(canonical_json(CaseSpec()))
+    for section, field in _ROUND4_PATHS:
+        if field is None:
+            if section in base and base[section] == default.get(section):
+                del base[section]
+        elif section in base and field in base[section] and base[section][field] == default[section].get(field):
+            del base[section][field]
 
 
 class SweepError(ValueError):
