@@ -326,7 +326,7 @@ def _surface_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict, d
                                   "bottom)")
     scalars = {
         "phreatic_drawdown": float(phreatic[0] - sol.spec.water.table) if sol.spec.water.table is not None
-        else np.nan,
+        else 0.0,  # dry ground: nothing drawn down (absent scalars are 0, as the joints' of a monolithic ring)
         "max_surface_settlement": float(settlement.max()),
         "volume_loss": volume_loss(surf_x, settlement, g.hole_radius),
         "ground_loss": loss,
