@@ -85,6 +85,7 @@ PARAMETER_ATTRS: dict[str, tuple[str | None, str]] = {
     "lining.joints.shear": (None, "tangential law across the joints"),
     "lining.joints.friction": ("1", "joint Coulomb friction coefficient"),
     "solver.load_steps": ("1", "load increments per construction stage"),
+    "solver.mesh_check": (None, "also solve on a mesh refined once and report the changes"),
     "water.table": ("m", "depth of the water table below the surface"),
     "water.unit_weight": ("N m-3", "unit weight of water"),
     "water.lining": (None, "water condition of the lining"),

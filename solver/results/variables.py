@@ -40,7 +40,7 @@ SCALARS = {
                                   "stage 1 (0 if none)"),
     "water_inflow": ("m3 s-1", "steady water inflow into the whole tunnel per metre (0 unless the lining drains)"),
     "phreatic_drawdown": ("m", "lowering of the water table above the tunnel axis (0 unless the lining drains; "
-                               "NaN in dry ground)"),
+                               "0 in dry ground)"),
     "max_joint_opening": ("m", "largest opening of the segmental lining's joints (0 for a monolithic lining)"),
     "max_joint_rotation": ("rad", "largest absolute rotation across a joint (0 for a monolithic lining)"),
     "max_joint_eccentricity": ("1", "largest |M|/(N a/2) at a joint: <= 1 when every joint carries its thrust "
