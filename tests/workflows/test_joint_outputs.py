@@ -253,7 +253,7 @@ def test_joints_cross_the_lining_on_the_mesh_plots(mixed, segmental, monolithic)
     # magnified, the faces of an open joint gape at the extrados by about the magnified opening
     ds = segmental[2]
     scale = 50.0
-    fig = plot_deformed_mesh(ds, scale=scale)
+    fig = plot_deformed_mesh(ds, scale=scale, stage="2")  # since placement: the faces near their angles
     lines = _gids(fig, "joint-open")
     for j in (1, 2):  # the joints at 60 and 120 deg, opening at the extrados (rotation > 0)
         assert ds["joint_rotation"].values[j] > 0

@@ -46,7 +46,10 @@ def test_forces_csv_read_back(ds):
         "shear_utilization": "1", "crack_width": "mm"}
     for k, (name, unit) in enumerate(zip(names, units)):
         got = np.array([float(r[k]) for r in data])
-        np.testing.assert_allclose(got, expected[name] * UNITS[unit], rtol=1e-12, atol=1e-12, err_msg=name)
+        # the dataset's arc length runs along the extrados's nodes (chords of the true curve), the
+        # expected one along the circle: they differ by the chords' sag (1e-4), every other column is exact
+        rtol = 3e-4 if name == "arc_length" else 1e-12
+        np.testing.assert_allclose(got, expected[name] * UNITS[unit], rtol=rtol, atol=1e-12, err_msg=name)
     assert np.ptp([float(r[names.index("water_pressure")]) for r in data]) > 50  # the wet case: kPa
     # the arc length reaches half the extrados' circumference
     arc = float(data[-1][names.index("arc_length")])
@@ -62,7 +65,10 @@ def test_workbook_read_back(ds):
     expected = expected_columns(ds)
     for k, (name, unit) in enumerate(zip(names, units)):
         got = np.array([ws.cell(row=r, column=k + 1).value for r in range(3, 3 + ds.sizes["interface"])], float)
-        np.testing.assert_allclose(got, expected[name] * UNITS[unit], rtol=1e-12, atol=1e-12, err_msg=name)
+        # the dataset's arc length runs along the extrados's nodes (chords of the true curve), the
+        # expected one along the circle: they differ by the chords' sag (1e-4), every other column is exact
+        rtol = 3e-4 if name == "arc_length" else 1e-12
+        np.testing.assert_allclose(got, expected[name] * UNITS[unit], rtol=rtol, atol=1e-12, err_msg=name)
     assert ws.auto_filter.ref == f"A2:M{2 + ds.sizes['interface']}" and ws.freeze_panes == "A3"
     assert ws["C3"].number_format == "0"                     # N ≈ 500 kN/m: 3 figures, no decimals
     assert ws.column_dimensions["A"].width >= len("theta")
