@@ -127,7 +127,7 @@ async def get_case_result(case_id: CaseId, request: Request) -> FileResponse:
 
 @router.get("/{case_id}/report.pdf", response_class=FileResponse, responses={
     200: {"content": {"application/pdf": {}}, "description": "the case's printable report, written once and cached"},
-    **responses(404, 409)})
+    **responses(404, 409, 422)})
 async def get_case_report(case_id: CaseId, request: Request,
                           project: Optional[str] = Query(None, max_length=120, description="title block: project"),
                           job: Optional[str] = Query(None, max_length=40, description="title block: job number"),
@@ -156,7 +156,7 @@ async def get_case_report(case_id: CaseId, request: Request,
 
 @router.get("/{case_id}/plots/{name}.png", response_class=FileResponse, responses={
     200: {"content": {"image/png": {}}, "description": "the figure, rendered once and cached"},
-    **responses(404, 409)})
+    **responses(404, 409, 422)})
 async def get_case_plot(case_id: CaseId, name: PlotName, request: Request,
                         stage: Optional[Literal["total", "1", "2"]] = Query(
                             None, description="deformed_mesh: the construction stage shown (every body in one "
