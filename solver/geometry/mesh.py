@@ -26,9 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .sizing import (
+    ground_size_field,
     check_mesh_size,
     interface_segments,
-    size_field_distances,
 )
 from ..spec import CaseSpec
 from ..ground.strata import band_layers, mesh_lines
@@ -96,7 +96,7 @@ def sector_angles(spec: CaseSpec) -> list[float]:
 def _geometry(spec: CaseSpec):
     import gmsh
 
-    g, m = spec.geometry, spec.mesh
+    g = spec.geometry
     geo = gmsh.model.geo
     angles = sector_angles(spec)
     per_quarter = interface_segments(spec)
@@ -125,18 +125,7 @@ def _geometry(spec: CaseSpec):
     for s in lining.surfaces:
         mesh.setTransfiniteSurface(s, "Alternate")
 
-    d_min, d_max = size_field_distances(spec)
-    fields = gmsh.model.mesh.field
-    dist = fields.add("Distance")
-    fields.setNumbers(dist, "CurvesList", list(hole))
-    fields.setNumber(dist, "Sampling", 4 * (per_quarter + 1))
-    thr = fields.add("Threshold")
-    fields.setNumber(thr, "InField", dist)
-    fields.setNumber(thr, "SizeMin", m.interface_size)
-    fields.setNumber(thr, "SizeMax", m.far_size)
-    fields.setNumber(thr, "DistMin", d_min)
-    fields.setNumber(thr, "DistMax", d_max)
-    fields.setAsBackgroundMesh(thr)
+    ground_size_field(spec, hole, sampling=4 * (per_quarter + 1))
     gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
     gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
     gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)

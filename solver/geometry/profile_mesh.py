@@ -18,7 +18,7 @@ import numpy as np
 
 from .joints import joint_layers
 from .section import Profile
-from .sizing import size_field_distances
+from .sizing import ground_size_field
 
 
 def sector_params(spec) -> list[float]:
@@ -91,19 +91,7 @@ def profile_geometry(spec):
 def _size_field(spec, hole) -> None:
     import gmsh
 
-    m = spec.mesh
-    d_min, d_max = size_field_distances(spec)
-    fields = gmsh.model.mesh.field
-    dist = fields.add("Distance")
-    fields.setNumbers(dist, "CurvesList", list(hole))
-    fields.setNumber(dist, "Sampling", 3)
-    thr = fields.add("Threshold")
-    fields.setNumber(thr, "InField", dist)
-    fields.setNumber(thr, "SizeMin", m.interface_size)
-    fields.setNumber(thr, "SizeMax", m.far_size)
-    fields.setNumber(thr, "DistMin", d_min)
-    fields.setNumber(thr, "DistMax", d_max)
-    fields.setAsBackgroundMesh(thr)
+    ground_size_field(spec, hole, sampling=3)
     for name, value in (("Mesh.MeshSizeExtendFromBoundary", 0), ("Mesh.MeshSizeFromPoints", 0),
                         ("Mesh.MeshSizeFromCurvature", 0), ("Mesh.Algorithm", 6)):
         gmsh.option.setNumber(name, value)

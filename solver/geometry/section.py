@@ -48,24 +48,6 @@ class Arc:
         """(2, n) points at turning angles ``phi`` (rad, within [start, end])."""
         return np.asarray(self.center, float)[:, None] + self.radius * np.stack([np.sin(phi), np.cos(phi)])
 
-    def parameter(self, points: np.ndarray, iterations: int = 8) -> np.ndarray:
-        """(n,) turning angles φ of the feet of the normals through ``points`` (2, n) (relative to
-        the section's centre): the nearest of a fine sampling, refined by Newton's method on
-        (P − C(φ))·T(φ) = 0, T = (cos φ, −sin φ) the tangent. For a point of the curve, its own φ;
-        for a point of the lining, the φ of the normal cut it lies on."""
-        from scipy.spatial import cKDTree
-
-        points = np.asarray(points, float)
-        grid = np.linspace(0.0, math.pi, 4097)
-        phi = grid[cKDTree(self.points(grid).T).query(points.T)[1]]
-        for _ in range(iterations):
-            d = points - self.points(phi)
-            tangent = np.stack([np.cos(phi), -np.sin(phi)])
-            f = np.sum(d * tangent, axis=0)
-            df = -1.0 / self.curvature(phi) - np.sum(d * self.normals(phi), axis=0)
-            phi = np.clip(phi - f / df, 0.0, math.pi)
-        return phi
-
     @property
     def length(self) -> float:
         return self.radius * (self.end - self.start)

@@ -121,3 +121,24 @@ def check_mesh_size(n_elements: int) -> None:
         raise SolverError(
             f"mesh.interface_size: the mesh has {n_elements:,} elements, over the cap of "
             f"{MAX_ELEMENTS:,}; use a larger mesh.interface_size or mesh.far_size")
+
+
+def ground_size_field(spec, hole, *, sampling: int) -> None:
+    """The ground's element size in the current gmsh model: ``interface_size`` at the excavation
+    boundary (the curves ``hole``, sampled ``sampling`` times each) growing to ``far_size`` over
+    :func:`size_field_distances`, as the background mesh size."""
+    import gmsh
+
+    m = spec.mesh
+    d_min, d_max = size_field_distances(spec)
+    fields = gmsh.model.mesh.field
+    dist = fields.add("Distance")
+    fields.setNumbers(dist, "CurvesList", list(hole))
+    fields.setNumber(dist, "Sampling", sampling)
+    thr = fields.add("Threshold")
+    fields.setNumber(thr, "InField", dist)
+    fields.setNumber(thr, "SizeMin", m.interface_size)
+    fields.setNumber(thr, "SizeMax", m.far_size)
+    fields.setNumber(thr, "DistMin", d_min)
+    fields.setNumber(thr, "DistMax", d_max)
+    fields.setAsBackgroundMesh(thr)
