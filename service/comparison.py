@@ -48,7 +48,8 @@ from .job_records import JobStore, SweepRecord
 SCALAR_ORDER: tuple[str, ...] = (
     "max_contact_pressure", "contact_extent", "crown_settlement", "max_thrust", "max_abs_moment",
     "max_utilization", "max_shear_utilization", "max_crack_width", "ground_loss", "gaussian_max_settlement",
-    "design_max_settlement", "max_slope", "max_horizontal_strain", "axis_settlement", "max_surface_heave",
+    "design_volume_loss", "design_max_settlement", "max_slope", "max_horizontal_strain", "axis_settlement",
+    "max_surface_heave",
     "max_surface_settlement", "volume_loss", "ground_crown_settlement", "deconfinement", "ldp_ratio",
     "water_inflow", "phreatic_drawdown",
     "plastic_area", "max_plastic_extent", "stage1_plastic_area", "stage1_max_plastic_extent", "max_joint_opening",

@@ -339,10 +339,11 @@ def plot_surface_settlement(ds: xr.Dataset) -> Figure:
         ax.fill_between(xx, np.concatenate([gs[::-1], gs]), color="tab:red", alpha=0.10)
     if "design_settlement" in ds and not np.allclose(ds["design_settlement"].values, ds["gaussian_settlement"].values):
         design = ds["design_settlement"].values * 1e3
-        attrs = ds["design_settlement"].attrs
+        volume = float(ds["design_volume_loss"]) if "design_volume_loss" in ds else float("nan")
+        factor = json.loads(ds.attrs.get("case_spec", "{}")).get("settlement", {}).get("trough_width_factor",
+                                                                                        float("nan"))
         ax.plot(xx, np.concatenate([design[::-1], design]), color="tab:blue", lw=1.6, ls="--",
-                label=f"design trough (V_L = {100 * attrs.get('volume_loss', float('nan')):.3g} %, "
-                      f"K = {attrs.get('trough_width_factor', float('nan')):g})")
+                label=f"design trough (V_L = {100 * volume:.3g} %, K = {factor:g})")
     ax.plot(x, s, color="k", lw=1.2, marker="o", ms=2, label="FE surface (depends on the model's size)")
     ax.plot(-x, s, color="k", lw=0.8, ls="--")
     ax.axhline(0.0, color="0.5", lw=0.8)

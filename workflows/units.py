@@ -16,7 +16,7 @@ DISPLAY_UNITS: dict[str, tuple[str, float]] = {
 #: Scalars that describe the solve rather than the tunnel (shown apart from the results).
 DIAGNOSTICS = ("bolt_theta", "bolt_trials", "iterations", "converged", "kkt_residual", "solve_seconds")
 #: Dimensionless results shown in per cent.
-PERCENT = ("ground_loss", "volume_loss")
+PERCENT = ("ground_loss", "volume_loss", "design_volume_loss")
 #: Lengths read in metres (sizes of zones), not millimetres (displacements).
 METRES = ("max_plastic_extent", "stage1_max_plastic_extent")
 

@@ -313,12 +313,11 @@ def _surface_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict, d
                                    f"{_since(sol.spec)}; depends on the model's size, see gaussian_settlement)"),
         "gaussian_settlement": _var("surface", trough, "m", "Gaussian settlement trough holding the ground loss "
                                     "(Peck; O'Reilly and New), downward positive",
-                                    trough_width_factor=TROUGH_WIDTH_FACTOR,
-                                    trough_width_m=TROUGH_WIDTH_FACTOR * g.depth),
+                                    trough_width_factor=TROUGH_WIDTH_FACTOR),
+        # no attribute of a case's own values (its volume loss, its K): cases of a study share the
+        # variables' attributes, so the index stacks them in one block (design_volume_loss is a scalar)
         "design_settlement": _var("surface", design["settlement"], "m", "design settlement trough (Gaussian, "
-                                  "settlement.volume_loss and trough_width_factor), downward positive",
-                                  volume_loss=design["volume_loss"],
-                                  trough_width_factor=sol.spec.settlement.trough_width_factor),
+                                  "design_volume_loss and settlement.trough_width_factor), downward positive"),
     }
     phreatic = phreatic_surface(model, sol, surf_x)
     data["phreatic_depth"] = _var("surface", phreatic, "m", "depth of the phreatic surface below the ground surface "
@@ -331,6 +330,7 @@ def _surface_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict, d
         "volume_loss": volume_loss(surf_x, settlement, g.hole_radius),
         "ground_loss": loss,
         "gaussian_max_settlement": trough_max,
+        "design_volume_loss": design["volume_loss"],
         "design_max_settlement": design["max_settlement"],
         "max_slope": design["max_slope"],
         "max_horizontal_strain": design["max_horizontal_strain"],

@@ -26,6 +26,7 @@ SCALARS = {
     "ground_crown_settlement": ("m", "settlement of the ground at the tunnel crown since excavation"),
     "ground_loss": ("1", "area lost at the excavation boundary over the excavated area (since excavation)"),
     "gaussian_max_settlement": ("m", "largest settlement of the Gaussian trough holding the ground loss"),
+    "design_volume_loss": ("1", "volume loss of the design trough (settlement.volume_loss, else the ground loss)"),
     "design_max_settlement": ("m", "largest settlement of the design trough (settlement.volume_loss, "
                                    "settlement.trough_width_factor)"),
     "max_slope": ("1", "largest slope |dS/dx| of the design trough (at x = i)"),

@@ -3,7 +3,6 @@ service, its answer, page and figure; bad input named (422, never 500); a study 
 the service resumes on the next start and ends with the answer its stored cases give."""
 from __future__ import annotations
 
-import math
 import time
 
 import pytest
@@ -12,12 +11,8 @@ from scipy import stats
 
 from service.app import create_app
 from service.settings import Settings
-from solver import CaseSpec, run_case
 
-#: Weightless ground, light lining: max_utilization = q γF η1 exactly (see bench/exact_limit_state.py)
-EXACT = {"mesh": {"interface_size": 0.25, "far_size": 8.0}, "ground": {"density": 0.0}, "lining": {"density": 1.0},
-         "geometry": {"thickness": 0.2}, "design": {"concrete_strength": 1.6e7, "load_factor": 1.0}}
-GAMMA = {"distribution": "lognormal", "mean": 1.35, "std": 0.1}
+from bench.exact_limit_state import EXACT, GAMMA, ExactLimitState  # weightless ground, light lining
 
 
 @pytest.fixture(scope="module")
@@ -40,13 +35,8 @@ def _until(fn, timeout=600.0):
 
 
 def study_at(beta: float, budget: int, name: str) -> dict:
-    eta1 = float(run_case(CaseSpec.model_validate(EXACT))["max_utilization"]) / 1.0e5
-    s2q, s2g = math.log1p(0.09), math.log1p((0.1 / 1.35) ** 2)
-    mq = -math.log(eta1) - (math.log(1.35) - s2g / 2) - beta * math.sqrt(s2q + s2g)
-    mean = math.exp(mq + s2q / 2)
-    return {"name": name, "base": EXACT, "method": "form", "budget": budget, "seed": 4,
-            "variables": {"loads.surface_load": {"distribution": "lognormal", "mean": mean, "std": 0.3 * mean},
-                          "design.load_factor": GAMMA}}
+    """A FORM study whose exact reliability index is ``beta`` (bench.exact_limit_state)."""
+    return {**ExactLimitState().study(beta, "form", budget, seed=4), "name": name}
 
 
 @pytest.mark.parametrize("change, field", [
