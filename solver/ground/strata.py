@@ -196,17 +196,28 @@ def mohr_coulomb_excess(s_major: float, s_minor: float, cohesion: float, frictio
 
 
 def geostatic_errors(spec, layers: list[Stratum]) -> list[tuple[str, str]]:
-    """``(field, reason)`` for each yielding layer whose in-situ state lies outside its yield surface."""
+    """``(field, reason)`` for each layer whose in-situ effective stress is tensile (a ground lighter
+    than water below the table: its skeleton would float, elastic or not) and each yielding layer
+    whose in-situ state lies outside its yield surface."""
     errors = []
     named = bool(spec.ground.layers)
+    table, gamma_w = spec.water.table, spec.water.unit_weight
+    for s in layers:
+        if table is not None and s.bottom > table and s.density * spec.loads.gravity < gamma_w:
+            errors.append((f"ground.layers.{s.index}.density" if named else "ground.density",
+                           f"{s.density:.4g} kg/m3 is lighter than water below the water table (unit weight "
+                           f"{s.density * spec.loads.gravity:.4g} < {gamma_w:.4g} N/m3): the effective stress "
+                           f"would fall with depth (tension) and the ground must be heavier than water"))
+    if errors:
+        return errors
     for s, z, st in geostatic_profile(spec, layers):
-        if s.model != "mohr-coulomb":
-            continue
         v, h = st["effective_v"], st["effective_h"]
         prefix = f"ground.layers.{s.index}." if named else ""
         if v < -1e-9 * max(1.0, st["sigma_v"]):
             errors.append((prefix + "density" if named else "ground.density",
                            f"the effective vertical stress is {v:.4g} Pa (tension) at {z:.4g} m depth"))
+            continue
+        if s.model != "mohr-coulomb":
             continue
         scale = max(abs(v), abs(h), s.cohesion, 1.0)
         if mohr_coulomb_excess(max(v, h), min(v, h), s.cohesion, s.friction_angle, s.tensile_strength) \

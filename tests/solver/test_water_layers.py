@@ -186,3 +186,24 @@ def test_a_sweep_over_the_table_and_k0_reuses_one_model_bit_for_bit():
 def test_bad_water_and_layer_input_names_the_field(data, field):
     with pytest.raises(ValueError, match=field.replace(".", r"\.")):
         CaseSpec.model_validate(data)
+
+
+@pytest.mark.parametrize("parts, field", [
+    ({"ground": {"density": 0.0}, "water": {"table": 0.0}}, "ground.density"),
+    ({"ground": {"density": 900.0}, "water": {"table": 3.0}}, "ground.density"),
+    ({"ground": {"model": "mohr-coulomb", "density": 500.0}, "water": {"table": 0.0}}, "ground.density"),
+    ({"ground": {"layers": [{"thickness": 6.0}, {"density": 800.0}]}, "water": {"table": 2.0}},
+     "ground.layers.1.density"),
+])
+def test_ground_lighter_than_water_below_the_table_is_refused(parts, field):
+    """Effective vertical tension below the table (the skeleton would float) is refused for every
+    ground, elastic or yielding, naming the layer's density; dry, the same ground is accepted."""
+    from pydantic import ValidationError
+
+    from solver.errors import field_errors
+
+    with pytest.raises(ValidationError) as info:
+        _spec(**parts)
+    where, reason = field_errors(info.value)[0]
+    assert where == field and "heavier than water" in reason and "(tension)" in reason
+    _spec(**{k: v for k, v in parts.items() if k != "water"})  # dry: accepted
