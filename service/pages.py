@@ -92,11 +92,29 @@ async def case_page(case_id: CaseId, request: Request) -> HTMLResponse:
     case = cases.read_case(request, case_id)  # an unknown case: the error page (service.errors)
     values = {**(case.summary or {}), **{k: float(v) for k, v in case.non_finite.items()}}  # inf shown as inf
     names = ordered_scalars(values)
-    columns = [scalar_column(n) for n in names if n not in DIAGNOSTICS]
+    checked = [n for n in names if n.startswith(MESH_CHANGE)]
+    columns = [scalar_column(n) for n in names if n not in DIAGNOSTICS and n not in checked]
     diagnostics = [scalar_column(n) for n in names if n in DIAGNOSTICS]
     verdict = design_verdict(values, case.spec)
     return await render(request, "case.html", case=case, values=values, columns=columns, plots=list(PLOTS),
-                         diagnostics=diagnostics, verdict=verdict, warnings=case.warnings or input_warnings(case.spec))
+                        diagnostics=diagnostics, verdict=verdict, mesh_check=mesh_check_rows(values, checked),
+                        warnings=case.warnings or input_warnings(case.spec))
+
+
+#: The prefix of solver.mesh_check's scalars: the relative change of a key result on a mesh refined once.
+MESH_CHANGE = "mesh_change_"
+
+
+def mesh_check_rows(values: dict[str, float], names: list[str]) -> list[dict]:
+    """The case page's mesh check (``solver.mesh_check``): per key result, its long name and its
+    relative change (%) on a mesh refined once, and whether it is above the 1 % of a warning."""
+    rows = []
+    for name in names:
+        result = name[len(MESH_CHANGE):]
+        change = 100.0 * values[name]
+        rows.append({"name": result, "long_name": scalar_column(result).long_name, "change": f"{change:+.2f} %",
+                     "coarse": abs(change) > 1.0})
+    return rows
 
 
 def input_warnings(spec: dict) -> list[str]:

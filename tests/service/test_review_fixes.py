@@ -126,6 +126,26 @@ def test_warnings_of_a_solved_case_reach_the_record_and_the_case_page(client, wa
     assert 'id="case-warnings"' not in client.get(f"/ui/cases/{ordinary['id']}").text
 
 
+def test_the_mesh_check_is_a_table_of_the_case_page(client):
+    """solver.mesh_check: each key result's change on the refined mesh, in per cent, on the case
+    page (the ones above 1 % marked), not mixed into the summary's results."""
+    from solver.results.mesh_check import CHECKED
+
+    coarse = {"mesh": {"interface_size": 0.7, "far_size": 20.0}, "solver": {"mesh_check": True}}
+    body = finished(client, client.post("/cases", json=coarse).json()["id"])
+    assert body["status"] == "done"
+    page = client.get(f"/ui/cases/{body['id']}").text
+    table = re.search(r'<table id="mesh-check".*?</table>', page, re.S).group(0)
+    rows = dict(re.findall(r'<tr data-name="(\w+)"[^>]*><td[^>]*>[^<]*</td><td>([^<]*)</td></tr>', table))
+    assert sorted(rows) == sorted(CHECKED)
+    for name, shown in rows.items():
+        change = 100.0 * body["summary"][f"mesh_change_{name}"]
+        assert shown.startswith(f"{change:+.2f} %") and shown.endswith("⚠") == (abs(change) > 1.0), (name, shown)
+    assert any(shown.endswith("⚠") for shown in rows.values())  # coarse enough to show
+    summary = re.search(r'id="summary".*?</table>', page, re.S).group(0)
+    assert "mesh_change_" not in summary
+
+
 def test_the_sweep_table_marks_cases_with_warnings(client, warned_case):
     sweep = {"name": "loads", "base": COARSE, "vary": {"loads.surface_load": [2.0e4, 1e9]}}
     body = client.post("/sweeps", json=sweep).json()
