@@ -26,7 +26,11 @@ _FIELDS: tuple[tuple[str, str, str], ...] = (
     ("Ground", "loads.lateral_ratio", "lateral earth pressure ratio K0"),
     ("Ground", "ground.cohesion", "cohesion c (Mohr–Coulomb)"),
     ("Ground", "ground.friction_angle", "friction angle φ (Mohr–Coulomb)"),
-    ("Ground", "ground.dilatancy", "dilatancy angle ψ (Mohr–Coulomb)"),
+    ("Ground", "ground.dilatancy", "dilatancy angle ψ (Mohr–Coulomb, Hoek–Brown)"),
+    ("Ground", "ground.ucs", "intact rock strength σci (Hoek–Brown)"),
+    ("Ground", "ground.gsi", "geological strength index GSI (Hoek–Brown)"),
+    ("Ground", "ground.mi", "intact rock constant mi (Hoek–Brown)"),
+    ("Ground", "ground.disturbance", "disturbance factor D (Hoek–Brown)"),
     ("Ground", "loads.surface_load", "surface load"),
     ("Ground", "water.table", "water table depth (empty: dry)"),
     ("Lining and interface", "lining.young", "lining Young's modulus"),
@@ -42,7 +46,7 @@ _FIELDS: tuple[tuple[str, str, str], ...] = (
 #: Fields typed in a unit of their own: (unit, factor); factor 0 marks a density typed as a
 #: unit weight in kN/m³ (density = typed x 1000 / gravity).
 _TYPED_AS = {"geometry.gap": ("mm", 1e-3), "ground.density": ("kN/m³", 0.0), "lining.density": ("kN/m³", 0.0)}
-_CHOICES = {"ground.model": ("elastic", "mohr-coulomb"), "interface.model": ("frictionless", "coulomb", "bonded")}
+_CHOICES = {"ground.model": ("elastic", "mohr-coulomb", "hoek-brown"), "interface.model": ("frictionless", "coulomb", "bonded")}
 
 
 @dataclass(frozen=True)

@@ -397,7 +397,7 @@ def ground_reaction(ds: xr.Dataset) -> dict:
     Kirsch's for elastic ground) for a circle in one homogeneous layer, None otherwise; and, for a case whose λd
     was found from its face distance, ``installation`` (the attribute of SPEC §9.5) with the
     curve on to full release (``full_u``, ``full_p``), None otherwise."""
-    from solver.analytic import interface_mean, salencon
+    from solver.analytic import interface_mean
     from solver.spec import CaseSpec
     from solver.ground.strata import geostatic_state, strata
 
@@ -425,14 +425,27 @@ def ground_reaction(ds: xr.Dataset) -> dict:
         out["full_u"] = np.array([0.0] + [c["wall_convergence_m"] for c in full])
         out["full_p"] = p0 * np.array([1.0] + [1.0 - c["released"] for c in full])
     if len(layers) == 1 and not layers[0].young_gradient and g.circle:  # a homogeneous ground has a closed form
-        ground, closed_p = layers[0], np.linspace(p0, 0.0, 60)
-        if ground.model == "mohr-coulomb":
-            closed_u = [salencon(p0, ground.cohesion, ground.friction_angle, ground.dilatancy, ground.young,
-                                 ground.poisson, g.hole_radius, p, n=801)["u_wall"] for p in closed_p]
-        else:  # Kirsch's wall under isotropic unloading
-            closed_u = (p0 - closed_p) * g.hole_radius * (1 + ground.poisson) / ground.young
+        closed_p = np.linspace(p0, 0.0, 60)
+        closed_u = closed_form_wall(layers[0], p0, closed_p, g.hole_radius)
         out["closed_u"], out["closed_p"] = np.asarray(closed_u), closed_p
     return out
+
+
+def closed_form_wall(ground, p0: float, pressures: np.ndarray, radius: float) -> list[float]:
+    """The wall's convergence (m) of a circular hole of ``radius`` in homogeneous ``ground`` (a
+    :class:`solver.ground.strata.Stratum`) under isotropic ``p0`` at support ``pressures`` (Pa):
+    Salençon's (Mohr–Coulomb), the Hoek–Brown hole's, Kirsch's (elastic)."""
+    from solver.analytic import salencon
+
+    if ground.model == "mohr-coulomb":
+        return [salencon(p0, ground.cohesion, ground.friction_angle, ground.dilatancy, ground.young,
+                         ground.poisson, radius, p, n=801)["u_wall"] for p in pressures]
+    if ground.model == "hoek-brown":
+        from solver.ground.hoek_brown_hole import hoek_brown_hole
+
+        return [hoek_brown_hole(p0, ground.ucs, ground.gsi, ground.mi, ground.disturbance, ground.dilatancy,
+                                ground.young, ground.poisson, radius, p)["u_wall"] for p in pressures]
+    return list((p0 - np.asarray(pressures)) * radius * (1 + ground.poisson) / ground.young)
 
 
 def case_hole_radius(ds: xr.Dataset) -> float:

@@ -177,6 +177,8 @@ STRATA_COLUMNS = (
     ("model", lambda s, g: s.model),
     ("c (kPa)", lambda s, g: f"{s.cohesion / 1e3:.3g}" if s.model == "mohr-coulomb" else "–"),
     ("φ (°)", lambda s, g: f"{s.friction_angle:.3g}" if s.model == "mohr-coulomb" else "–"),
+    ("σci (MPa), GSI, mi, D", lambda s, g: f"{s.ucs / 1e6:.3g}, {s.gsi:.3g}, {s.mi:.3g}, {s.disturbance:.2g}"
+     if s.model == "hoek-brown" else "–"),
     ("k (m/s)", lambda s, g: f"{s.permeability:.2g}"),
 )
 

@@ -54,10 +54,10 @@ def shown_value(value, units: str | None, name: str | None = None, digits: int =
 
 def input_unit(name: str, units: str | None) -> tuple[str, float]:
     """``(unit label, factor from SI)`` in which people read and type input ``name`` (a flat
-    parameter name, e.g. ``ground_young``): moduli and concrete/steel strengths in MPa, other
+    parameter name, e.g. ``ground_young``): moduli and concrete/steel/rock strengths in MPa, other
     stresses in kPa, reinforcement in cm²/m; everything else as stored."""
     if units == "Pa":
-        return ("MPa", 1e-6) if name.endswith("young") or name.startswith("design_") else ("kPa", 1e-3)
+        return ("MPa", 1e-6) if name.endswith(("young", "ucs")) or name.startswith("design_") else ("kPa", 1e-3)
     if units == "Pa m-1":
         return "MPa/m", 1e-6
     return {"m2 m-1": ("cm²/m", 1e4), "kg m-3": ("kg/m³", 1.0), "m s-2": ("m/s²", 1.0), "m s-1": ("m/s", 1.0),

@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .hoek_brown import hoek_brown_excess
+
 __all__ = ["Stratum", "strata", "layer_lines", "table_line", "mesh_lines", "moved_lines", "layer_at", "geostatic_state", "geostatic_profile"]
 
 
@@ -35,6 +37,10 @@ class Stratum:
     friction_angle: float
     dilatancy: float
     tensile_strength: float
+    ucs: float = 0.0
+    gsi: float = 0.0
+    mi: float = 0.0
+    disturbance: float = 0.0
 
     def young_at(self, z: np.ndarray) -> np.ndarray:
         """E (Pa) at depths ``z`` (m) inside the layer."""
@@ -138,7 +144,8 @@ def strata(spec) -> list[Stratum]:
             index=i, top=top, bottom=bottom, young=layer.young, poisson=layer.poisson, density=layer.density,
             k0=k0 if lr is None else lr, young_gradient=layer.young_gradient, permeability=layer.permeability,
             model=layer.model, cohesion=layer.cohesion, friction_angle=layer.friction_angle,
-            dilatancy=layer.dilatancy, tensile_strength=layer.tensile_strength))
+            dilatancy=layer.dilatancy, tensile_strength=layer.tensile_strength, ucs=layer.ucs, gsi=layer.gsi,
+            mi=layer.mi, disturbance=layer.disturbance))
         top = bottom
     return out
 
@@ -216,6 +223,16 @@ def geostatic_errors(spec, layers: list[Stratum]) -> list[tuple[str, str]]:
         if v < -1e-9 * max(1.0, st["sigma_v"]):
             errors.append((prefix + "density" if named else "ground.density",
                            f"the effective vertical stress is {v:.4g} Pa (tension) at {z:.4g} m depth"))
+            continue
+        if s.model == "hoek-brown":
+            excess = hoek_brown_excess(max(v, h), min(v, h), s.ucs, s.gsi, s.mi, s.disturbance, s.tensile_strength)
+            if excess > 1e-9 * max(abs(v), abs(h), 1.0):
+                field = prefix + "lateral_ratio" if named and spec.ground.layers[s.index].lateral_ratio is not None \
+                    else "loads.lateral_ratio"
+                errors.append((field, f"K0 = {s.k0:.4g} puts the in-situ state of layer {s.index} outside its "
+                                      f"Hoek-Brown surface at {z:.4g} m depth (sigma'v = {v:.4g} Pa, "
+                                      f"sigma'h = {h:.4g} Pa; ucs = {s.ucs:.4g} Pa, GSI = {s.gsi:.4g}, "
+                                      f"mi = {s.mi:.4g}, D = {s.disturbance:.4g})"))
             continue
         if s.model != "mohr-coulomb":
             continue

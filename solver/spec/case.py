@@ -11,7 +11,7 @@ from ..geometry.sizing import MAX_ELEMENTS, estimated_elements
 from ..ground.strata import geostatic_errors, layer_lines, strata
 from ..lining.design import section_errors
 from .canonical import MAX_STIFFNESS_RATIO, _Frozen, content_id
-from .ground import LAYER_FIELDS, Ground, Strength
+from .ground import HOEK_BROWN_DEFAULTS, LAYER_FIELDS, Ground, Strength
 from .section import Section
 from .parts import (Boundaries, Design, Excavation, Geometry, Interface, Joints, Lining, Loads, MeshSettings,
                     Settlement, SolverSettings, Water)
@@ -138,7 +138,7 @@ class CaseSpec(_Frozen):
     @property
     def plastic(self) -> bool:
         """Whether any layer of the ground can yield (the staged plastic solve is needed)."""
-        return any(layer.model == "mohr-coulomb" for layer in (self.ground, *self.ground.layers))
+        return any(layer.model != "elastic" for layer in (self.ground, *self.ground.layers))
 
     @property
     def drained(self) -> bool:
@@ -207,6 +207,10 @@ class CaseSpec(_Frozen):
             for name, default in fields.items():
                 if data[section].get(name, default) == default:
                     data[section].pop(name, None)
+        for layer in data["ground"].get("layers", []):  # SPEC §9.1's fields, absent while at their defaults
+            for name, default in HOEK_BROWN_DEFAULTS.items():
+                if layer.get(name, default) == default:
+                    layer.pop(name, None)
         for section in ("water", "settlement"):
             if data[section] == {}:
                 del data[section]

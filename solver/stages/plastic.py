@@ -43,7 +43,8 @@ import numpy as np
 
 from ..errors import NotConvergedError
 from ..ground.loads import in_situ_stress, moduli
-from ..ground.mohr_coulomb import Material, equivalent, return_stress
+from ..ground.laws import PointLaws
+from ..ground.mohr_coulomb import equivalent
 from ..ground.strata import strata
 from ..limits import check_time
 from ..results.post import mean_convergence
@@ -97,12 +98,10 @@ class _Points:
         self.lam, self.mu, self.mu2 = lam, mu, 2 * mu
         per = lambda name: np.broadcast_to(  # noqa: E731
             np.array([getattr(s, name) for s in layers])[band][:, None], y.shape).ravel()
-        self.yielding = np.broadcast_to(np.array([s.model == "mohr-coulomb" for s in layers])[band][:, None],
-                                        y.shape).ravel()
+        law = np.broadcast_to(np.array([s.model for s in layers])[band][:, None], y.shape).ravel()
+        self.yielding = law != "elastic"
         sel = self.yielding
-        self.material = Material.of(int(sel.sum()), lam.ravel()[sel], mu.ravel()[sel],
-                                    *(per(k)[sel] for k in ("cohesion", "friction_angle", "dilatancy",
-                                                            "tensile_strength")))
+        self.material = PointLaws.of(law[sel], lam.ravel()[sel], mu.ravel()[sel], lambda k: per(k)[sel])
         self.sigma0 = (in_situ_stress(spec, layers, band, y)["effective"]  # (4, E, Q)
                        if spec.excavation.method == "deconfinement" else np.zeros((4,) + y.shape))
         self.sigma = self.sigma0.copy()  # at the last converged increment
@@ -146,12 +145,12 @@ class _Points:
         flags = np.zeros(flat.shape[1], bool)
         sel = self.yielding
         if sel.all():
-            stress, dep, flags = return_stress(flat, self.material, self.flag_tolerance)
+            stress, dep, flags = self.material.return_stress(flat, self.flag_tolerance)
         else:
             stress = flat.copy()
             if sel.any():
-                stress[:, sel], dep[:, sel], flags[sel] = return_stress(flat[:, sel], self.material,
-                                                                       self.flag_tolerance)
+                stress[:, sel], dep[:, sel], flags[sel] = self.material.return_stress(flat[:, sel],
+                                                                                     self.flag_tolerance)
         # (a point flowing in this increment is at yield: return_stress flags every point it returns)
         stress = stress.reshape(trial.shape)
         return stress, dep, flags.reshape(self.shape), self.tau + (trial - stress)
@@ -194,7 +193,7 @@ def first_yield(points: _Points, u_unit: np.ndarray, limit: float) -> float:
     start = points.sigma.reshape(4, -1)[:, points.yielding]
 
     def at_yield(f: float, where, material) -> np.ndarray:
-        return return_stress(start[:, where] + f * rate[:, where], material, points.flag_tolerance)[2]
+        return material.return_stress(start[:, where] + f * rate[:, where], points.flag_tolerance)[2]
 
     everywhere = slice(None)
     out = np.flatnonzero(at_yield(limit, everywhere, points.material))
