@@ -47,13 +47,15 @@ async def get_sweep_table(sweep_id: SweepId, request: Request) -> ComparisonTabl
 
 @router.get("/{sweep_id}/summary.csv", response_class=Response, responses={
     200: {"content": {"text/csv": {}},
-          "description": "header row, then one row per case in sweep order: case_id, status, the "
-                         "varied parameters (flat names, e.g. lining_thickness), the result "
-                         "scalars of SPEC §3 in SI units (empty until the case is done), then "
-                         "error (why a case failed) and warnings (the solver's, about a result)"},
+          "description": "header row, units row (engineering units: mm, MPa, kPa, kN/m, ...), then one "
+                         "row per case in sweep order: case_id, status, the varied parameters (flat "
+                         "names, e.g. lining_thickness), the result scalars of SPEC §3 in the units "
+                         "of the units row (empty until the case is done), then error (why a case "
+                         "failed) and warnings (the solver's, about a result)"},
     **responses(404)})
 async def get_sweep_csv(sweep_id: SweepId, request: Request) -> Response:
-    """The comparison table as CSV (the same columns as ``/sweeps/{id}/table``)."""
+    """The comparison table as CSV (the same columns as ``/sweeps/{id}/table``), in engineering
+    units with a units row under the header, as ``summary.xlsx``."""
     table = await get_sweep_table(sweep_id, request)
     return Response(table_csv(table), media_type="text/csv; charset=utf-8",
                     headers={"Content-Disposition": f'attachment; filename="sweep-{sweep_id}.csv"'})
