@@ -82,7 +82,7 @@ def test_a_sweep_whose_cases_all_failed_has_no_result_and_says_why(client):
     assert {r["case_id"]: r["error"] for r in table["rows"]} == errors
     assert {r["case_id"]: r["error"] for r in csv_rows(client, sweep_id)} == errors
     page = client.get(f"/ui/sweeps/{sweep_id}").text
-    cells = re.findall(r'<td class="text kind-text col-error" data-value="[^"]*">([^<]*)</td>', page)
+    cells = re.findall(r'<td class="text kind-text col-error" data-value="[^"]*" title="[^"]*">([^<]*)</td>', page)
     assert len(cells) == 2 and all("NotConvergedError" in c for c in cells)
 
 
