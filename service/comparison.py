@@ -39,8 +39,8 @@ from typing import Literal, Optional, Union
 from pydantic import BaseModel, Field
 
 from solver.results.variables import SCALARS
-from workflows.parameters import flat_parameters, parameter_attrs, parameter_path, varying_parameters
-from workflows.units import display_unit, parameter_unit
+from workflows.parameters import flat_parameters, parameter_attrs, shown_parameter_unit, varying_parameters
+from workflows.units import display_unit
 
 from .results import non_finite_text
 from .job_records import JobStore, SweepRecord
@@ -93,9 +93,8 @@ def scalar_column(name: str) -> Column:
 
 def parameter_column(name: str) -> Column:
     """The column of case parameter ``name`` (flat), shown in its engineering unit (MPa, kPa, mm, ...)."""
-    attrs = parameter_attrs(name)
-    shown, factor = parameter_unit(parameter_path(name), attrs.get("units")) if "units" in attrs else ("", 1.0)
-    return Column(name=name, kind="parameter", **attrs, display_unit=shown, display_factor=factor)
+    shown, factor = shown_parameter_unit(name)
+    return Column(name=name, kind="parameter", **parameter_attrs(name), display_unit=shown, display_factor=factor)
 
 
 def ordered_scalars(names) -> list[str]:
