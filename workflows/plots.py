@@ -130,8 +130,8 @@ def _value_colours(values) -> tuple[list, Any]:
 
 
 class CaseColours:
-    """How a sweep's figures tell cases apart: coloured by one varied parameter (a colour bar
-    when it is a number, a legend when it is a choice) and faceted by a second one with at
+    """How a sweep's figures tell cases apart: coloured by one varied parameter (a colour bar in its
+    engineering unit when it is a number, a legend when it is a choice) and faceted by a second one with at
     most :data:`MAX_FACETS` values; by case (legend up to :data:`_LEGEND_CASES`) when no
     parameter varies."""
 
@@ -148,7 +148,8 @@ class CaseColours:
         self.labels = case_labels(combined)
         self.mappable = None  # of the colour bar, when coloured by a number
         if self.param is not None and self.param in numeric:
-            self.colors, self.mappable = _value_colours(combined[self.param].values)
+            shown = combined[self.param].values * shown_parameter_unit(self.param)[1]
+            self.colors, self.mappable = _value_colours(shown)
             self.legend = False
         elif self.param is not None:
             categories = list(dict.fromkeys(combined[self.param].values.tolist()))
@@ -161,14 +162,14 @@ class CaseColours:
         self.facets: list[tuple[str | None, list[int]]] = [(None, list(range(n)))]
         if self.facet is not None:
             values = combined[self.facet].values.tolist()
-            self.facets = [(f"{self.facet} = {_format_value(v)}", [i for i in range(n) if values[i] == v])
+            self.facets = [(parameter_text(self.facet, v), [i for i in range(n) if values[i] == v])
                            for v in dict.fromkeys(values)]
 
     def finish(self, fig: Figure, axes) -> None:
         """The colour bar (numeric colouring) or one legend of unique labels (otherwise)."""
         if self.mappable is not None:
             bar = fig.colorbar(self.mappable, ax=axes, shrink=0.9)
-            bar.set_label(self.param, fontsize="small")
+            bar.set_label(parameter_label(self.param), fontsize="small")
         elif self.legend:
             handles, labels = axes.flat[0].get_legend_handles_labels()
             unique = dict(zip(labels, handles))
@@ -273,7 +274,8 @@ def plot_interaction(cases: list[xr.Dataset], labels: list[str] | None = None, *
     if any(with_envelope):
         ax.set_xlabel("design moment M_Ed (kN·m/m), + = inner fibre compressed")
         ax.set_ylabel("design thrust N_Ed (kN/m), compression up")
-        title = f"N–M interaction of {len(cases)} cases: design envelopes (lines), design actions at every station (dots)"
+        title = (f"N–M interaction of {len(cases)} cases: design envelopes (lines), "
+                 "design actions at every station (dots)")
         if worst is not None:
             title += f"\nlargest utilization η = {worst:.3g}" + (" (fails)" if worst > 1 else " (passes)")
     else:

@@ -37,8 +37,9 @@ def plant(client, sweep_id: str, mode: str) -> list[str]:
     specs = [CaseSpec.model_validate({"geometry": {"thickness": t}, "ground": {"young": e},
                                       "loads": {"surface_load": 1e4 if mode == "grid" else 2e4}})
              for t in THICKNESS for e in YOUNG]
-    definition = {"name": mode, "mode": mode, "vary": {"lining.thickness": list(THICKNESS), "ground.young": list(YOUNG)}}
-    record, _ = store.add_sweep(sweep_id, mode, json.dumps(definition), [(s.case_id, s.canonical_json()) for s in specs])
+    vary = {"lining.thickness": list(THICKNESS), "ground.young": list(YOUNG)}
+    cases = [(s.case_id, s.canonical_json()) for s in specs]
+    record, _ = store.add_sweep(sweep_id, mode, json.dumps({"name": mode, "mode": mode, "vary": vary}), cases)
     for i, spec in enumerate(specs):
         store.finish(spec.case_id, status="done", warnings=[WARNING] if i == 1 else [],
                      summary={"max_utilization": 0.5 + 0.02 * i, "max_thrust": 6e5 + i, "max_abs_moment": 4e4})
@@ -60,7 +61,8 @@ def test_the_sweep_page_shows_parameters_then_eta_one_line_rows_linked_to_their_
     for case_id, row in rows.items():  # every row links to its case
         assert f'href="/ui/cases/{case_id}"' in row
     # the warning: a mark in the status cell, its text in the title (hover), no text in the row
-    marks = {k: re.findall(r'<span class="warn-icon"[^>]*title="([^"]*)"[^>]*>⚠</span>', row) for k, row in rows.items()}
+    mark = re.compile(r'<span class="warn-icon"[^>]*title="([^"]*)"[^>]*>⚠</span>')
+    marks = {k: mark.findall(row) for k, row in rows.items()}
     assert {k for k, m in marks.items() if m} == {ids[1]}
     assert html.unescape(marks[ids[1]][0]) == WARNING
     assert "small-displacement" not in re.sub(r'title="[^"]*"', "", rows[ids[1]])

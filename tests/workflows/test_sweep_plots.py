@@ -94,8 +94,9 @@ def test_the_nm_figure_has_a_legend_of_its_cases_and_of_eta_against_each_paramet
                                 "lining_thickness = 0.3 m, ground_young = 50 MPa",
                                 "design envelope N_Rd–M_Rd of a section"]
     assert "N–M interaction of 4 cases" in nm.get_title() and "envelopes (lines)" in nm.get_title()
-    assert [ax.get_title() for ax in panels] == ["max utilization η against lining_thickness\none line per ground_young",
-                                                 "max utilization η against ground_young\none line per lining_thickness"]
+    assert [ax.get_title() for ax in panels] == [
+        "max utilization η against lining_thickness\none line per ground_young",
+        "max utilization η against ground_young\none line per lining_thickness"]
     assert legend_texts(panels[0]) == ["ground_young = 20 MPa", "ground_young = 50 MPa"]
     assert legend_texts(panels[1]) == ["lining_thickness = 0.2 m", "lining_thickness = 0.3 m"]
 
@@ -164,7 +165,7 @@ def test_sweep_curves_coloured_by_a_parameter_with_a_colour_bar_and_faceted_by_a
     combined = design_sweep()
     figure = SWEEP_PLOTS[name](combined)
     bars = [ax for ax in figure.axes if ax.get_label() == "<colorbar>"]
-    assert len(bars) == 1 and bars[0].get_ylabel() == "lining_thickness"
+    assert len(bars) == 1 and bars[0].get_ylabel() == "lining_thickness (m)"
     panels = [ax for ax in figure.axes if ax.get_label() != "<colorbar>"]
     assert len(panels) == (3 if name == "contact_pressure" else 6)  # one column per lateral ratio
     assert [ax.get_title() for ax in panels[:3]] == [f"loads_lateral_ratio = {k}" for k in (0.5, 0.7, 1)]
