@@ -3,7 +3,9 @@
 The same table feeds ``GET /sweeps/{id}/table`` (JSON), ``GET /sweeps/{id}/summary.csv``,
 ``GET /sweeps/{id}/table.parquet`` (with the sweep's ``name``: :func:`table_parquet`) and the
 sweep page of the dashboard. It is built from the job records alone (the summary scalars
-recorded when each case finished), so it costs no file reads.
+recorded when each case finished), so it costs no file reads. The JSON and Parquet tables hold
+SI values (as the case JSON and the netCDF); what people read (the page, ``summary.csv`` and
+``summary.xlsx``, each with a units row) is in engineering units (:func:`export_unit`).
 
 Columns, in order
 -----------------
@@ -14,7 +16,7 @@ Columns, in order
 the varied parameters
     Every case parameter whose value differs between the sweep's cases, by its flat
     name (``lining_thickness``, ``ground_young``: :mod:`workflows.parameters`), in
-    case-model order, SI units as in the case JSON (SPEC §2); shown (page, workbook) in
+    case-model order, SI units as in the case JSON (SPEC §2); shown (page, CSV, workbook) in
     engineering units (:func:`workflows.units.parameter_unit`).
 the scalars
     The result scalars of SPEC §3 (``max_contact_pressure``, ``contact_extent``, ...)
@@ -37,8 +39,8 @@ from typing import Literal, Optional, Union
 from pydantic import BaseModel, Field
 
 from solver.results.variables import SCALARS
-from workflows.parameters import flat_parameters, parameter_attrs, parameter_path, varying_parameters
-from workflows.units import display_unit, parameter_unit
+from workflows.parameters import flat_parameters, parameter_attrs, shown_parameter_unit, varying_parameters
+from workflows.units import display_unit
 
 from .results import non_finite_text
 from .job_records import JobStore, SweepRecord
@@ -91,9 +93,8 @@ def scalar_column(name: str) -> Column:
 
 def parameter_column(name: str) -> Column:
     """The column of case parameter ``name`` (flat), shown in its engineering unit (MPa, kPa, mm, ...)."""
-    attrs = parameter_attrs(name)
-    shown, factor = parameter_unit(parameter_path(name), attrs.get("units")) if "units" in attrs else ("", 1.0)
-    return Column(name=name, kind="parameter", **attrs, display_unit=shown, display_factor=factor)
+    shown, factor = shown_parameter_unit(name)
+    return Column(name=name, kind="parameter", **parameter_attrs(name), display_unit=shown, display_factor=factor)
 
 
 def ordered_scalars(names) -> list[str]:
@@ -127,14 +128,26 @@ def comparison_table(store: JobStore, record: SweepRecord) -> ComparisonTable:
     return ComparisonTable(sweep_id=record.id, columns=columns, rows=rows)
 
 
+def export_unit(column: Column) -> tuple[str, float]:
+    """``(unit, factor from the stored value)`` of ``column`` in the exports people read (CSV and
+    workbook units rows): the dashboard's engineering unit; ``("", 1.0)`` for text columns."""
+    if column.display_unit:
+        return column.display_unit, column.display_factor
+    return display_unit(column.units) if column.units else ("", 1.0)
+
+
 def table_csv(table: ComparisonTable) -> str:
-    """The table as CSV text: a header of column names, then one line per case (empty = no value)."""
+    """The table as CSV text: a header of column names, a row of units (engineering units, as the
+    workbook's: mm, MPa, kPa, kN/m, ...), then one line per case with numbers in those units at
+    full precision (empty = no value; ``inf``, ``-inf`` and ``nan`` as text)."""
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
-    names = [c.name for c in table.columns]
-    writer.writerow(names)
+    units = [export_unit(c) for c in table.columns]
+    writer.writerow([c.name for c in table.columns])
+    writer.writerow([unit for unit, _ in units])
     for row in table.rows:
-        writer.writerow(["" if row.get(n) is None else _csv_value(row[n]) for n in names])
+        writer.writerow(["" if row.get(c.name) is None else _csv_value(row[c.name], factor)
+                         for c, (_, factor) in zip(table.columns, units)])
     return out.getvalue()
 
 
@@ -149,8 +162,7 @@ def table_xlsx(table: ComparisonTable) -> bytes:
     ws = wb.active
     ws.title = f"sweep {table.sweep_id}"[:31]
     names = [c.name for c in table.columns]
-    shown = [(c.display_unit, c.display_factor) if c.display_unit else display_unit(c.units) if c.units
-             else ("", 1.0) for c in table.columns]
+    shown = [export_unit(c) for c in table.columns]
     ws.append(names)
     ws.append([unit for unit, _ in shown])
     for cell in ws[1]:
@@ -198,8 +210,14 @@ def table_parquet(table: ComparisonTable, name: str) -> bytes:
     return buffer.getvalue()
 
 
-def _csv_value(value: Value) -> str:
-    return repr(value) if isinstance(value, float) else str(value)
+def _csv_value(value: Value, factor: float = 1.0) -> str:
+    """A cell of the CSV: a number times ``factor`` (15 significant digits when converted, which
+    drops the last bit's noise of the product: 70, not 70.00000000000001), text as it is."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return str(value)
+    if factor == 1.0:
+        return repr(value)
+    return f"{value * factor:.15g}"
 
 
 def shown(value: Optional[Value], column: Column) -> str:

@@ -27,7 +27,7 @@ from workflows.studies import MIN_SAMPLES, SENSITIVITY_MIN_SAMPLES
 from workflows.units import DIAGNOSTICS
 
 from . import cases, reliability, searches, studies
-from .comparison import comparison_table, ordered_scalars, scalar_column
+from .comparison import Column, comparison_table, ordered_scalars, scalar_column
 from .form import case_form
 from .params import CaseId, SearchId, SweepId, jobs_of, sweep_or_404
 from .schemas import SweepStatus
@@ -77,8 +77,24 @@ async def sweep_page(sweep_id: SweepId, request: Request, output: str = "max_abs
                 "sensitivity_png": f"/sweeps/{sweep_id}/sensitivity.png?{urlencode({'output': output})}",
                 "reliability_png": f"/sweeps/{sweep_id}/reliability.png?"
                                    f"{urlencode({'output': reliability_output, 'limit': limit})}"}
-    return await render(request, "sweep.html", sweep=status, table=comparison_table(store, record),
+    table = comparison_table(store, record)
+    return await render(request, "sweep.html", sweep=status, table=table, columns=page_columns(table.columns),
                          spec=record.spec, plots=SWEEP_PLOT_NAMES, analyses=analyses)
+
+
+#: The result a sweep's reader looks at first: the section's utilization η (≤ 1 passes).
+FIRST_RESULT = "max_utilization"
+
+
+def page_columns(columns: list[Column]) -> list[Column]:
+    """The sweep page's columns: what varies, η, the status and case (a link), the other results,
+    then why a case failed. The solver's warnings are no column of their own: a mark in the status
+    cell carries them (on hover), so that a row stays one line high."""
+    kinds = {kind: [c for c in columns if c.kind == kind] for kind in ("parameter", "status", "id", "scalar", "text")}
+    first = [c for c in kinds["scalar"] if c.name == FIRST_RESULT]
+    others = [c for c in kinds["scalar"] if c.name != FIRST_RESULT]
+    return kinds["parameter"] + first + kinds["status"] + kinds["id"] + others + [
+        c for c in kinds["text"] if c.name != "warnings"]
 
 
 @router.get("/ui/searches/{search_id}", response_class=HTMLResponse)

@@ -47,13 +47,15 @@ async def get_sweep_table(sweep_id: SweepId, request: Request) -> ComparisonTabl
 
 @router.get("/{sweep_id}/summary.csv", response_class=Response, responses={
     200: {"content": {"text/csv": {}},
-          "description": "header row, then one row per case in sweep order: case_id, status, the "
-                         "varied parameters (flat names, e.g. lining_thickness), the result "
-                         "scalars of SPEC §3 in SI units (empty until the case is done), then "
-                         "error (why a case failed) and warnings (the solver's, about a result)"},
+          "description": "header row, units row (engineering units: mm, MPa, kPa, kN/m, ...), then one "
+                         "row per case in sweep order: case_id, status, the varied parameters (flat "
+                         "names, e.g. lining_thickness), the result scalars of SPEC §3 in the units "
+                         "of the units row (empty until the case is done), then error (why a case "
+                         "failed) and warnings (the solver's, about a result)"},
     **responses(404)})
 async def get_sweep_csv(sweep_id: SweepId, request: Request) -> Response:
-    """The comparison table as CSV (the same columns as ``/sweeps/{id}/table``)."""
+    """The comparison table as CSV (the same columns as ``/sweeps/{id}/table``), in engineering
+    units with a units row under the header, as ``summary.xlsx``."""
     table = await get_sweep_table(sweep_id, request)
     return Response(table_csv(table), media_type="text/csv; charset=utf-8",
                     headers={"Content-Disposition": f'attachment; filename="sweep-{sweep_id}.csv"'})
@@ -186,11 +188,14 @@ async def get_sensitivity_plot(sweep_id: SweepId, request: Request, output: str 
 
 
 def _reliability_body(record, r: dict) -> dict:
+    """The reliability answer without its sample; for a sweep that samples no distribution (a grid
+    or a zip) no β (``null``: the fraction above the limit is no probability) and a note saying so."""
     body = {k: v for k, v in r.items() if k != "values"}
     if record.spec.get("mode", "grid") not in RANDOM_MODES:
+        body.update(beta=None, beta_ci=[None, None])
         body["note"] = " ".join(filter(None, [
             f"the sweep is a {record.spec.get('mode', 'grid')}, not a random sample of the uncertain parameters: "
-            "the fraction of its cases above the limit is not a probability", body.get("note")]))
+            "the fraction of its cases above the limit is not a probability (no β)", body.get("note")]))
     return body
 
 
@@ -198,8 +203,9 @@ def _reliability_body(record, r: dict) -> dict:
 async def get_reliability(sweep_id: SweepId, request: Request, output: str = Query("max_utilization"),
                           limit: float = Query(1.0, allow_inf_nan=False)):
     """Probability that ``output`` exceeds ``limit`` over the sweep's done cases, its exact
-    (Clopper–Pearson) 95 % interval and β = -Φ⁻¹(P) (``null`` at P = 0 or 1); ``note`` says when
-    the estimate rests on few cases or the sweep is not a random sample."""
+    (Clopper–Pearson) 95 % interval and β = -Φ⁻¹(P) (``null`` at P = 0 or 1, and for a sweep that is
+    no random sample: a grid or a zip); ``note`` says when the estimate rests on few cases or the
+    sweep is not a random sample."""
     record, r = await _analysis(request, sweep_id, reliability, output, limit)
     return r if isinstance(r, Response) else _reliability_body(record, r)
 
@@ -214,5 +220,5 @@ async def get_reliability_plot(sweep_id: SweepId, request: Request, output: str 
     record, r = await _analysis(request, sweep_id, reliability, output, limit)
     if isinstance(r, Response):
         return r
-    r = {**r, "note": _reliability_body(record, r)["note"]}
+    r = {**r, **_reliability_body(record, r)}  # a grid's: no β, and the note saying why
     return await asyncio.to_thread(lambda: _png(plot_reliability(r)))

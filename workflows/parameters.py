@@ -19,6 +19,8 @@ from pydantic import BaseModel
 
 from solver.spec import ROUND3_DEFAULTS, CaseSpec
 
+from .units import parameter_unit
+
 #: Alternative dotted paths accepted in sweeps -> canonical path in :class:`CaseSpec`.
 PATH_ALIASES: dict[str, str] = {"lining.thickness": "geometry.thickness"}
 #: Canonical paths whose flat name is not ``<section>_<field>``.
@@ -185,6 +187,14 @@ def _paths_by_flat_name() -> dict[str, str]:
 def parameter_path(flat: str) -> str:
     """The dotted path of a flat parameter name (the name itself if it is none)."""
     return _paths_by_flat_name().get(flat, flat)
+
+
+def shown_parameter_unit(name: str) -> tuple[str, float]:
+    """``(unit, factor from SI)`` in which tables and figures show parameter ``name`` (flat):
+    :func:`workflows.units.parameter_unit` of its path (MPa, kPa, mm, m, %, ...); ``("", 1.0)``
+    for a choice or a parameter without units."""
+    units = parameter_attrs(name).get("units")
+    return parameter_unit(parameter_path(name), units) if units else ("", 1.0)
 
 
 def with_round3_defaults(data: dict[str, Any]) -> dict[str, Any]:

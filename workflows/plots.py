@@ -27,7 +27,8 @@ from .case_plots import (
 from .case_plots import plot_interaction as plot_case_interaction
 from .field_plots import plot_contours, plot_deformed_mesh
 from .model_plot import plot_model
-from .units import DIAGNOSTICS, display_unit
+from .parameters import shown_parameter_unit
+from .units import DIAGNOSTICS, display_unit, shown_value
 
 
 def plot_comparison(combined: xr.Dataset, variable: str = "contact_pressure") -> Figure:
@@ -77,14 +78,34 @@ def case_parameters(combined: xr.Dataset) -> list[str]:
 
 
 def case_labels(combined: xr.Dataset) -> list[str]:
-    """One label per case: its varied parameters (``ground_young=5e+07, ...``), else its id."""
+    """One label per case: its varied parameters in engineering units (``ground_young = 50 MPa,
+    ...``), else its id."""
     params = case_parameters(combined)
-    labels = []
-    for i in range(combined.sizes["case"]):
-        parts = [f"{p}={combined[p].values[i]:.4g}" if np.issubdtype(combined[p].dtype, np.number)
-                 else f"{p}={combined[p].values[i]}" for p in params]
-        labels.append(", ".join(parts) or str(combined["case_id"].values[i]))
-    return labels
+    values = {p: combined[p].values.tolist() for p in params}
+    return [", ".join(parameter_text(p, values[p][i]) for p in params) or str(combined["case_id"].values[i])
+            for i in range(combined.sizes["case"])]
+
+
+def parameter_text(param: str, value) -> str:
+    """``param = value unit`` with a number in its engineering unit (``ground_young = 20 MPa``)."""
+    if isinstance(value, (int, float, np.number)) and not isinstance(value, bool):
+        unit, factor = shown_parameter_unit(param)
+        return f"{param} = {_format_value(float(value) * factor)}" + (f" {unit}" if unit not in ("", "1") else "")
+    return f"{param} = {value}"
+
+
+def parameter_label(param: str) -> str:
+    """An axis or colour bar label of a parameter: its name and engineering unit."""
+    unit = shown_parameter_unit(param)[0]
+    return f"{param} ({unit})" if unit not in ("", "1") else param
+
+
+def lines_per(param: str, others: list[str], sep: str = ": ") -> str:
+    """What a panel against ``param`` draws when cases sharing the ``others`` are joined by a line."""
+    if not others:
+        return f"against {param}{sep}one line through the cases"
+    return f"against {param}{sep}one line per " + (others[0] if len(others) == 1 else
+                                                   "combination of " + ", ".join(others))
 
 
 def _case_colors(n: int) -> list:
@@ -109,8 +130,8 @@ def _value_colours(values) -> tuple[list, Any]:
 
 
 class CaseColours:
-    """How a sweep's figures tell cases apart: coloured by one varied parameter (a colour bar
-    when it is a number, a legend when it is a choice) and faceted by a second one with at
+    """How a sweep's figures tell cases apart: coloured by one varied parameter (a colour bar in its
+    engineering unit when it is a number, a legend when it is a choice) and faceted by a second one with at
     most :data:`MAX_FACETS` values; by case (legend up to :data:`_LEGEND_CASES`) when no
     parameter varies."""
 
@@ -127,7 +148,8 @@ class CaseColours:
         self.labels = case_labels(combined)
         self.mappable = None  # of the colour bar, when coloured by a number
         if self.param is not None and self.param in numeric:
-            self.colors, self.mappable = _value_colours(combined[self.param].values)
+            shown = combined[self.param].values * shown_parameter_unit(self.param)[1]
+            self.colors, self.mappable = _value_colours(shown)
             self.legend = False
         elif self.param is not None:
             categories = list(dict.fromkeys(combined[self.param].values.tolist()))
@@ -140,14 +162,14 @@ class CaseColours:
         self.facets: list[tuple[str | None, list[int]]] = [(None, list(range(n)))]
         if self.facet is not None:
             values = combined[self.facet].values.tolist()
-            self.facets = [(f"{self.facet} = {_format_value(v)}", [i for i in range(n) if values[i] == v])
+            self.facets = [(parameter_text(self.facet, v), [i for i in range(n) if values[i] == v])
                            for v in dict.fromkeys(values)]
 
     def finish(self, fig: Figure, axes) -> None:
         """The colour bar (numeric colouring) or one legend of unique labels (otherwise)."""
         if self.mappable is not None:
             bar = fig.colorbar(self.mappable, ax=axes, shrink=0.9)
-            bar.set_label(self.param, fontsize="small")
+            bar.set_label(parameter_label(self.param), fontsize="small")
         elif self.legend:
             handles, labels = axes.flat[0].get_legend_handles_labels()
             unique = dict(zip(labels, handles))
@@ -206,25 +228,28 @@ def plot_interaction(cases: list[xr.Dataset], labels: list[str] | None = None, *
     on ``envelope``, SPEC §1.3), the envelope is drawn and the stations are the design
     actions (N_Ed, γF·M, with γF = ``design.load_factor`` of the case and N_Ed the governing of γF·N
     and 1.0·N, ``design_thrust``); otherwise the
-    stations are the computed (N, M). With ``combined`` results holding ``max_utilization``
-    and varied parameters, one panel per parameter shows ``max_utilization`` against it
-    (cases sharing the other parameters joined), with the limit η = 1: the table a
-    reader uses to pick the thinnest section that passes.
+    stations are the computed (N, M). Up to :data:`_LEGEND_CASES` cases, a colour and a legend entry
+    per case (``labels``); more cases of ``combined`` are coloured by a varied parameter (colour
+    bar) and the legend names the envelopes and the stations. With ``combined`` results holding
+    ``max_utilization`` and varied parameters, one panel per parameter shows ``max_utilization``
+    against it (cases sharing the other parameters joined, a legend of them, a title saying so),
+    with the limit η = 1: the table a reader uses to pick the thinnest section that passes.
     """
     params = case_parameters(combined) if combined is not None and "max_utilization" in combined else []
-    fig = Figure(figsize=(7 + 4 * bool(params), 6), layout="constrained")
+    fig = Figure(figsize=(7 + 4 * bool(params), 6 + 0.6 * max(len(params) - 2, 0)), layout="constrained")
     if params:
         grid = fig.add_gridspec(len(params), 2, width_ratios=(7, 4))
         ax = fig.add_subplot(grid[:, 0])
         for row, param in enumerate(params):
             panel = fig.add_subplot(grid[row, 1])
-            _scalar_panel(panel, combined, "max_utilization", param, legend=True)
+            _scalar_panel(panel, combined, "max_utilization", param, legend=True,
+                          title="max utilization η " + lines_per(param, [o for o in params if o != param], "\n"))
             panel.axhline(1.0, color="tab:red", lw=1.0, ls="--")
             panel.set_ylabel("max utilization η (≤ 1 passes)", fontsize="small")
     else:
         ax = fig.add_subplot()
     labels = labels or [str(ds.attrs.get("case_id", i)) for i, ds in enumerate(cases)]
-    colors = _case_colors(len(cases))
+    colors, colour_by = _station_colours(fig, ax, cases, combined)
     with_envelope = [all(v in ds for v in ("capacity_thrust", "capacity_moment")) for ds in cases]
     worst = None
     drawn: list[np.ndarray] = []
@@ -238,7 +263,8 @@ def plot_interaction(cases: list[xr.Dataset], labels: list[str] | None = None, *
                 draw_envelope(ax, ds, color=color, label=None)
                 _label_section(ax, ds, color)
         thrust = ds["design_thrust"].values if design and "design_thrust" in ds else factor * ds["thrust"].values
-        ax.plot(factor * ds["moment"].values / 1e3, thrust / 1e3, "o", ms=2.5, color=color, label=label)
+        ax.plot(factor * ds["moment"].values / 1e3, thrust / 1e3, "o", ms=2.5, color=color,
+                label=None if colour_by else label)
         if "utilization" in ds and not np.isnan(ds["utilization"].values).all():
             eta = float(np.nanmax(ds["utilization"].values))
             worst = eta if worst is None else max(worst, eta)
@@ -248,17 +274,48 @@ def plot_interaction(cases: list[xr.Dataset], labels: list[str] | None = None, *
     if any(with_envelope):
         ax.set_xlabel("design moment M_Ed (kN·m/m), + = inner fibre compressed")
         ax.set_ylabel("design thrust N_Ed (kN/m), compression up")
-        title = "N–M interaction: design envelopes (lines) and actions at every station (dots)"
+        title = (f"N–M interaction of {len(cases)} cases: design envelopes (lines), "
+                 "design actions at every station (dots)")
         if worst is not None:
             title += f"\nlargest utilization η = {worst:.3g}" + (" (fails)" if worst > 1 else " (passes)")
     else:
         ax.set_xlabel("moment M (kN·m/m)")
         ax.set_ylabel("thrust N (kN/m, compression +)")
-        title = "Thrust and moment at every station (no design envelope in these results)"
-    if len(cases) <= _LEGEND_CASES:
-        ax.legend(fontsize="x-small", markerscale=2)
-    ax.set_title(title, fontsize="medium")
+        title = f"Thrust and moment at every station of {len(cases)} cases (no design envelope in these results)"
+    _station_legend(ax, len(cases), any(with_envelope), colour_by)
+    ax.set_title("\n".join(textwrap.fill(line, 80) for line in title.split("\n")), fontsize="medium")
     return fig
+
+
+def _station_colours(fig: Figure, ax, cases: list[xr.Dataset], combined: xr.Dataset | None) -> tuple[list, str | None]:
+    """The colour of each case's stations and envelope, and the parameter they are coloured by
+    (None: a colour per case). Over :data:`_LEGEND_CASES` cases of a sweep, by the numeric varied
+    parameter with the most values (a section's envelope then has its thickness' colour), with a
+    colour bar in engineering units."""
+    varied = [] if combined is None or len(cases) <= _LEGEND_CASES else [
+        p for p in case_parameters(combined)
+        if np.issubdtype(combined[p].dtype, np.number) and np.unique(combined[p].values).size > 1]
+    if not varied:
+        return _case_colors(len(cases)), None
+    param = max(varied, key=lambda p: np.unique(combined[p].values).size)
+    colors, mappable = _value_colours(combined[param].values.astype(float) * shown_parameter_unit(param)[1])
+    fig.colorbar(mappable, ax=ax, shrink=0.8, pad=0.01).set_label(parameter_label(param), fontsize="small")
+    return colors, param
+
+
+def _station_legend(ax, count: int, envelopes: bool, colour_by: str | None) -> None:
+    """The N–M legend: each case (up to :data:`_LEGEND_CASES`), or what the colours mean, and
+    what the lines and dots are."""
+    from matplotlib.lines import Line2D
+
+    handles, _ = ax.get_legend_handles_labels()  # the cases' stations, when a colour is a case
+    if colour_by or count > _LEGEND_CASES:
+        by = f", colour: {colour_by}" if colour_by else f", one colour per case ({count})"
+        handles = [Line2D([], [], ls="", marker="o", ms=2.5, color="0.35", label="design actions at the stations" + by
+                          if envelopes else "(M, N) at the stations" + by)]
+    if envelopes:
+        handles.append(Line2D([], [], color="0.35", lw=1.2, label="design envelope N_Rd–M_Rd of a section"))
+    ax.legend(handles=handles, fontsize="x-small", markerscale=2)
 
 
 def _label_section(ax, ds: xr.Dataset, color) -> None:
@@ -288,29 +345,38 @@ def _parameter_axis(values: np.ndarray) -> tuple[np.ndarray, list[str] | None]:
     return np.array([categories.index(v) for v in values.tolist()], dtype=float), categories
 
 
-def _scalar_panel(ax, combined: xr.Dataset, scalar: str, param: str, *, legend: bool) -> None:
-    """``scalar`` against ``param``; cases sharing the other varied parameters joined by a line."""
-    params = case_parameters(combined)
+#: Most lines of a panel that still get a legend (more: a colour bar when they differ by one number).
+_LEGEND_LINES = 10
+
+
+def _scalar_panel(ax, combined: xr.Dataset, scalar: str, param: str, *, legend: bool,
+                  title: str | None = None) -> None:
+    """``scalar`` against ``param``, both in engineering units; cases sharing the other varied
+    parameters joined by a line labelled with their values (a legend of up to :data:`_LEGEND_LINES`
+    lines when ``legend``; many lines of one other number: coloured by it, with a colour bar)."""
     unit, factor = display_unit(combined[scalar].attrs.get("units", ""), scalar)
     y = combined[scalar].values.astype(float) * factor
     x, categories = _parameter_axis(combined[param].values)
-    others = [p for p in params if p != param]
+    if categories is None:
+        x = x * shown_parameter_unit(param)[1]
+    others = [p for p in case_parameters(combined) if p != param]
+    values = {o: combined[o].values.tolist() for o in others}
     groups: dict[tuple, list[int]] = {}
     for i in range(combined.sizes["case"]):
-        groups.setdefault(tuple(_format_value(combined[o].values[i]) for o in others), []).append(i)
+        groups.setdefault(tuple(values[o][i] for o in others), []).append(i)
     colors = _case_colors(len(groups))
     by_value = len(groups) > 6 and len(others) == 1 and np.issubdtype(combined[others[0]].dtype, np.number)
     if by_value:  # many lines of one other number: coloured by it, with a colour bar
-        colors, mappable = _value_colours([float(key[0]) for key in groups])
+        colors, mappable = _value_colours([float(key[0]) * shown_parameter_unit(others[0])[1] for key in groups])
         bar = ax.figure.colorbar(mappable, ax=ax, pad=0.01)
-        bar.set_label(others[0], fontsize="xx-small")
+        bar.set_label(parameter_label(others[0]), fontsize="xx-small")
         bar.ax.tick_params(labelsize="xx-small")
     for color, (key, members) in zip(colors, groups.items()):
         members = sorted(members, key=lambda i: x[i])
         ax.plot(x[members], y[members], "o-", ms=3, lw=1, color=color,
-                label=", ".join(f"{o}={v}" for o, v in zip(others, key)))
-    if legend and others and len(groups) <= 6:
-        ax.legend(fontsize="xx-small")
+                label=", ".join(parameter_text(o, v) for o, v in zip(others, key)))
+    if legend and others and len(groups) <= _LEGEND_LINES:
+        ax.legend(fontsize="xx-small", ncol=1 if len(groups) <= 5 else 2)
     if categories is not None:
         ax.set_xticks(range(len(categories)), categories, fontsize="x-small")
     else:
@@ -319,7 +385,9 @@ def _scalar_panel(ax, combined: xr.Dataset, scalar: str, param: str, *, legend: 
             ax.minorticks_off()
         if np.unique(x).size <= 8:  # the values swept, not matplotlib's round numbers
             ax.set_xticks(np.unique(x), [f"{v:.3g}" for v in np.unique(x)], fontsize="x-small")
-    ax.set_xlabel(param, fontsize="small")
+    if title:
+        ax.set_title(title, fontsize="x-small")
+    ax.set_xlabel(parameter_label(param), fontsize="small")
     ax.set_ylabel(f"{scalar}" + (f" ({unit})" if unit else ""), fontsize="small")
     ax.tick_params(labelsize="x-small")
     ax.grid(True, alpha=0.3)
@@ -329,9 +397,10 @@ def plot_scalars(combined: xr.Dataset, scalars: list[str] | None = None) -> Figu
     """Each summary scalar against each varied parameter (one panel per pair).
 
     Cases that share the values of the other varied parameters are joined by a line
-    (one colour per combination of those values, legend in the first row), so in a
-    grid sweep each line shows the effect of one parameter alone. Scalars with the
-    same value in every case are listed in the title instead of plotted.
+    (one colour per combination of those values, a legend on the first panel against each
+    parameter), so in a grid sweep each line shows the effect of one parameter alone; the
+    title says what the lines are. Parameters and results are in engineering units. Scalars
+    with the same value in every case are listed in the title instead of plotted.
 
     Parameters
     ----------
@@ -359,11 +428,15 @@ def plot_scalars(combined: xr.Dataset, scalars: list[str] | None = None) -> Figu
     axes = fig.subplots(nrows, ncols, squeeze=False).ravel()
     for ax in axes[len(panels):]:
         ax.set_visible(False)
+    first = {param: k for k, (_, param) in reversed(list(enumerate(panels)))}
     for k, (ax, (scalar, param)) in enumerate(zip(axes, panels)):
-        _scalar_panel(ax, combined, scalar, param, legend=k < ncols)
-    title = f"Summary scalars against the varied parameters: {combined.sizes['case']} cases"
+        _scalar_panel(ax, combined, scalar, param, legend=k == first[param])  # a legend per parameter
+    drawn = "; ".join(lines_per(p, [o for o in params if o != p]) for p in params)
+    title = f"Each result against each varied parameter, {combined.sizes['case']} cases: {drawn}"
+    title = "\n".join(textwrap.wrap(title + (" (legend)" if len(params) > 1 else ""), 36 * ncols))
     if constant:
-        shown = ", ".join(f"{s} = {float(combined[s].values[0]):.4g}" for s in constant)
+        shown = ", ".join(f"{s} = {shown_value(combined[s].values[0], combined[s].attrs.get('units'), s)}"
+                          for s in constant)
         title += "\nthe same in every case: " + "\n".join(textwrap.wrap(shown, 30 * ncols))
     fig.suptitle(title, fontsize="small")
     return fig

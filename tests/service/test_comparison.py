@@ -7,6 +7,8 @@ import json
 import math
 import sqlite3
 
+import pytest
+
 from service.comparison import SCALAR_ORDER, comparison_table, table_csv
 from service.job_records import JobStore
 from solver.spec import CaseSpec
@@ -35,11 +37,12 @@ def test_table_has_case_status_varied_parameters_then_scalars_and_csv_reads_back
     # non-finite values survive JSON, as the text float() reads back
     assert json.loads(table.model_dump_json())["rows"][0]["max_utilization"] == "inf"
 
-    rows = list(csv.DictReader(io.StringIO(table_csv(table))))
+    units, *rows = csv.DictReader(io.StringIO(table_csv(table)))  # a units row under the header
     assert [r["case_id"] for r in rows] == [c for c, _ in cases]
     assert [r["status"] for r in rows] == ["done", "failed", "queued"]
-    assert [float(r["ground_young"]) for r in rows] == [2e7, 5e7, 8e7]
-    assert float(rows[0]["max_contact_pressure"]) == 2.5e5
+    assert units["ground_young"] == "MPa" and units["max_contact_pressure"] == "kPa"
+    assert [float(r["ground_young"]) for r in rows] == [20.0, 50.0, 80.0]
+    assert float(rows[0]["max_contact_pressure"]) == 250.0
     assert float(rows[0]["max_utilization"]) == math.inf
     assert rows[1]["max_contact_pressure"] == rows[2]["max_contact_pressure"] == ""
     assert [r["error"] for r in rows] == ["", "boom", ""]
@@ -176,3 +179,37 @@ def test_the_study_table_as_parquet_reads_back_with_types_and_units(tmp_path):
     assert [r["ground_young"] for r in rows] == [2e7, 5e7, 8e7]
     assert rows[0]["max_contact_pressure"] == 2.5e5 and rows[0]["max_utilization"] == math.inf
     assert rows[1]["max_contact_pressure"] is None and rows[1]["error"] == "boom"
+
+
+def test_summary_csv_has_the_workbooks_units_row_and_values_converted_at_full_precision(tmp_path):
+    from openpyxl import load_workbook
+
+    from service.comparison import table_xlsx
+
+    store = JobStore(tmp_path / "jobs.sqlite")
+    cases = [CaseSpec.model_validate({"geometry": {"gap": gap, "thickness": 0.3}, "loads": {"lateral_ratio": k}})
+             for gap, k in ((0.007, 0.5), (0.013, 0.7))]
+    record, _ = store.add_sweep("0123456789abcdef", "t", "{}", [(c.case_id, c.canonical_json()) for c in cases])
+    summary = {"max_contact_pressure": 123456.789, "max_thrust": 6.2412345e5, "max_abs_moment": 4.5e4,
+               "crown_settlement": -0.0123456789, "contact_extent": 171.5, "ground_loss": 0.00731,
+               "max_utilization": 0.8123456789, "max_plastic_extent": 1.25, "max_surface_settlement": math.nan}
+    store.finish(cases[0].case_id, status="done", summary=summary)
+    table = comparison_table(store, record)
+    header, units, *rows = csv.reader(io.StringIO(table_csv(table)))
+    book = list(load_workbook(io.BytesIO(table_xlsx(table))).active.iter_rows(values_only=True))
+    assert header == list(book[0]) and units == [u or "" for u in book[1]]  # the workbook's units
+    unit = dict(zip(header, units))
+    assert unit["case_id"] == unit["status"] == unit["error"] == unit["warnings"] == ""
+    assert [unit[n] for n in ("geometry_gap", "loads_lateral_ratio", "max_contact_pressure", "max_thrust",
+                              "max_abs_moment", "crown_settlement", "contact_extent", "ground_loss",
+                              "max_plastic_extent")] == ["mm", "1", "kPa", "kN/m", "kN·m/m", "mm", "°", "%", "m"]
+    done, queued = (dict(zip(header, r)) for r in rows)
+    factors = {"max_contact_pressure": 1e-3, "max_thrust": 1e-3, "max_abs_moment": 1e-3, "crown_settlement": 1e3,
+               "contact_extent": 1.0, "ground_loss": 100.0, "max_utilization": 1.0, "max_plastic_extent": 1.0}
+    for name, factor in factors.items():
+        assert float(done[name]) == pytest.approx(summary[name] * factor, rel=1e-14), name
+    assert done["max_utilization"] == repr(summary["max_utilization"])  # unconverted: every digit
+    assert done["max_contact_pressure"] == "123.456789" and done["crown_settlement"] == "-12.3456789"
+    assert done["max_surface_settlement"] == "nan" and queued["max_thrust"] == ""
+    assert [float(done["geometry_gap"]), float(queued["geometry_gap"])] == [7.0, 13.0]  # mm, not 7.000000000000001
+    assert [float(r[header.index("loads_lateral_ratio")]) for r in rows] == [0.5, 0.7]

@@ -145,10 +145,10 @@ def test_submit_a_sweep_watch_it_sort_it_open_a_case_download_the_csv(service, b
     assert len(seen) >= 2  # at least one intermediate state was shown, then the final one
     assert browser.find_element(By.ID, "sweep-status").get_attribute("data-signature") == "0,0,4,0,0"
 
-    # the table: one row per case; varied parameters, then the scalars
+    # the table: one row per case; varied parameters, then η, the status and the case, then the other results
     headers = [th.get_attribute("data-col") for th in browser.find_elements(By.CSS_SELECTOR, "#comparison-table th")]
-    assert headers[:4] == ["case_id", "status", "lining_thickness", "ground_young"]
-    assert headers[4] == "max_contact_pressure"
+    assert headers[:5] == ["lining_thickness", "ground_young", "max_utilization", "status", "case_id"]
+    assert headers[5] == "max_contact_pressure"
     assert column(browser, "status") == ["done"] * 4
     k = headers.index("max_utilization")
     for tr in browser.find_elements(By.CSS_SELECTOR, "#comparison-table tbody tr"):
@@ -176,17 +176,19 @@ def test_submit_a_sweep_watch_it_sort_it_open_a_case_download_the_csv(service, b
     browser.execute_cdp_cmd("Page.setDownloadBehavior", {"behavior": "allow", "downloadPath": str(downloads)})
     browser.find_element(By.ID, "download-csv").click()
     csv_file = wait_until(lambda: next(downloads.glob("*.csv"), None), timeout=20, what="the CSV download")
-    rows = list(csv.DictReader(io.StringIO(csv_file.read_text())))
+    units, *rows = csv.DictReader(io.StringIO(csv_file.read_text()))  # a units row under the header
     assert [r["case_id"] for r in rows] == record["case_ids"]
     assert list(rows[0])[:4] == ["case_id", "status", "lining_thickness", "ground_young"]
     assert [c for c in list(rows[0])[4:] if c in SCALAR_ORDER] == [c for c in SCALAR_ORDER if c in rows[0]]
+    assert (units["lining_thickness"], units["ground_young"], units["max_contact_pressure"],
+            units["max_abs_moment"]) == ("m", "MPa", "kPa", "kN·m/m")
     assert {(float(r["lining_thickness"]), float(r["ground_young"])) for r in rows} == {
-        (t, e) for t in (0.2, 0.3) for e in (2e7, 5e7)}
+        (t, e) for t in (0.2, 0.3) for e in (20.0, 50.0)}
     for row in rows:
         summary = httpx.get(f"{url}/cases/{row['case_id']}").json()["summary"]
         assert row["status"] == "done"
-        assert float(row["max_contact_pressure"]) == summary["max_contact_pressure"]
-        assert float(row["max_abs_moment"]) == summary["max_abs_moment"]
+        assert float(row["max_contact_pressure"]) == pytest.approx(summary["max_contact_pressure"] / 1e3, rel=1e-14)
+        assert float(row["max_abs_moment"]) == pytest.approx(summary["max_abs_moment"] / 1e3, rel=1e-14)
 
     # a case page: summary, plots, downloads, its JSON
     first_case = browser.find_element(By.CSS_SELECTOR, "#comparison-table tbody tr a")
@@ -230,6 +232,49 @@ def test_submit_a_sweep_watch_it_sort_it_open_a_case_download_the_csv(service, b
     assert float(eta_cell.text) == pytest.approx(eta, rel=1e-2)
     screenshot(browser, tmp_path / "index.png")
     print(f"screenshots in {tmp_path}")
+
+
+#: Coarse cases, two of them loaded far beyond small displacements (solved, with warnings).
+WARNED_SWEEP = {"name": "warned rows", "base": {"mesh": {"interface_size": 0.5, "far_size": 15.0}}, "mode": "grid",
+                "vary": {"lining.thickness": [0.2, 0.3], "loads.surface_load": [2.0e4, 1.0e9]}}
+
+
+def test_the_sweep_page_keeps_warned_rows_one_line_high_and_links_every_case(service, browser, tmp_path):
+    url, _ = service
+    sweep_id = httpx.post(f"{url}/sweeps", json=WARNED_SWEEP).json()["id"]
+    wait_until(lambda: httpx.get(f"{url}/sweeps/{sweep_id}").json()["finished"], timeout=120, what="the sweep")
+    table = httpx.get(f"{url}/sweeps/{sweep_id}/table").json()
+    warned = {r["case_id"]: r["warnings"] for r in table["rows"] if r["warnings"]}
+    assert len(warned) == 2 and all(r["status"] == "done" for r in table["rows"])
+    browser.get(f"{url}/ui/sweeps/{sweep_id}")
+    headers = [th.get_attribute("data-col") for th in browser.find_elements(By.CSS_SELECTOR, "#comparison-table th")]
+    assert headers[:3] == ["lining_thickness", "loads_surface_load", "max_utilization"]
+    assert "warnings" not in headers
+    rows = browser.find_elements(By.CSS_SELECTOR, "#comparison-table tbody tr")
+    assert len(rows) == 4
+    heights = {}
+    for row in rows:
+        case_id = row.get_attribute("data-key")
+        heights[case_id] = row.size["height"]
+        # every row links to its case
+        assert row.find_element(By.CSS_SELECTOR, "a.case-link").get_attribute("href") == f"{url}/ui/cases/{case_id}"
+        icons = row.find_elements(By.CSS_SELECTOR, "span.warn-icon")
+        if case_id in warned:  # the warnings on hover, not in the row
+            assert [i.text for i in icons] == ["⚠"] and icons[0].get_attribute("title") == warned[case_id]
+            assert "small-displacement" in warned[case_id] and "small-displacement" not in row.text
+        else:
+            assert not icons
+    plain = [h for c, h in heights.items() if c not in warned]
+    assert max(heights[c] for c in warned) <= min(plain) + 0.5, heights  # a warned row is no taller
+    assert max(plain) < 60, heights  # one line
+    # the workbook beside the CSV, and no reliability figure for a grid
+    xlsx = browser.find_element(By.ID, "download-xlsx").get_attribute("href")
+    assert xlsx == f"{url}/sweeps/{sweep_id}/summary.xlsx"
+    assert httpx.get(xlsx).content[:2] == b"PK"
+    assert not browser.find_elements(By.CSS_SELECTOR, "img[data-plot=reliability]")
+    wait_until(lambda: (w := images_loaded(browser, "#plots img")) and len(w) == 4 and all(w),
+               timeout=60, what="the sweep plots to load")
+    screenshot(browser, tmp_path / "sweep-warned.png")
 
 
 @pytest.mark.parametrize("kind, body, field", [

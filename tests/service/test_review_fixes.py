@@ -13,6 +13,7 @@ import logging
 import re
 import sqlite3
 
+import numpy as np
 import pytest
 
 from service_helpers import COARSE, coarse_case, finished, wait_until
@@ -46,7 +47,8 @@ def sweep_finished(client, sweep_id: str) -> dict:
 def csv_rows(client, sweep_id: str) -> list[dict]:
     response = client.get(f"/sweeps/{sweep_id}/summary.csv")
     assert response.status_code == 200
-    rows = list(csv.DictReader(io.StringIO(response.text)))
+    units, *rows = csv.DictReader(io.StringIO(response.text))  # the units row under the header
+    assert units["case_id"] == "" and units["max_thrust"] == "kN/m"
     # the workbook holds the same cases, with a units row
     from openpyxl import load_workbook
 
@@ -80,7 +82,7 @@ def test_a_sweep_whose_cases_all_failed_has_no_result_and_says_why(client):
     assert {r["case_id"]: r["error"] for r in table["rows"]} == errors
     assert {r["case_id"]: r["error"] for r in csv_rows(client, sweep_id)} == errors
     page = client.get(f"/ui/sweeps/{sweep_id}").text
-    cells = re.findall(r'<td class="text kind-text col-error" data-value="[^"]*">([^<]*)</td>', page)
+    cells = re.findall(r'<td class="text kind-text col-error" data-value="[^"]*" title="[^"]*">([^<]*)</td>', page)
     assert len(cells) == 2 and all("NotConvergedError" in c for c in cells)
 
 
@@ -146,9 +148,12 @@ def test_the_mesh_check_is_a_table_of_the_case_page(client):
     assert "mesh_change_" not in summary
 
 
+#: Two surface loads, the second far beyond small displacements (the case of ``warned_case``).
+LOADS_SWEEP = {"name": "loads", "base": COARSE, "vary": {"loads.surface_load": [2.0e4, 1e9]}}
+
+
 def test_the_sweep_table_marks_cases_with_warnings(client, warned_case):
-    sweep = {"name": "loads", "base": COARSE, "vary": {"loads.surface_load": [2.0e4, 1e9]}}
-    body = client.post("/sweeps", json=sweep).json()
+    body = client.post("/sweeps", json=LOADS_SWEEP).json()
     assert warned_case["id"] in body["case_ids"]  # the same case: not recomputed
     sweep_finished(client, body["id"])
     rows = client.get(f"/sweeps/{body['id']}/table").json()["rows"]
@@ -158,6 +163,39 @@ def test_the_sweep_table_marks_cases_with_warnings(client, warned_case):
     page = client.get(f"/ui/sweeps/{body['id']}").text
     marked = re.findall(r'<tr data-key="([0-9a-f]{16})" class="has-warnings">', page)
     assert marked == [warned_case["id"]]
+
+
+def test_summary_csv_is_the_combined_netcdf_in_the_units_of_its_units_row(client, tmp_path):
+    """summary.csv against the sweep's netCDF (SI, CF units): each number is the file's value
+    converted to the unit the units row names (kPa, kN/m, mm, ...)."""
+    import xarray as xr
+
+    from workflows.units import display_unit
+
+    body = client.post("/sweeps", json=LOADS_SWEEP).json()  # solved once in this module
+    sweep_finished(client, body["id"])
+    text = client.get(f"/sweeps/{body['id']}/summary.csv").text
+    header, units, *rows = csv.reader(io.StringIO(text))
+    unit = dict(zip(header, units))
+    (tmp_path / "sweep.nc").write_bytes(client.get(f"/sweeps/{body['id']}/result.nc").content)
+    with xr.open_dataset(tmp_path / "sweep.nc") as ds:
+        assert [r[0] for r in rows] == [str(c) for c in ds["case_id"].values]
+        assert unit["loads_surface_load"] == "kPa"
+        np.testing.assert_allclose([float(r[header.index("loads_surface_load")]) for r in rows],
+                                   ds["loads_surface_load"].values * 1e-3, rtol=1e-14)
+        checked = 0
+        for name in header:
+            if name not in ds or ds[name].dims != ("case",) or ds[name].dtype.kind not in "biuf" \
+                    or name == "loads_surface_load":
+                continue
+            shown, factor = display_unit(ds[name].attrs.get("units", ""), name)
+            assert unit[name] == shown, name
+            values = [float(r[header.index(name)]) for r in rows]
+            np.testing.assert_allclose(values, ds[name].values.astype(float) * factor, rtol=1e-14, err_msg=name)
+            checked += 1
+    assert checked >= 20
+    assert {unit[n] for n in ("max_contact_pressure", "max_thrust", "max_abs_moment", "crown_settlement",
+                              "contact_extent", "ground_loss")} == {"kPa", "kN/m", "kN·m/m", "mm", "°", "%"}
 
 
 def test_warnings_are_read_from_the_stored_file_at_reconciliation(client, app, warned_case):

@@ -212,14 +212,14 @@ def test_design_sweep_utilization_against_thickness_and_ground(store):
     envelopes = [line for line in fig.axes[0].get_lines() if len(line.get_xdata()) > 100]
     assert len(envelopes) == len(THICKNESS)  # one per section, not per case
     panels = [ax for ax in fig.axes if ax.get_ylabel().startswith("max utilization")]
-    assert [ax.get_xlabel() for ax in panels] == ["lining_thickness", "ground_young"]
+    assert [ax.get_xlabel() for ax in panels] == ["lining_thickness (m)", "ground_young (MPa)"]
     against_thickness = sorted(panels[0].get_lines()[:2], key=lambda line: line.get_label())
-    assert [line.get_label() for line in against_thickness] == ["ground_young=2e+07", "ground_young=2e+08"]
+    assert [line.get_label() for line in against_thickness] == ["ground_young = 20 MPa", "ground_young = 200 MPa"]
     np.testing.assert_allclose(against_thickness[0].get_ydata(), [eta[thin, soft], eta[thick, soft]])
     assert any(np.allclose(line.get_ydata(), 1.0) for line in panels[0].get_lines())  # the limit η = 1
     # and the scalars figure has max_utilization against both parameters
     scalars = [ax.get_xlabel() for ax in plot_scalars(combined).axes
                if ax.get_visible() and ax.get_ylabel().startswith("max_utilization")]
-    assert scalars == ["lining_thickness", "ground_young"]
+    assert scalars == ["lining_thickness (m)", "ground_young (MPa)"]
     for name in SWEEP_PLOTS:
         assert _png_size(render_sweep_plot(root, SWEEP_ID, grid, name))[0] > 0

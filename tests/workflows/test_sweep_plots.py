@@ -35,13 +35,87 @@ def test_scalars_one_panel_per_changing_scalar_and_parameter_diagnostics_last():
     panels = [ax for ax in figure.axes if ax.get_visible()]
     # contact_extent is the same everywhere: named in the title, not plotted
     assert [(ax.get_ylabel().split(" ")[0], ax.get_xlabel()) for ax in panels] == [
-        ("max_abs_moment", "lining_thickness"), ("max_abs_moment", "ground_young"),
-        ("iterations", "lining_thickness"), ("iterations", "ground_young")]
-    assert "contact_extent = 180" in figure._suptitle.get_text()
-    # against ground_young: one line per thickness, values in kN·m/m
+        ("max_abs_moment", "lining_thickness (m)"), ("max_abs_moment", "ground_young (MPa)"),
+        ("iterations", "lining_thickness (m)"), ("iterations", "ground_young (MPa)")]
+    assert "contact_extent = 180 °" in figure._suptitle.get_text()
+    # against ground_young (MPa): one line per thickness, values in kN·m/m
     lines = panels[1].get_lines()
     assert len(lines) == 2
+    np.testing.assert_allclose(lines[0].get_xdata(), [20.0, 50.0])
     np.testing.assert_allclose(lines[0].get_ydata(), [10.0, 25.0])
+
+
+def legend_texts(ax) -> list[str]:
+    return [t.get_text() for t in ax.get_legend().get_texts()]
+
+
+def test_scalars_have_a_legend_against_each_parameter_and_a_title_saying_what_is_drawn():
+    figure = plot_scalars(combined_results())
+    panels = [ax for ax in figure.axes if ax.get_visible()]
+    # the first panel against each parameter: which line is which, in engineering units
+    assert panels[0].get_legend() is not None and panels[1].get_legend() is not None
+    assert legend_texts(panels[0]) == ["ground_young = 20 MPa", "ground_young = 50 MPa"]
+    assert legend_texts(panels[1]) == ["lining_thickness = 0.2 m", "lining_thickness = 0.3 m"]
+    assert all(ax.get_legend() is None for ax in panels[2:])  # once is enough
+    title = " ".join(figure._suptitle.get_text().split())
+    assert "against lining_thickness: one line per ground_young" in title
+    assert "against ground_young: one line per lining_thickness" in title and "4 cases" in title
+
+
+def with_utilization(combined: xr.Dataset) -> xr.Dataset:
+    eta = 0.5 + combined["lining_thickness"].values + combined["ground_young"].values / 1e8
+    return combined.assign(max_utilization=("case", eta, {"units": "1"}))
+
+
+def sections(combined: xr.Dataset) -> list[xr.Dataset]:
+    """Each case's forces with a design envelope that grows with its thickness."""
+    cases = []
+    angle = np.linspace(0, 2 * np.pi, 50, endpoint=False)
+    for i in range(combined.sizes["case"]):
+        ds = combined[["thrust", "moment"]].isel(case=i, drop=True).drop_vars(list(combined.coords), errors="ignore")
+        h = float(combined["lining_thickness"].values[i])
+        ds["capacity_thrust"] = ("envelope", 1e7 * h * (1 + np.sin(angle)))
+        ds["capacity_moment"] = ("envelope", 1e6 * h * np.cos(angle))
+        ds["utilization"] = ("theta", np.full(THETA.size, 0.5))
+        ds.attrs["case_spec"] = json.dumps({"design": {"load_factor": 1.35}})
+        cases.append(ds)
+    return cases
+
+
+def test_the_nm_figure_has_a_legend_of_its_cases_and_of_eta_against_each_parameter():
+    from workflows.plots import case_labels
+
+    combined = with_utilization(combined_results())
+    figure = plot_interaction(sections(combined), case_labels(combined), combined=combined)
+    nm, *panels = figure.axes
+    assert legend_texts(nm) == ["lining_thickness = 0.2 m, ground_young = 20 MPa",
+                                "lining_thickness = 0.2 m, ground_young = 50 MPa",
+                                "lining_thickness = 0.3 m, ground_young = 20 MPa",
+                                "lining_thickness = 0.3 m, ground_young = 50 MPa",
+                                "design envelope N_Rd–M_Rd of a section"]
+    assert "N–M interaction of 4 cases" in nm.get_title() and "envelopes (lines)" in nm.get_title()
+    assert [ax.get_title() for ax in panels] == [
+        "max utilization η against lining_thickness\none line per ground_young",
+        "max utilization η against ground_young\none line per lining_thickness"]
+    assert legend_texts(panels[0]) == ["ground_young = 20 MPa", "ground_young = 50 MPa"]
+    assert legend_texts(panels[1]) == ["lining_thickness = 0.2 m", "lining_thickness = 0.3 m"]
+
+
+def test_the_nm_figure_of_many_cases_is_coloured_by_a_parameter_and_says_so():
+    combined = design_sweep()
+    combined["max_utilization"] = ("case", combined["lining_thickness"].values * 2, {"units": "1"})
+    figure = plot_interaction(sections(combined), combined=combined)
+    nm = figure.axes[0]
+    assert legend_texts(nm) == ["design actions at the stations, colour: lining_thickness",
+                                "design envelope N_Rd–M_Rd of a section"]
+    bars = [ax for ax in figure.axes if ax.get_label() == "<colorbar>"]
+    assert [bar.get_ylabel() for bar in bars] == ["lining_thickness (m)"]
+    stations = [line for line in nm.get_lines() if line.get_marker() == "o"]
+    colours = [tuple(line.get_color()) for line in stations]
+    assert len(set(colours)) == 5 and colours[0] == colours[2] != colours[3]  # a colour per thickness
+    titles = [ax.get_title() for ax in figure.axes[1:] if ax.get_label() != "<colorbar>"]
+    assert titles == ["max utilization η against lining_thickness\none line per loads_lateral_ratio",
+                      "max utilization η against loads_lateral_ratio\none line per lining_thickness"]
 
 
 @pytest.mark.parametrize("envelope", [False, True])
@@ -91,7 +165,7 @@ def test_sweep_curves_coloured_by_a_parameter_with_a_colour_bar_and_faceted_by_a
     combined = design_sweep()
     figure = SWEEP_PLOTS[name](combined)
     bars = [ax for ax in figure.axes if ax.get_label() == "<colorbar>"]
-    assert len(bars) == 1 and bars[0].get_ylabel() == "lining_thickness"
+    assert len(bars) == 1 and bars[0].get_ylabel() == "lining_thickness (m)"
     panels = [ax for ax in figure.axes if ax.get_label() != "<colorbar>"]
     assert len(panels) == (3 if name == "contact_pressure" else 6)  # one column per lateral ratio
     assert [ax.get_title() for ax in panels[:3]] == [f"loads_lateral_ratio = {k}" for k in (0.5, 0.7, 1)]
@@ -114,4 +188,4 @@ def test_scalars_over_many_values_of_the_other_parameter_get_a_colour_bar():
     figure = plot_scalars(combined)
     bars = [ax for ax in figure.axes if ax.get_label() == "<colorbar>"]
     # against ground_young: 12 lines, one per thickness, coloured by it
-    assert [bar.get_ylabel() for bar in bars] == ["lining_thickness"]
+    assert [bar.get_ylabel() for bar in bars] == ["lining_thickness (m)"]
