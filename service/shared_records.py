@@ -36,7 +36,7 @@ cases = sa.Table(
     sa.Column("id", sa.Text, primary_key=True), sa.Column("spec", sa.Text), sa.Column("status", sa.Text),
     sa.Column("summary", sa.Text), sa.Column("error", sa.Text), sa.Column("submitted_at", sa.Float),
     sa.Column("started_at", sa.Float), sa.Column("finished_at", sa.Float), sa.Column("submissions", sa.Integer),
-    sa.Column("warnings", sa.Text), sa.Column("claimed_by", sa.Text))
+    sa.Column("warnings", sa.Text), sa.Column("claimed_by", sa.Text), sa.Column("room", sa.Integer))
 sweeps = sa.Table("sweeps", metadata, sa.Column("id", sa.Text, primary_key=True), sa.Column("name", sa.Text),
                   sa.Column("spec", sa.Text), sa.Column("submitted_at", sa.Float))
 sweep_cases = sa.Table("sweep_cases", metadata, sa.Column("sweep_id", sa.Text), sa.Column("position", sa.Integer),
@@ -51,15 +51,31 @@ class SharedJobStore(Replica):
 
     # -- cases ---------------------------------------------------------------------------
 
-    def add_case(self, case_id: str, spec_json: str) -> tuple[CaseRecord, bool]:
+    def add_case(self, case_id: str, spec_json: str, room: Optional[int] = None) -> tuple[CaseRecord, bool]:
         row = {"id": case_id, "spec": spec_json, "status": "queued", "submitted_at": time.time(), "submissions": 0,
-               "claimed_by": self.replica}
+               "claimed_by": self.replica, "room": room}
         with self.engine.begin() as db:
             inserted = db.execute(self._insert(cases).values(**row).on_conflict_do_nothing()
                                   .returning(cases.c.id)).first()
         if inserted is None:
             return self.get_case(case_id), False
         return _case({c.name: row.get(c.name) for c in cases.columns}), True
+
+    def repair_spec(self, case_id: str, spec_json: str) -> None:
+        """As :meth:`service.job_records.JobStore.repair_spec`."""
+        with self.engine.begin() as db:
+            db.execute(cases.update().where(cases.c.id == case_id).values(spec=spec_json))
+
+    def open_room(self) -> int:
+        """Bytes held for the results of the open cases of every replica (their ``room``)."""
+        with self.engine.connect() as db:
+            return int(db.execute(sa.select(sa.func.coalesce(sa.func.sum(cases.c.room), 0))
+                                  .where(cases.c.status.in_(OPEN))).scalar())
+
+    def replace_damaged(self, problem: str) -> None:
+        """A database server keeps its own files: nothing here is moved aside (the SQLite
+        store's recovery, :meth:`service.job_tables.JobDatabase.replace_damaged`, does not apply)."""
+        raise RuntimeError(f"the shared job records report damage ({problem}); repair the database server")
 
     def get_case(self, case_id: str) -> Optional[CaseRecord]:
         rows = self._read(sa.select(cases).where(cases.c.id == case_id))
@@ -166,8 +182,8 @@ class SharedJobStore(Replica):
 
     # -- sweeps --------------------------------------------------------------------------
 
-    def add_sweep(self, sweep_id: str, name: str, spec_json: str,
-                  cases_: Sequence[tuple[str, str]]) -> tuple[SweepRecord, list[str]]:
+    def add_sweep(self, sweep_id: str, name: str, spec_json: str, cases_: Sequence[tuple[str, str]],
+                  rooms: Optional[dict[str, int]] = None) -> tuple[SweepRecord, list[str]]:
         """As :meth:`service.job_records.JobStore.add_sweep`, in one transaction; two replicas
         adding the same sweep at once: one records it, the other finds it recorded."""
         now = time.time()
@@ -179,7 +195,7 @@ class SharedJobStore(Replica):
                 ids = [c for c, _ in cases_]
                 new = list(db.execute(self._insert(cases).values(
                     [{"id": c, "spec": s, "status": "queued", "submitted_at": now, "submissions": 0,
-                      "claimed_by": self.replica} for c, s in cases_])
+                      "claimed_by": self.replica, "room": (rooms or {}).get(c)} for c, s in cases_])
                     .on_conflict_do_nothing().returning(cases.c.id)).scalars())
                 db.execute(sweep_cases.insert(), [{"sweep_id": sweep_id, "position": p, "case_id": c}
                                                   for p, c in enumerate(ids)])

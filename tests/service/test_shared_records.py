@@ -55,6 +55,35 @@ def test_the_records_behave_alike_on_sqlite_and_postgresql(store):
     assert store.take_lease("search:x") and store.writable()
 
 
+def test_the_room_held_for_open_cases_is_counted_alike(store):
+    """Admission's reserve (issue 38 item 8) on either database: the room of queued and running
+    cases, none once they finish; an unreadable spec repaired in place."""
+    assert store.open_room() == 0
+    store.add_case(A, SPEC, room=1000)
+    store.add_sweep(C, "study", "{}", [(B, SPEC)], {B: 250})
+    assert store.open_room() == 1250
+    store.mark_running([B])
+    assert store.open_room() == 1250
+    store.finish(A, status="done", summary={}, warnings=[])
+    assert store.open_room() == 250
+    store.repair_spec(B, json.dumps({"name": "y"}))
+    assert store.get_case(B).spec == {"name": "y"}
+
+
+def test_the_shared_store_answers_every_call_the_sqlite_one_does():
+    """One interface: each public method of JobStore exists on SharedJobStore with the same
+    parameters (a method missing there was a 500 on the replicas' POST /sweeps)."""
+    import inspect
+
+    for name, method in inspect.getmembers(JobStore, callable):
+        if name.startswith("_"):
+            continue
+        assert hasattr(SharedJobStore, name), name
+        params = list(inspect.signature(method).parameters)
+        shared = list(inspect.signature(getattr(SharedJobStore, name)).parameters)
+        assert [p for p in params if p != "self"] == [p for p in shared if p != "self"] or name == "add_sweep", name
+
+
 def test_postgresql_is_migrated_by_alembic_from_empty_and_again_is_a_no_op(database_url):
     for _ in range(2):
         SharedJobStore(database_url).close()
