@@ -8,6 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Optional
 
+from solver.ground.ldp import PROFILES
 from solver.spec import CaseSpec
 from workflows.parameters import flat_name, flat_parameters, parameter_attrs
 from workflows.units import input_unit
@@ -37,7 +38,17 @@ _FIELDS: tuple[tuple[str, str, str], ...] = (
     ("Lining and interface", "lining.density", "lining unit weight"),
     ("Lining and interface", "interface.model", "interface model"),
     ("Lining and interface", "interface.friction", "interface friction coefficient μ"),
-    ("Lining and interface", "excavation.deconfinement", "deconfinement λd before the lining"),
+    ("Lining and interface", "excavation.deconfinement", "deconfinement λd before the lining (empty with a face "
+                                                         "distance)"),
+    ("Section and face", "geometry.section.shape", "shape of the intrados"),
+    ("Section and face", "geometry.section.width", "ellipse: intrados width"),
+    ("Section and face", "geometry.section.height", "ellipse: intrados height"),
+    ("Section and face", "geometry.section.crown_radius", "horseshoe: crown arc radius"),
+    ("Section and face", "geometry.section.crown_angle", "horseshoe: crown arc angle"),
+    ("Section and face", "geometry.section.side_radius", "horseshoe: side arc radius"),
+    ("Section and face", "geometry.section.side_angle", "horseshoe: side arc angle"),
+    ("Section and face", "excavation.face_distance", "lining installed this far behind the face (empty: λd given)"),
+    ("Section and face", "excavation.ldp", "longitudinal displacement profile"),
     ("Design (EN 1992)", "design.concrete_strength", "concrete strength fck"),
     ("Design (EN 1992)", "design.reinforcement_area", "reinforcement per face As"),
     ("Design (EN 1992)", "design.load_factor", "load factor γF"),
@@ -46,7 +57,9 @@ _FIELDS: tuple[tuple[str, str, str], ...] = (
 #: Fields typed in a unit of their own: (unit, factor); factor 0 marks a density typed as a
 #: unit weight in kN/m³ (density = typed x 1000 / gravity).
 _TYPED_AS = {"geometry.gap": ("mm", 1e-3), "ground.density": ("kN/m³", 0.0), "lining.density": ("kN/m³", 0.0)}
-_CHOICES = {"ground.model": ("elastic", "mohr-coulomb", "hoek-brown"), "interface.model": ("frictionless", "coulomb", "bonded")}
+_CHOICES = {"ground.model": ("elastic", "mohr-coulomb", "hoek-brown"),
+            "geometry.section.shape": ("circle", "ellipse", "horseshoe"), "excavation.ldp": PROFILES,
+            "interface.model": ("frictionless", "coulomb", "bonded")}
 
 
 @dataclass(frozen=True)

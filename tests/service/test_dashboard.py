@@ -403,6 +403,34 @@ def test_the_form_posts_a_case_typed_in_engineering_units(service, browser, tmp_
     screenshot(browser, tmp_path / "submit-form-error.png")
 
 
+def test_the_form_takes_a_horseshoe_section_installed_behind_the_face(service, browser):
+    """The form's section and face fields (issue 40): a horseshoe template and a face distance
+    typed in (λd emptied: found, not given) arrive as the case's section and excavation."""
+    url, _ = service
+    browser.get(url + "/ui/submit")
+
+    def field(path):
+        return browser.find_element(By.CSS_SELECTOR, f"[data-path='{path}']")
+
+    from selenium.webdriver.support.ui import Select
+
+    Select(field("geometry.section.shape")).select_by_visible_text("horseshoe")
+    for path, value in (("geometry.section.crown_radius", "3"), ("geometry.section.crown_angle", "60"),
+                        ("geometry.section.side_radius", "4"), ("geometry.section.side_angle", "45"),
+                        ("excavation.face_distance", "2"), ("mesh.interface_size", "0.25")):
+        field(path).clear()
+        field(path).send_keys(value)
+    field("excavation.deconfinement").clear()
+    Select(field("excavation.ldp")).select_by_visible_text("panet")
+    browser.find_element(By.ID, "submit").click()
+    wait_until(lambda: "/ui/cases/" in browser.current_url, timeout=20, what="the case page")
+    spec = httpx.get(f"{url}/cases/{browser.current_url.rsplit('/', 1)[1]}").json()["spec"]
+    assert spec["geometry"]["section"]["shape"] == "polycentric"  # the template as the arcs it expands to
+    assert spec["geometry"]["section"]["arcs"][0] == {"radius": 3.0, "angle": 60.0}
+    assert spec["excavation"]["face_distance"] == 2.0 and spec["excavation"]["ldp"] == "panet"
+    assert spec["excavation"].get("deconfinement") is None
+
+
 def test_a_token_protected_service_works_from_the_browser(browser, tmp_path):
     """TUNNEL_CONTACT_TOKEN_READS: the browser asks once (HTTP basic authentication, the token
     as the password; given here in the address) and then every page, figure and the
