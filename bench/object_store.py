@@ -79,6 +79,7 @@ def fill(store, n: int) -> float:
     from workflows.files import write_atomically
     from workflows.object_store import object_key
     from workflows.result_store import netcdf_encoding
+    from workflows.store_files import netcdf_lock
 
     bases = solve_bases()
     start = time.perf_counter()
@@ -101,8 +102,9 @@ def fill(store, n: int) -> float:
             copy[name] = base[name].copy(data=base[name].values * ratio)
 
         if i < len(bases):  # real files for the first; placeholders for the copies (below)
-            write_atomically(store.case_path(spec.case_id), lambda tmp: copy.to_netcdf(
-                tmp, engine="netcdf4", format="NETCDF4", encoding=netcdf_encoding(copy)), checksum=True)
+            with netcdf_lock:  # HDF5 is not thread-safe: the landing threads write schema files
+                write_atomically(store.case_path(spec.case_id), lambda tmp: copy.to_netcdf(
+                    tmp, engine="netcdf4", format="NETCDF4", encoding=netcdf_encoding(copy)), checksum=True)
         else:
             store.case_path(spec.case_id).parent.mkdir(parents=True, exist_ok=True)
             store.case_path(spec.case_id).write_bytes(spec.case_id.encode() * 64)
