@@ -40,9 +40,9 @@ def test_the_hole_meets_the_closed_form(hole):
     exact = hoek_brown_hole(P0, ROCK["ucs"], ROCK["gsi"], ROCK["mi"], 0.0, ROCK["dilatancy"], E, NU, A)
     assert 1.5 < exact["R0"] / A < 3.0  # a real plastic zone
     wall = json.loads(hole.attrs["ground_reaction_curve"])[-1]["wall_convergence_m"]
-    assert wall == pytest.approx(exact["u_wall"], rel=0.025)
-    assert float(hole["max_plastic_extent"]) == pytest.approx(exact["R0"], rel=0.03)
-    assert float(hole["plastic_area"]) == pytest.approx(np.pi * (exact["R0"] ** 2 - A ** 2), rel=0.08)
+    assert wall == pytest.approx(exact["u_wall"], rel=0.03)
+    assert float(hole["max_plastic_extent"]) == pytest.approx(exact["R0"], rel=0.02)
+    assert float(hole["plastic_area"]) == pytest.approx(np.pi * (exact["R0"] ** 2 - A ** 2), rel=0.03)
 
 
 def test_every_stored_stress_is_inside_the_criterion(hole):
@@ -119,3 +119,14 @@ def test_the_ground_reaction_figure_draws_the_hoek_brown_closed_form(hole):
     assert curve["closed_u"][-1] == pytest.approx(exact["u_wall"], rel=1e-9)
     assert curve["convergence"][-1] == pytest.approx(exact["u_wall"], rel=0.025)  # the FE curve meets it
     assert plot_ground_reaction(hole).axes[0].get_legend() is not None
+
+
+@pytest.mark.slow
+def test_the_readme_rock_example_reproduces():
+    """README "Rock: generalized Hoek–Brown": the default tunnel in weak rock, to its printed digits."""
+    ds = run_case(CaseSpec.model_validate({"ground": {"young": 5e8, "model": "hoek-brown", "ucs": 1.0e6,
+                                                      "gsi": 30.0, "mi": 8.0, "dilatancy": 5.0}}))
+    assert round(float(ds["max_thrust"]) / 1e3) == 552 and round(float(ds["max_abs_moment"]) / 1e3, 1) == 25.0
+    assert round(float(ds["max_contact_pressure"]) / 1e3) == 219
+    assert round(float(ds["plastic_area"]), 2) == 2.65 and round(float(ds["max_plastic_extent"]), 2) == 3.37
+    assert round(float(ds["stage1_plastic_area"]), 2) == 2.51
