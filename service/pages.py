@@ -8,6 +8,7 @@ package (:mod:`service.views` renders them): no build step, nothing fetched from
 """
 from __future__ import annotations
 
+import asyncio
 import json
 import logging
 import math
@@ -20,6 +21,7 @@ from fastapi.responses import HTMLResponse
 from solver.results.variables import ECCENTRICITY_LIMIT, SCALARS
 from solver.spec import CaseSpec
 from solver.spec.plausible import plausibility_warnings
+from workflows.case_tables import stored_forces
 from workflows.joint_check import statement
 from workflows.section_check import check_of
 from workflows.plots import PLOTS, SWEEP_PLOT_NAMES
@@ -112,9 +114,27 @@ async def case_page(case_id: CaseId, request: Request) -> HTMLResponse:
     columns = [scalar_column(n) for n in names if n not in DIAGNOSTICS and n not in checked]
     diagnostics = [scalar_column(n) for n in names if n in DIAGNOSTICS]
     verdict = design_verdict(values, case.spec)
+    forces = await forces_of(request, case_id) if case.status == "done" else None
     return await render(request, "case.html", case=case, values=values, columns=columns, plots=list(PLOTS),
                         diagnostics=diagnostics, verdict=verdict, mesh_check=mesh_check_rows(values, checked),
-                        warnings=case.warnings or input_warnings(case.spec))
+                        forces=forces, warnings=case.warnings or input_warnings(case.spec))
+
+
+async def forces_of(request: Request, case_id: str) -> Optional[dict]:
+    """The lining forces table of a done case for its page (SPEC §9.3, as ``forces.csv``), values
+    to 3 significant figures and the governing station (largest utilization) marked; None if its
+    stored result cannot be read now (the downloads say why)."""
+    try:
+        table = await asyncio.to_thread(stored_forces, jobs_of(request).root, case_id)
+    except Exception as exc:  # e.g. removed or damaged since: the page still answers
+        logger.warning("forces table of case %s not shown: %s", case_id, exc)
+        return None
+    eta = table.names.index("utilization")
+    values = [row[eta] for row in table.rows]
+    governing = max(range(len(values)), key=lambda i: values[i] if math.isfinite(values[i]) else math.inf) \
+        if values else None
+    return {"names": table.names, "units": table.units, "governing": governing,
+            "rows": [[f"{v:.3g}" if isinstance(v, float) else str(v) for v in row] for row in table.rows]}
 
 
 #: The prefix of solver.mesh_check's scalars: the relative change of a key result on a mesh refined once.

@@ -231,6 +231,16 @@ def case_workbook(ds: xr.Dataset) -> bytes:
     return buffer.getvalue()
 
 
+def stored_forces(root, case_id: str) -> Table:
+    """The forces table (:func:`forces_table`) of a stored case (the case page shows it).
+
+    Raises FileNotFoundError if the case is not stored."""
+    from .result_store import as_store
+
+    with as_store(root).opened(case_id) as ds:
+        return forces_table(ds)
+
+
 def stored_tables(root, case_id: str, kind: str) -> bytes:
     """``kind`` ``"xlsx"`` (:func:`case_workbook`) or ``"csv"`` (the forces table) of a stored case.
 

@@ -128,6 +128,25 @@ def test_warnings_of_a_solved_case_reach_the_record_and_the_case_page(client, wa
     assert 'id="case-warnings"' not in client.get(f"/ui/cases/{ordinary['id']}").text
 
 
+def test_the_case_page_shows_the_lining_forces_table(client):
+    """SPEC §9.3 / issue 39: the forces table on the case page, as forces.csv (names, units row,
+    one row per station), to 3 significant figures, the governing station marked."""
+    body = finished(client, client.post("/cases", json=COARSE).json()["id"])
+    page = client.get(f"/ui/cases/{body['id']}").text
+    table = re.search(r'<table class="forces">.*?</table>', page, re.S).group(0)
+    heads = re.findall(r"<th>([^<]*)</th>", table)
+    csv_rows = list(csv.reader(io.StringIO(client.get(f"/cases/{body['id']}/forces.csv").text)))
+    assert heads == csv_rows[0] + csv_rows[1]  # the names, then the units row
+    rows = re.findall(r"<tr[^>]*>((?:<td[^>]*>[^<]*</td>)+)</tr>", table)
+    assert len(rows) == len(csv_rows) - 2
+    for shown, row in zip(rows[::17], csv_rows[2::17]):
+        cells = re.findall(r">([^<]*)</td>", shown)
+        assert cells == [f"{float(v):.3g}" for v in row]
+    governing = re.search(r'<tr class="governing"[^>]*>(.*?)</tr>', table).group(1)
+    eta = float(re.findall(r">([^<]*)</td>", governing)[csv_rows[0].index("utilization")])
+    assert eta == pytest.approx(body["summary"]["max_utilization"], rel=5e-3)
+
+
 def test_the_mesh_check_is_a_table_of_the_case_page(client):
     """solver.mesh_check: each key result's change on the refined mesh, in per cent, on the case
     page (the ones above 1 % marked), not mixed into the summary's results."""
