@@ -24,6 +24,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from solver.errors import did_you_mean, field_errors
 from solver.spec import CaseSpec, canonical_json, content_id
+from solver.spec.ground import HOEK_BROWN_DEFAULTS
 
 from .sampling import SAMPLED_MODES, Distribution, sample_errors, sampled_values
 from .parameters import PATH_ALIASES, canonical_path, is_parameter, parameter_paths, set_parameter
@@ -121,7 +122,8 @@ class Sweep(BaseModel):
 #: earlier sweep keeps its id (as :class:`solver.spec.CaseSpec` keeps its cases').
 _ROUND4_PATHS = (("solver", "mesh_check"), ("geometry", "section"), ("excavation", "face_distance"),
                  ("excavation", "ldp"), ("design", "crack_width_limit"), ("design", "bar_diameter"),
-                 ("settlement", None), ("name", None))
+                 ("settlement", None), ("name", None),
+                 *(("ground", f) for f in HOEK_BROWN_DEFAULTS))
 
 
 def _without_round4_defaults(base: dict) -> None:
@@ -132,6 +134,10 @@ def _without_round4_defaults(base: dict) -> None:
                 del base[section]
         elif section in base and field in base[section] and base[section][field] == default[section].get(field):
             del base[section][field]
+    for layer in base.get("ground", {}).get("layers", []):  # SPEC §9.1's fields of each layer
+        for field, value in HOEK_BROWN_DEFAULTS.items():
+            if layer.get(field, value) == value:
+                layer.pop(field, None)
 
 
 class SweepError(ValueError):
