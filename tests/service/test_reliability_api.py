@@ -13,6 +13,7 @@ from service.app import create_app
 from service.settings import Settings
 
 from bench.exact_limit_state import EXACT, GAMMA, ExactLimitState  # weightless ground, light lining
+from service_helpers import STUDY_MESH
 
 
 @pytest.fixture(scope="module")
@@ -36,7 +37,7 @@ def _until(fn, timeout=600.0):
 
 def study_at(beta: float, budget: int, name: str) -> dict:
     """A FORM study whose exact reliability index is ``beta`` (bench.exact_limit_state)."""
-    return {**ExactLimitState().study(beta, "form", budget, seed=4), "name": name}
+    return {**ExactLimitState(mesh=STUDY_MESH).study(beta, "form", budget, seed=4), "name": name}
 
 
 @pytest.mark.parametrize("change, field", [
