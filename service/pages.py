@@ -18,6 +18,7 @@ from urllib.parse import urlencode
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse
 
+from solver.results.mesh_check import MESH_CHANGE_LIMIT
 from solver.results.variables import ECCENTRICITY_LIMIT, SCALARS
 from solver.spec import CaseSpec
 from solver.spec.plausible import plausibility_warnings
@@ -131,7 +132,8 @@ async def forces_of(request: Request, case_id: str) -> Optional[dict]:
         return None
     eta = table.names.index("utilization")
     values = [row[eta] for row in table.rows]
-    governing = max(range(len(values)), key=lambda i: values[i] if math.isfinite(values[i]) else math.inf) \
+    # a station that fails at any load (inf) governs; a station without a value (NaN) never does
+    governing = max(range(len(values)), key=lambda i: -math.inf if math.isnan(values[i]) else values[i]) \
         if values else None
     return {"names": table.names, "units": table.units, "governing": governing,
             "rows": [[f"{v:.3g}" if isinstance(v, float) else str(v) for v in row] for row in table.rows]}
@@ -149,7 +151,7 @@ def mesh_check_rows(values: dict[str, float], names: list[str]) -> list[dict]:
         result = name[len(MESH_CHANGE):]
         change = 100.0 * values[name]
         rows.append({"name": result, "long_name": scalar_column(result).long_name, "change": f"{change:+.2f} %",
-                     "coarse": abs(change) > 1.0})
+                     "coarse": abs(values[name]) > MESH_CHANGE_LIMIT})
     return rows
 
 
