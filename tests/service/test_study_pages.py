@@ -63,7 +63,7 @@ def test_sweep_analyses_and_a_live_search_page(service, browser, tmp_path):
     assert shown()[0] == "running"
     # the page follows the search by itself to its answer
     wait_until(lambda: shown()[0] == "done", timeout=180, what="the search page to show the answer")
-    done = httpx.get(f"{url}/searches/{search['id']}").json()
+    done = httpx.get(f"{url}/searches/{search['id']}", timeout=30).json()  # a loaded host: 5 s was missed once
     wait_until(lambda: shown()[2] == len(done["trials"]), timeout=30, what="every trial in the table")
     status, answer, rows = shown()
     assert f"geometry.thickness = {done['value']:.4g}" in answer and rows >= 3
