@@ -91,9 +91,15 @@ def _twin(case: dict) -> dict:
 
 
 def _timed(case: dict):
+    from pydantic import ValidationError
+
+    try:
+        spec = CaseSpec.model_validate(case)
+    except ValidationError as e:  # not a case: an in-situ state outside the yield surface is refused
+        return float("nan"), f"refused: {e.errors()[0]['msg']}"
     t0 = time.perf_counter()
     try:
-        run_case(CaseSpec.model_validate(case))
+        run_case(spec)
         outcome = "converged"
     except SolverError as e:
         outcome = "collapse" if type(e).__name__ == "GroundCollapseError" else f"failed: {e}"
@@ -109,12 +115,17 @@ def sample_study(n: int) -> dict:
     for family in FAMILIES:
         rows = []
         for case in sample_cases(n, family):
-            elastic, _ = _timed(_twin(case))
             plastic, outcome = _timed(case)
+            if outcome.startswith("refused"):
+                rows.append({"case": case, "outcome": outcome, "ratio": float("nan"), "seconds": 0.0})
+                continue
+            elastic, _ = _timed(_twin(case))
             rows.append({"case": case, "outcome": outcome, "ratio": plastic / elastic, "seconds": plastic})
-        ratios = np.array([r["ratio"] for r in rows])
-        out[family] = {"cases": rows, "converged_or_collapse": float(np.mean([not r["outcome"].startswith("failed")
-                                                                             for r in rows])),
+        rows_run = [r for r in rows if not r["outcome"].startswith("refused")]
+        ratios = np.array([r["ratio"] for r in rows_run])
+        out[family] = {"cases": rows, "refused": len(rows) - len(rows_run),
+                       "converged_or_collapse": float(np.mean([not r["outcome"].startswith("failed")
+                                                               for r in rows_run])),
                        "collapses": sum(r["outcome"] == "collapse" for r in rows),
                        "median": float(np.median(ratios)), "p95": float(np.percentile(ratios, 95)),
                        "max": float(ratios.max())}
@@ -146,7 +157,8 @@ def main(argv=None) -> None:
         for family in FAMILIES:
             r = study[family]
             print(f"{family}: {100 * r['converged_or_collapse']:.0f} % converged or named collapse "
-                  f"({r['collapses']} collapses); cost / elastic twin: median {r['median']:.2f}, "
+                  f"({r['collapses']} collapses, {r['refused']} refused as inadmissible); "
+                  f"cost / elastic twin: median {r['median']:.2f}, "
                   f"95th percentile {r['p95']:.2f}, max {r['max']:.2f}")
             for row in r["cases"]:
                 print(f"  {json.dumps(row['case'])}: {row['outcome'][:120]}, {row['ratio']:.2f}x")

@@ -28,7 +28,7 @@ import xarray as xr
 from solver.spec import is_number
 
 from .parameters import flat_parameters, parameter_attrs, varying_parameters
-from .store_files import FilesLike, StoreFiles, check_case_id, files_of
+from .store_files import FilesLike, StoreFiles, check_case_id, data_variables, files_of
 
 logger = logging.getLogger(__name__)
 
@@ -52,7 +52,7 @@ def interface_quantities(ds: xr.Dataset) -> tuple[list[str], list[str]]:
     floating-point ones are interpolated linearly in theta; integer ones (flags such
     as ``in_contact``) take the value of the nearest station, so they stay 0/1.
     """
-    names = [str(n) for n, v in ds.data_vars.items()
+    names = [n for n, v in data_variables(ds)
              if v.dims == ("interface",) and n not in MESH_VARIABLES]
     nearest = [n for n in names if ds.variables[n].dtype.kind in "biu"]
     return [n for n in names if n not in nearest], nearest
@@ -90,7 +90,7 @@ def reduce_case(ds: xr.Dataset) -> xr.Dataset:
     if nearest:
         station = _nearest_station(theta)
         data.update({name: ("theta", var[name].values[station], dict(var[name].attrs)) for name in nearest})
-    data.update({name: ((), v.values, dict(v.attrs)) for name, v in ds.data_vars.items()
+    data.update({name: ((), v.values, dict(v.attrs)) for name, v in data_variables(ds)
                  if v.ndim == 0 and name != "mesh"})
     coords = {"theta": ("theta", THETA, dict(var["theta"].attrs))}
     if "surface_x" in var:

@@ -58,7 +58,8 @@ from xarray.backends.netCDF4_ import NETCDF4_PYTHON_LOCK
 
 from .combine import label_cases, read_reduced, reduce_case, stack_cases
 from .files import unverifiable, verify, write_atomically
-from .store_files import OPEN_OPTIONS, FileKey, StoreFiles, check_case_id, file_key, netcdf_encoding, netcdf_lock
+from .store_files import (OPEN_OPTIONS, FileKey, StoreFiles, check_case_id, data_variables, file_key,
+                          netcdf_encoding, netcdf_lock)
 
 logger = logging.getLogger(__name__)
 
@@ -145,7 +146,7 @@ class ResultIndex:
             header = {"case_id": reduced.attrs["case_id"], "case_spec": reduced.attrs["case_spec"],
                       "software_version": reduced.attrs.get("software_version", ""),
                       "file_key": list(key), "schema": schema}
-            arrays = {str(n): v.values for n, v in reduced.data_vars.items()}
+            arrays = {n: v.values for n, v in data_variables(reduced)}
             # not fsynced: an entry damaged by a crash fails its checksum and the case file is read
             write_atomically(self.pending_path(header["case_id"]),
                              lambda tmp: tmp.write_bytes(_pack_entry(header, arrays)), durable=False)

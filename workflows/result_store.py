@@ -30,6 +30,7 @@ from solver.spec import CaseSpec
 
 from .files import remove_checksum, remove_stale_temporaries, write_atomically
 from .index import ResultIndex
+from .netcdf_write import write_netcdf
 from .object_store import object_key
 from .store_files import (CONTENT_DIGEST, OPEN_OPTIONS, RESULT_BYTES_PER_ELEMENT, RESULT_MARGIN, STORE_FULL,
                           FileKey, StoreFiles, StoreFull, case_warnings, check_case_id, content_digest,
@@ -179,7 +180,7 @@ class ResultStore(StoreFiles):
             # (xarray would take a distributed.Lock when called inside a dask worker)
             with dask.config.set(scheduler="synchronous"):
                 with netcdf_lock:
-                    stored.to_netcdf(tmp, engine="netcdf4", format="NETCDF4", encoding=netcdf_encoding(ds))
+                    write_netcdf(stored, tmp, netcdf_encoding(ds))
 
         write_atomically(target, write, checksum=True)
         key = file_key(target.stat())

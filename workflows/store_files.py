@@ -378,6 +378,14 @@ def files_of(root: FilesLike) -> StoreFiles:
     return root if isinstance(root, StoreFiles) else StoreFiles(root)
 
 
+def data_variables(ds: xr.Dataset) -> list[tuple[str, xr.Variable]]:
+    """``ds``'s data variables as ``(name, Variable)``: what ``ds.data_vars.items()`` gives without
+    building a DataArray (with its coordinates) for each, which cost more than the reading itself
+    on the write path (about 0.15 ms a variable, ~300 a stored case)."""
+    coords = set(ds.coords)
+    return [(str(name), var) for name, var in ds.variables.items() if name not in coords]
+
+
 def content_digest(ds: xr.Dataset) -> str:
     """BLAKE2b-128 of a result's variables (names, types, shapes, values), in hex: what
     :data:`CONTENT_DIGEST` records in a case file, so that the file verifies without its checksum

@@ -3,12 +3,12 @@ from __future__ import annotations
 
 import xarray as xr
 
-from .store_files import FilesLike, files_of
+from .store_files import FilesLike, data_variables, files_of
 
 
 def summarize(ds: xr.Dataset) -> dict[str, float]:
     """``{name: value}`` of every 0-d data variable of a result (SPEC §3 scalars)."""
-    return {str(name): float(var.values) for name, var in ds.data_vars.items()
+    return {name: float(var.values) for name, var in data_variables(ds)
             if var.ndim == 0 and var.dtype.kind in "biuf" and name != "mesh"}
 
 

@@ -59,11 +59,11 @@ def test_stored_case_is_not_recomputed_unless_forced(tmp_path, monkeypatch, solv
 
 
 def test_crash_mid_write_leaves_no_file(tmp_path, monkeypatch, solved):
-    def crash(self, path, *args, **kwargs):
+    def crash(ds, path, *args, **kwargs):
         Path(path).write_bytes(b"CDF partial")  # the temporary file exists, half written
         raise OSError("disk full")
 
-    monkeypatch.setattr(xr.Dataset, "to_netcdf", crash)
+    monkeypatch.setattr("workflows.result_store.write_netcdf", crash)
     with pytest.raises(OSError, match="disk full"):
         as_store(tmp_path).write_case(solved)
     folder = tmp_path / "cases"
