@@ -3,7 +3,7 @@
 ``python -m bench.object_store [--cases 1000] [--sweep 40] [--json]``
 
 Uses the S3 server at ``AWS_ENDPOINT_URL`` if set (MinIO, SeaweedFS), else starts moto's server
-mode on loopback in this process. Two figures:
+mode on loopback in a process of its own. Two figures:
 
 - ``open_results`` over ``--cases`` cases stored in the bucket (copies of three coarse cases under
   new ids, as :mod:`bench.index` makes them, each published with its index entry as a worker does;
@@ -34,27 +34,38 @@ COARSE = {"mesh": {"interface_size": 0.25, "far_size": 8.0}}
 
 @contextmanager
 def s3_endpoint():
-    """``AWS_*`` pointing at an S3 server: the one configured, else moto's on loopback."""
+    """``AWS_*`` pointing at an S3 server: the one configured, else moto's server mode on loopback in a
+    process of its own (in the bench's process it would share the GIL with the client it serves and
+    measure the emulator rather than the store)."""
     if os.environ.get("AWS_ENDPOINT_URL"):
         yield
         return
-    import logging
     import socket
+    import subprocess
+    import sys
+    import time
 
-    from moto.server import ThreadedMotoServer
-
-    logging.getLogger("werkzeug").setLevel(logging.WARNING)
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
-    server = ThreadedMotoServer(ip_address="127.0.0.1", port=port, verbose=False)
-    server.start()
-    os.environ.update({"AWS_ENDPOINT_URL": f"http://127.0.0.1:{port}", "AWS_ACCESS_KEY_ID": "bench",
-                       "AWS_SECRET_ACCESS_KEY": "bench", "AWS_DEFAULT_REGION": "us-east-1"})
+    server = subprocess.Popen([sys.executable, "-m", "moto.server", "-H", "127.0.0.1", "-p", str(port)],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
+        deadline = time.monotonic() + 60
+        while True:
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=1).close()
+                break
+            except OSError:
+                if server.poll() is not None or time.monotonic() > deadline:
+                    raise RuntimeError("moto's S3 server did not start") from None
+                time.sleep(0.1)
+        os.environ.update({"AWS_ENDPOINT_URL": f"http://127.0.0.1:{port}", "AWS_ACCESS_KEY_ID": "bench",
+                           "AWS_SECRET_ACCESS_KEY": "bench", "AWS_DEFAULT_REGION": "us-east-1"})
         yield
     finally:
-        server.stop()
+        server.terminate()
+        server.wait(timeout=30)
 
 
 def store_at(url: str, cache: Path):
