@@ -29,7 +29,7 @@ def _warm_up() -> None:
     from workflows.result_store import ResultStore
 
     with tempfile.TemporaryDirectory(prefix="bench-warm-up-") as root:
-        ResultStore(root).solve_and_store(
+        ResultStore(root).run_and_store(
             solver.CaseSpec.model_validate({"mesh": {"interface_size": 0.5, "far_size": 8.0}}))
 
 
@@ -96,7 +96,7 @@ def _store_cases(n: int) -> list[float]:
         store = ResultStore(root)
         for k0 in np.linspace(0.4, 1.2, n + 1):
             start = time.perf_counter()
-            store.solve_and_store(CaseSpec.model_validate({"loads": {"lateral_ratio": round(float(k0), 4)}}))
+            store.run_and_store(CaseSpec.model_validate({"loads": {"lateral_ratio": round(float(k0), 4)}}))
             seconds.append(time.perf_counter() - start)
     return seconds[1:]
 
