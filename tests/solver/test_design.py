@@ -249,3 +249,33 @@ def test_case_utilization_is_proportional_to_the_load_factor():
     n_ed = np.where(full, 1.35, 1.0) * ds.thrust.values
     np.testing.assert_allclose(ds.design_thrust.values[~np.isclose(favourable, 1.35 * eta[1.0])],
                                n_ed[~np.isclose(favourable, 1.35 * eta[1.0])], rtol=1e-12)
+
+
+@pytest.mark.parametrize("h, As", [(0.2, 1.5e-3), (0.35, 1.5e-3), (0.6, 4e-3), (0.3, 5e-4)])
+def test_the_sector_search_is_the_general_search(h, As, monkeypatch):
+    """A reinforced envelope holds the origin strictly inside and every ray leaves it once: η by the
+    edge of the ray's angular sector equals the search over every edge (random actions, the
+    vertices' own directions, points halfway to them, the origin)."""
+    import solver.lining.design as design
+
+    PN, PM = interaction_envelope(h, concrete_strength=3e7, steel_strength=5e8, reinforcement_area=As,
+                                  axis_distance=0.05)
+    rng = np.random.default_rng(7)
+    N = np.concatenate([rng.normal(0, 5e6, 3000), PN, 0.5 * PN, [0.0]])
+    M = np.concatenate([rng.normal(0, 3e5, 3000), PM, 0.5 * PM, [0.0]])
+    fast = utilization(N, M, PN, PM)
+    monkeypatch.setattr(design, "_star_sectors", lambda *a: None)
+    general = utilization(N, M, PN, PM)
+    np.testing.assert_allclose(fast, general, rtol=1e-12, atol=0)
+    assert fast[-1] == 0.0 and np.allclose(fast[3000:3000 + PN.size], 1.0, rtol=1e-9)
+    np.testing.assert_allclose(fast[3000 + PN.size:-1], 0.5, rtol=1e-9)
+
+
+def test_a_plain_envelope_through_the_origin_takes_the_general_search():
+    import solver.lining.design as design
+
+    PN, PM = interaction_envelope(0.3, concrete_strength=3e7, steel_strength=5e8, reinforcement_area=0.0,
+                                  axis_distance=0.05)
+    area = PN[:-1] * PM[1:] - PM[:-1] * PN[1:]
+    keep = area != 0
+    assert design._star_sectors(PN[:-1][keep], PM[:-1][keep], area[keep]) is None
