@@ -28,6 +28,7 @@ from .case_plots import plot_interaction as plot_case_interaction
 from .field_plots import plot_contours, plot_deformed_mesh
 from .model_plot import plot_model
 from .parameters import shown_parameter_unit
+from .store_files import data_variables
 from .units import DIAGNOSTICS, display_unit, shown_value
 
 
@@ -350,16 +351,17 @@ _LEGEND_LINES = 10
 
 
 def _scalar_panel(ax, combined: xr.Dataset, scalar: str, param: str, *, legend: bool,
-                  title: str | None = None) -> None:
+                  title: str | None = None, facet: str | None = None) -> None:
     """``scalar`` against ``param``, both in engineering units; cases sharing the other varied
-    parameters joined by a line labelled with their values (a legend of up to :data:`_LEGEND_LINES`
-    lines when ``legend``; many lines of one other number: coloured by it, with a colour bar)."""
+    parameters (but ``facet``, the same in all of ``combined``: one panel's) joined by a line
+    labelled with their values (a legend of up to :data:`_LEGEND_LINES` lines when ``legend``; many
+    lines of one other number: coloured by it, with a colour bar)."""
     unit, factor = display_unit(combined[scalar].attrs.get("units", ""), scalar)
     y = combined[scalar].values.astype(float) * factor
     x, categories = _parameter_axis(combined[param].values)
     if categories is None:
         x = x * shown_parameter_unit(param)[1]
-    others = [p for p in case_parameters(combined) if p != param]
+    others = [p for p in case_parameters(combined) if p not in (param, facet)]
     values = {o: combined[o].values.tolist() for o in others}
     groups: dict[tuple, list[int]] = {}
     for i in range(combined.sizes["case"]):
@@ -393,14 +395,44 @@ def _scalar_panel(ax, combined: xr.Dataset, scalar: str, param: str, *, legend: 
     ax.grid(True, alpha=0.3)
 
 
+#: Most values of a third varied parameter that get a panel each (more: one line per combination).
+_FACETS = 4
+
+
+def facet_parameter(params: list[str], param: str, combined: xr.Dataset) -> str | None:
+    """With three or more varied parameters, the one whose values get a panel each in the panels
+    against ``param`` ("η against t, one line per E, one panel per K0"): of the others, the one with
+    the fewest values (the last of equals), if it has at most :data:`_FACETS`; else None."""
+    others = [p for p in params if p != param]
+    if len(others) < 2:
+        return None
+    counts = {o: len(dict.fromkeys(combined[o].values.tolist())) for o in others}
+    best = min(reversed(others), key=counts.get)
+    return best if counts[best] <= _FACETS else None
+
+
+def _panels(combined: xr.Dataset, scalars: list[str], params: list[str]) -> list[tuple]:
+    """``(scalar, param, facet, value)`` per panel: a row per scalar and parameter, a panel per
+    value of its facet parameter (:func:`facet_parameter`; ``None, None`` without one)."""
+    out = []
+    for scalar in scalars:
+        for param in params:
+            facet = facet_parameter(params, param, combined)
+            values = [None] if facet is None else list(dict.fromkeys(combined[facet].values.tolist()))
+            out.extend((scalar, param, facet, v) for v in values)
+    return out
+
+
 def plot_scalars(combined: xr.Dataset, scalars: list[str] | None = None) -> Figure:
     """Each summary scalar against each varied parameter (one panel per pair).
 
     Cases that share the values of the other varied parameters are joined by a line
     (one colour per combination of those values, a legend on the first panel against each
-    parameter), so in a grid sweep each line shows the effect of one parameter alone; the
-    title says what the lines are. Parameters and results are in engineering units. Scalars
-    with the same value in every case are listed in the title instead of plotted.
+    parameter), so in a grid sweep each line shows the effect of one parameter alone; with three
+    or more varied parameters, the one with the fewest values (up to four) gets a panel per value
+    instead ("η against t, one line per E, one panel per K0"). The title says what the lines and
+    panels are. Parameters and results are in engineering units. Scalars with the same value in
+    every case are listed in the title instead of plotted.
 
     Parameters
     ----------
@@ -410,28 +442,39 @@ def plot_scalars(combined: xr.Dataset, scalars: list[str] | None = None) -> Figu
     """
     params = case_parameters(combined)
     if scalars is None:
-        scalars = [str(n) for n, v in combined.data_vars.items()
-                   if v.dims == ("case",) and v.dtype.kind in "biuf"]
+        scalars = [n for n, v in data_variables(combined) if v.dims == ("case",) and v.dtype.kind in "biuf"]
         scalars.sort(key=lambda name: name in DIAGNOSTICS)
     constant = [s for s in scalars if np.allclose(combined[s].values.astype(float),
                                                   float(combined[s].values[0]), rtol=1e-9, atol=0)]
-    panels = [(s, p) for s in scalars if s not in constant for p in params]
+    panels = _panels(combined, [s for s in scalars if s not in constant], params)
     if not panels:
         fig = Figure(figsize=(6, 2), layout="constrained")
         fig.text(0.5, 0.5, "no varied parameter, or no scalar that changes: nothing to plot",
                  ha="center", va="center")
         return fig
-    # whole rows of scalars: 4 panels a row for one or two parameters, 3 for three, then 4
-    ncols = len(params) if len(params) == 3 else 4
-    nrows = -(-len(panels) // ncols)
+    widths = {(s, p): sum(1 for q in panels if q[:2] == (s, p)) for s, p, _, _ in panels}
+    faceted = max(widths.values()) > 1
+    if faceted:  # a row per scalar and parameter, its facets side by side
+        ncols, nrows = max(widths.values()), len(widths)
+    else:  # whole rows of scalars: 4 panels a row for one or two parameters, 3 for three
+        ncols = len(params) if len(params) == 3 else 4
+        nrows = -(-len(panels) // ncols)
     fig = Figure(figsize=(3.4 * ncols, 2.4 * nrows + 0.4), layout="constrained")
-    axes = fig.subplots(nrows, ncols, squeeze=False).ravel()
-    for ax in axes[len(panels):]:
-        ax.set_visible(False)
-    first = {param: k for k, (_, param) in reversed(list(enumerate(panels)))}
-    for k, (ax, (scalar, param)) in enumerate(zip(axes, panels)):
-        _scalar_panel(ax, combined, scalar, param, legend=k == first[param])  # a legend per parameter
-    drawn = "; ".join(lines_per(p, [o for o in params if o != p]) for p in params)
+    placed = _place(panels, fig.subplots(nrows, ncols, squeeze=False), faceted)
+    first = {}
+    for ax, (scalar, param, facet, value) in placed:
+        sub = combined if facet is None else combined.isel(case=np.flatnonzero(
+            np.asarray(combined[facet].values.tolist(), dtype=object) == value))
+        shown = None if facet is None else parameter_text(facet, value)
+        _scalar_panel(ax, sub, scalar, param, legend=first.setdefault(param, ax) is ax, title=shown, facet=facet)
+    for row in {key: [ax for ax, q in placed if q[:2] == key] for key in widths}.values():
+        if len(row) > 1:  # a row's facets on one scale: the panels compare at a glance
+            low, high = min(ax.get_ylim()[0] for ax in row), max(ax.get_ylim()[1] for ax in row)
+            for ax in row:
+                ax.set_ylim(low, high)
+    drawn = "; ".join(lines_per(p, [o for o in params if o not in (p, facet_parameter(params, p, combined))])
+                      + (f", one panel per {f}" if (f := facet_parameter(params, p, combined)) else "")
+                      for p in params)
     title = f"Each result against each varied parameter, {combined.sizes['case']} cases: {drawn}"
     title = "\n".join(textwrap.wrap(title + (" (legend)" if len(params) > 1 else ""), 36 * ncols))
     if constant:
@@ -440,6 +483,26 @@ def plot_scalars(combined: xr.Dataset, scalars: list[str] | None = None) -> Figu
         title += "\nthe same in every case: " + "\n".join(textwrap.wrap(shown, 30 * ncols))
     fig.suptitle(title, fontsize="small")
     return fig
+
+
+def _place(panels: list[tuple], axes: np.ndarray, faceted: bool) -> list[tuple]:
+    """Each panel with its axes: a faceted figure gives each (scalar, parameter) a row of its own
+    (its facets side by side, the rest of the row hidden); otherwise the panels fill the rows in
+    order."""
+    flat = axes.ravel()
+    if not faceted:
+        for ax in flat[len(panels):]:
+            ax.set_visible(False)
+        return list(zip(flat, panels))
+    rows: dict[tuple, list[tuple]] = {}
+    for panel in panels:
+        rows.setdefault(panel[:2], []).append(panel)
+    placed = []
+    for r, members in enumerate(rows.values()):
+        placed.extend(zip(axes[r, :len(members)], members))
+        for ax in axes[r, len(members):]:
+            ax.set_visible(False)
+    return placed
 
 
 #: Plots of a sweep (combined results of its finished cases), by name. ``interaction``

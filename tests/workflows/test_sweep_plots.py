@@ -189,3 +189,57 @@ def test_scalars_over_many_values_of_the_other_parameter_get_a_colour_bar():
     bars = [ax for ax in figure.axes if ax.get_label() == "<colorbar>"]
     # against ground_young: 12 lines, one per thickness, coloured by it
     assert [bar.get_ylabel() for bar in bars] == ["lining_thickness (m)"]
+
+
+def three_parameter_grid() -> xr.Dataset:
+    """η over a 3 × 2 × 2 grid of lining thickness, ground stiffness and K0 (K0 and E: two values)."""
+    t, E, K = np.meshgrid([0.2, 0.3, 0.4], [2e7, 5e7], [0.5, 1.0], indexing="ij")
+    t, E, K = t.ravel(), E.ravel(), K.ravel()
+    eta = 0.3 / t + E / 1e8 + K
+    return xr.Dataset({"max_utilization": ("case", eta, {"units": "1"})},
+                      coords={"case_id": ("case", [f"{i:016x}" for i in range(t.size)]),
+                              "lining_thickness": ("case", t), "ground_young": ("case", E),
+                              "loads_lateral_ratio": ("case", K)})
+
+
+def test_a_third_parameter_gets_a_panel_per_value():
+    """"η against t, one line per E, one panel per K0": each panel holds the cases of one K0, its
+    lines one per E, each line the η of those cases against t, and the title says so."""
+    combined = three_parameter_grid()
+    figure = plot_scalars(combined)
+    panels = [ax for ax in figure.axes if ax.get_visible()]
+    against_t = [ax for ax in panels if ax.get_xlabel() == "lining_thickness (m)"]
+    assert [ax.get_title() for ax in against_t] == ["loads_lateral_ratio = 0.5", "loads_lateral_ratio = 1"]
+    for ax, k0 in zip(against_t, (0.5, 1.0)):
+        lines = ax.get_lines()
+        assert len(lines) == 2  # one per E
+        for line, young in zip(lines, (2e7, 5e7)):
+            np.testing.assert_allclose(line.get_xdata(), [0.2, 0.3, 0.4])
+            np.testing.assert_allclose(line.get_ydata(), 0.3 / np.array([0.2, 0.3, 0.4]) + young / 1e8 + k0)
+    assert legend_texts(against_t[0]) == ["ground_young = 20 MPa", "ground_young = 50 MPa"]
+    title = " ".join(figure._suptitle.get_text().split())
+    assert "against lining_thickness: one line per ground_young, one panel per loads_lateral_ratio" in title
+    # against K0 itself: the facets are E's (two values, the last of the fewest), the lines t's
+    against_k0 = [ax for ax in panels if ax.get_xlabel() == "loads_lateral_ratio"]
+    assert [ax.get_title() for ax in against_k0] == ["ground_young = 20 MPa", "ground_young = 50 MPa"]
+    assert all(len(ax.get_lines()) == 3 for ax in against_k0)
+
+
+def test_a_parameter_of_many_values_is_no_facet():
+    """Every case its own K0 (12 values): K0 never gets a panel per value; against E the others are
+    t (3 values) and K0 (12): t is the facet; against K0 itself E (2 values) is."""
+    combined = three_parameter_grid()
+    k0 = np.linspace(0.4, 1.4, combined.sizes["case"])
+    combined = combined.assign_coords(loads_lateral_ratio=("case", k0))
+    figure = plot_scalars(combined)
+    panels = [ax for ax in figure.axes if ax.get_visible()]
+    assert not any(ax.get_title().startswith("loads_lateral_ratio") for ax in panels)
+    assert [ax.get_title() for ax in panels if ax.get_xlabel() == "ground_young (MPa)"] == [
+        "lining_thickness = 0.2 m", "lining_thickness = 0.3 m", "lining_thickness = 0.4 m"]
+
+
+def test_the_facets_of_a_row_share_their_scale():
+    figure = plot_scalars(three_parameter_grid())
+    row = [ax for ax in figure.axes if ax.get_visible() and ax.get_xlabel() == "lining_thickness (m)"]
+    assert len(row) == 2 and row[0].get_ylim() == row[1].get_ylim()
+    assert row[0].get_ylim()[0] <= 0.3 / 0.4 + 0.2 + 0.5 and row[0].get_ylim()[1] >= 0.3 / 0.2 + 0.5 + 1.0
