@@ -191,8 +191,10 @@ class StoreFiles(ObjectCopies):
         return self.sweeps_dir / f"{check_case_id(sweep_id)}-{_digest(case_ids)}.nc"
 
     def sweep_plot_path(self, sweep_id: str, case_ids: Sequence[str], name: str) -> Path:
-        """Where the PNG ``name`` of ``sweep_id`` over exactly ``case_ids`` is cached."""
-        return self.sweeps_dir / "plots" / f"{check_case_id(sweep_id)}-{_digest(case_ids)}-{name}.png"
+        """Where the PNG ``name`` of ``sweep_id`` over exactly ``case_ids`` is cached (drawn in the
+        figures' :data:`SWEEP_FIGURE_STYLE`)."""
+        key = _digest([SWEEP_FIGURE_STYLE, *case_ids])
+        return self.sweeps_dir / "plots" / f"{check_case_id(sweep_id)}-{key}-{name}.png"
 
     def cancel_marker(self, case_id: str) -> Path:
         """The file that asks the process solving ``case_id`` to give it up."""
@@ -431,6 +433,11 @@ def case_warnings(ds: xr.Dataset) -> list[str]:
     if isinstance(warnings, str):
         warnings = [warnings]
     return [str(w) for w in warnings]
+
+
+#: The look of the sweep figures, part of their cache key: changed when their drawing changes, so a
+#: store's cached figures are drawn again rather than served in an older look.
+SWEEP_FIGURE_STYLE = "2026-11-26 facets"
 
 
 def _digest(case_ids: Sequence[str]) -> str:
