@@ -225,3 +225,13 @@ def test_a_case_file_written_before_digests_is_adopted_without_its_checksum_file
     with netCDF4.Dataset(path, "a") as nc:
         nc.delncattr(CONTENT_DIGEST)
     xr.testing.assert_identical(open_case(tmp_path, solved.attrs["case_id"]), solved)
+
+
+def test_a_sweep_figure_drawn_in_an_older_look_is_not_served(tmp_path, monkeypatch):
+    import workflows.store_files as store_files
+
+    store = as_store(tmp_path)
+    ids = ["0123456789abcdef", "fedcba9876543210"]
+    before = store.sweep_plot_path("00000000000000aa", ids, "scalars")
+    monkeypatch.setattr(store_files, "SWEEP_FIGURE_STYLE", "a later look")
+    assert store.sweep_plot_path("00000000000000aa", ids, "scalars") != before
