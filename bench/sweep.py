@@ -85,6 +85,47 @@ def reuse(cases_k0: int = 20, cases_ld: int = 10, mixed: int = 64, n_workers: in
     return out
 
 
+#: the coarse mesh of the write-path figures (issue 38, item 13)
+COARSE_MESH = {"interface_size": 0.25, "far_size": 8.0}
+
+
+def _k0_ld(n: int, base: dict | None = None):
+    """A K0 × deconfinement grid of about ``n`` cases (40 K0 values) on ``base``."""
+    from workflows.sweep import Sweep
+
+    k0s = [round(float(k), 4) for k in np.linspace(0.4, 1.3, 40)]
+    lds = [round(float(x), 4) for x in np.linspace(0.0, 0.6, max(1, n // 40))]
+    return Sweep(name="k0-ld", base=base or {}, vary={"loads.lateral_ratio": k0s, "excavation.deconfinement": lds})
+
+
+def write_path(cases: int = 1000) -> dict:
+    """Cases/minute of a K0 × deconfinement sweep on two workers (models shared) against the rate of
+    solving and storing the same cases in this process, for the coarse mesh and the default one
+    (the default with a fifth of the cases); efficiency = the sweep's rate / (2 × in-process rate)."""
+    from workflows.result_store import ResultStore
+    from workflows.sweep import expand_sweep, local_client, run_sweep
+
+    out = {}
+    for label, base, n in (("coarse", {"mesh": COARSE_MESH}, cases), ("default", {}, max(40, cases // 5))):
+        sweep = _k0_ld(n, base)
+        specs = expand_sweep(sweep)[:100]
+        with tempfile.TemporaryDirectory(prefix="bench-write-path-") as root:
+            store = ResultStore(root)
+            store.run_and_store(specs[0])  # the model built
+            start = time.perf_counter()
+            for spec in specs[1:]:
+                store.run_and_store(spec)
+            alone = (len(specs) - 1) / (time.perf_counter() - start) * 60.0
+        with tempfile.TemporaryDirectory(prefix="bench-write-path-") as root, local_client(2) as client:
+            client.run(_warm_up)
+            start = time.perf_counter()
+            ids = run_sweep(sweep, root, client=client)
+            rate = 60.0 * len(ids) / (time.perf_counter() - start)
+        out[label] = {"cases": len(ids), "two_workers_cases_per_minute": rate,
+                      "in_process_cases_per_minute": alone, "efficiency": rate / (2.0 * alone)}
+    return out
+
+
 def _store_cases(n: int) -> list[float]:
     """Seconds to solve and store each of ``n`` default cases (K0 varied) on one shared model,
     the first (which builds the model) excluded."""
@@ -163,12 +204,18 @@ def main(argv: list[str] | None = None) -> int:
                         help="models shared per worker vs every case alone (200-case K0 x deconfinement, 64 mixed)")
     parser.add_argument("--idle", action="store_true",
                         help="CPU seconds an idle two-worker cluster spends in 10 s: dask's defaults vs ours")
+    parser.add_argument("--write-path", type=int, default=0, metavar="N",
+                        help="an N-case coarse and an N/5-case default sweep on two workers against "
+                             "in-process solve-and-store (issue 38, item 13)")
     parser.add_argument("--per-case", action="store_true",
                         help="ms to store one case on a shared model: plain process, worker with dask's "
                              "malloc setting, worker with ours")
     args = parser.parse_args(argv)
     if args.per_case:
         print(json.dumps(per_case(), indent=1))
+        return 0
+    if args.write_path:
+        print(json.dumps(write_path(args.write_path), indent=1))
         return 0
     if args.idle:
         print(json.dumps(idle(), indent=1))
