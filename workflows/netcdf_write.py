@@ -23,18 +23,55 @@ import numpy as np
 import xarray as xr
 from xarray import conventions
 
+#: encodings by which a variable names coordinates (CF's related data: xarray's rules for those)
+CF_RELATED = frozenset(conventions.CF_RELATED_DATA)
 #: the per-variable encoding keys this writer passes on to ``createVariable``
 KNOWN_ENCODING = {"_FillValue", "zlib", "complevel", "shuffle", "dtype"}
+
+
+def _coordinates(ds: xr.Dataset):
+    """The ``coordinates`` attribute of each variable that gets one and the global attributes, as
+    ``xarray.conventions.encode_dataset_coordinates`` gives them (a variable lists the non-dimension
+    coordinates whose dimensions it has; the others go to the global attribute), without its
+    search of every coordinate against every variable's encoding; None where a variable's own
+    attributes or encoding speak of coordinates or CF's related data (xarray's rules then)."""
+    coords = {name for name in ds.coords if name not in ds.dims}
+    variables = ds.variables
+    if "coordinates" in ds.attrs or any(not isinstance(c, str) or " " in c for c in coords) or any(
+            "coordinates" in v.attrs or "coordinates" in v.encoding
+            or not CF_RELATED.isdisjoint(v.encoding) for v in variables.values()):
+        return None
+    dims_of = {c: set(variables[c].dims) for c in coords}
+    lists, written = {}, set()
+    for name, var in variables.items():
+        if name in coords or name in var.dims:
+            continue
+        names = sorted(c for c in coords if dims_of[c] <= set(var.dims))
+        if names:
+            lists[str(name)] = " ".join(names)
+            written.update(names)
+    attrs = dict(ds.attrs)
+    if coords - written:
+        attrs["coordinates"] = " ".join(sorted(coords - written))
+    return lists, attrs
 
 
 def _encoded(ds: xr.Dataset, encoding: dict[str, dict[str, Any]]):
     """The variables and global attributes as ``to_netcdf`` would store them, or None where this
     writer does not apply."""
-    variables, attrs = conventions.encode_dataset_coordinates(ds)
+    found = _coordinates(ds)
+    if found is None:
+        variables, attrs = conventions.encode_dataset_coordinates(ds)
+        lists = {}
+    else:
+        (lists, attrs), variables = found, ds.variables
     out = {}
     for name, var in variables.items():
         var = var.copy(deep=False)
-        var.encoding = {**var.encoding, **encoding.get(str(name), {})}
+        if str(name) in lists:
+            var.attrs["coordinates"] = lists[str(name)]
+        if str(name) in encoding:  # as to_netcdf: the given encoding replaces the variable's own
+            var.encoding = dict(encoding[str(name)])
         enc = conventions.encode_cf_variable(var, name=name)
         if enc.dtype.kind not in "biuf" or not set(enc.encoding) <= KNOWN_ENCODING | {"source", "original_shape"}:
             return None

@@ -66,3 +66,30 @@ def test_what_it_was_not_made_for_goes_through_xarray(tmp_path):
                     attrs={"names": ["p", "q"]})
     write_netcdf(ds, tmp_path / "strings.nc", netcdf_encoding(ds))
     xr.testing.assert_identical(xr.load_dataset(tmp_path / "strings.nc"), ds)
+
+
+def _small(kind: str) -> xr.Dataset:
+    ds = xr.Dataset({"u": (("n", "m"), np.arange(6.0).reshape(2, 3)), "v": ("m", [1.0, 2.0, 3.0])},
+                    coords={"x": ("n", [0.5, 1.5]), "y": ("m", [1, 2, 3]), "lone": ("k", [7.0, 8.0])})
+    if kind == "own-attribute":
+        ds["v"].attrs["coordinates"] = "y"
+    if kind == "bounds":
+        ds["x"].encoding["bounds"] = "y"
+    return ds
+
+
+@pytest.mark.parametrize("kind", ["plain", "own-attribute", "bounds"])
+def test_coordinates_are_written_as_xarray_writes_them(kind, tmp_path):
+    """A variable lists the non-dimension coordinates whose dimensions it has (u: x and y, v: y); a
+    coordinate no variable spans (lone) goes to the global attribute; a variable's own attribute or
+    CF's related data take xarray's rules."""
+    ds = _small(kind)
+    ds.to_netcdf(tmp_path / "xarray.nc", engine="netcdf4", format="NETCDF4", encoding=netcdf_encoding(ds))
+    write_netcdf(_small(kind), tmp_path / "one-pass.nc", netcdf_encoding(ds))
+    import netCDF4
+
+    with netCDF4.Dataset(tmp_path / "xarray.nc") as a, netCDF4.Dataset(tmp_path / "one-pass.nc") as b:
+        assert a.__dict__ == b.__dict__
+        for name in a.variables:
+            assert a[name].__dict__ == b[name].__dict__, name
+    xr.testing.assert_identical(xr.load_dataset(tmp_path / "one-pass.nc"), xr.load_dataset(tmp_path / "xarray.nc"))
