@@ -150,7 +150,7 @@ class ResultIndex:
             # not fsynced: an entry damaged by a crash fails its checksum and the case file is read
             write_atomically(self.pending_path(header["case_id"]),
                              lambda tmp: tmp.write_bytes(_pack_entry(header, arrays)), durable=False)
-            self.store.publish(self.pending_path(header["case_id"]))
+            self.store.publish(self.pending_path(header["case_id"]), remember=False)  # its writer never reads it
         except Exception:
             logger.warning("could not write the index entry of case %s", ds.attrs.get("case_id"),
                            exc_info=True)

@@ -95,21 +95,32 @@ class Remote:
 
     # -- objects -------------------------------------------------------------------------
 
-    def publish(self, path: Path) -> Optional[dict]:
+    def publish(self, path: Path, *, remember: bool = True) -> Optional[dict]:
         """Upload the cached file ``path`` as its object (with its checksum object first, if
-        it has one), recording the ETag the copy now matches; the object's info (one HEAD)."""
+        it has one), recording the ETag the copy now matches; the object's info (one HEAD).
+        Without ``remember`` (a file its writer never reads back, such as a worker's index
+        entry) no HEAD: the copy is then fetched again by whoever reads it."""
         checksum = path.with_name(path.name + ".b2")
         if checksum.is_file():
             self.fs.put_file(str(checksum), self.key(checksum))
         self.fs.put_file(str(path), self.key(path))
+        if not remember:
+            self._sidecar(path).unlink(missing_ok=True)
+            return None
         info = self.info(path)
         self._remember(path, info)
         return info
 
     def info(self, path: Path) -> Optional[dict]:
         """The object's size and ETag (one HEAD), None if there is none."""
+        key = self.key(path)
         try:
-            return self.fs.info(self.key(path))
+            if hasattr(self.fs, "call_s3"):  # s3fs's info lists the prefix after a 404 (a folder?): a HEAD alone
+                bucket, _, name = key.partition("/")
+                head = self.fs.call_s3("head_object", Bucket=bucket, Key=name)
+                return {"ETag": head.get("ETag"), "size": head.get("ContentLength"),
+                        "LastModified": head.get("LastModified")}
+            return self.fs.info(key)
         except FileNotFoundError:
             return None
 
@@ -263,10 +274,11 @@ class ObjectCopies:
         """The objects of a store on object storage; None for a local folder."""
         return Remote(self.url, self.root) if self.url else None
 
-    def publish(self, path: Path) -> None:
-        """Upload a file just written in the cache folder as its object (nothing for a local store)."""
+    def publish(self, path: Path, *, remember: bool = True) -> None:
+        """Upload a file just written in the cache folder as its object (nothing for a local store;
+        ``remember``: :meth:`Remote.publish`)."""
         if self.url:
-            self.remote.publish(path)
+            self.remote.publish(path, remember=remember)
 
     def fetched(self, path: Path) -> bool:
         """Whether ``path`` is there, for a store on object storage after copying its current

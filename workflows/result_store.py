@@ -124,12 +124,14 @@ class ResultStore(StoreFiles):
         is recorded (:meth:`write_error`) and re-raised."""
         logger.info("solving case %s", spec.case_id)
         self.clear_cancel(spec.case_id)  # a request older than this solve (the case ended first) is void
+        stored = False
         try:
             self.check_room(spec)  # before the work, not after it
             # cases sharing geometry, mesh and materials reuse one factorized model per process
             ds = solver.run_case(spec, model=shared_model(spec), stop=lambda: self.cancel_requested(spec.case_id))
             try:
                 self.write_case(ds)
+                stored = True
             except Exception as exc:
                 full = self._full_or(exc, spec)
                 if full is exc:
@@ -144,7 +146,8 @@ class ResultStore(StoreFiles):
                 logger.warning("could not record the failure of case %s", spec.case_id)
             raise
         finally:
-            self.clear_cancel(spec.case_id)
+            if not (stored and self.url):  # a stored object's cancel request went with its error record
+                self.clear_cancel(spec.case_id)
         return summarize(ds), case_warnings(ds)
 
     def check_room(self, spec: CaseSpec) -> None:
@@ -186,7 +189,8 @@ class ResultStore(StoreFiles):
         key = file_key(target.stat())
         if self.url:  # the object, checksum first; its key is the object's version
             key = object_key(self.remote.publish(target))
-            self.remote.remove(self.error_path(case_id))
+            # an older failure's record and a cancel request, void now: one bulk request
+            self.remote.remove(self.error_path(case_id), self.cancel_marker(case_id))
         self.error_path(case_id).unlink(missing_ok=True)
         shutil.rmtree(self.plot_dir(case_id), ignore_errors=True)  # figures of an older result
         self.index.add(ds, key)
