@@ -177,12 +177,22 @@
       fields.hidden = !byForm;
       jsonField.hidden = byForm;
     };
-    form.addEventListener("change", (event) => { if (event.target.name === "kind") showKind(); });
+    // the JSON tab takes over what the form holds (the form's case in SI, as it would be posted)
+    let lastKind = form.elements.kind.value;
+    form.addEventListener("change", (event) => {
+      if (event.target.name !== "kind") return;
+      if (lastKind === "form" && form.elements.kind.value === "cases") {
+        text.value = JSON.stringify(JSON.parse(formCase()), null, 1);
+      }
+      lastKind = form.elements.kind.value;
+      showKind();
+    });
     form.addEventListener("click", (event) => {
       const which = event.target.dataset.example;
       if (!which) return;
       text.value = examples[which];
       form.elements.kind.value = which === "case" ? "cases" : "sweeps";
+      lastKind = form.elements.kind.value;
       showKind();
     });
     showKind();

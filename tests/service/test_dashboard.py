@@ -403,6 +403,27 @@ def test_the_form_posts_a_case_typed_in_engineering_units(service, browser, tmp_
     screenshot(browser, tmp_path / "submit-form-error.png")
 
 
+def test_the_json_tab_takes_over_what_the_form_holds(service, browser):
+    """Typed in the form (MPa, m), then the "case (JSON)" tab: its text is the form's case in SI, as
+    the form would post it (issue 39 item 10)."""
+    url, _ = service
+    browser.get(url + "/ui/submit")
+
+    def field(path):
+        return browser.find_element(By.CSS_SELECTOR, f"[data-path='{path}']")
+
+    for path, value in (("ground.young", "80"), ("geometry.thickness", "0.35"), ("loads.lateral_ratio", "0.7")):
+        field(path).clear()
+        field(path).send_keys(value)
+    browser.find_element(By.CSS_SELECTOR, "input[name=kind][value=cases]").click()
+    text = browser.find_element(By.ID, "body")
+    assert text.is_displayed()
+    case = json.loads(text.get_attribute("value"))
+    assert case["ground"]["young"] == pytest.approx(8.0e7)
+    assert case["geometry"]["thickness"] == pytest.approx(0.35)
+    assert case["loads"]["lateral_ratio"] == pytest.approx(0.7)
+
+
 def test_the_form_takes_a_horseshoe_section_installed_behind_the_face(service, browser):
     """The form's section and face fields (issue 40): a horseshoe template and a face distance
     typed in (λd emptied: found, not given) arrive as the case's section and excavation."""
