@@ -6,8 +6,8 @@ of mixed traffic for ``--minutes``: new coarse cases (``POST /cases``) and small
 (``POST /sweeps``), reading them back (``GET /cases/{id}``, the case page, a figure, the sweep's table
 and CSV), the dashboard, the lists and ``/health``. Every 20 s the API process's RSS (psutil) is
 sampled with the requests and errors so far. Reported: the RSS after the first two minutes (warm-up:
-imports, first figures), its growth in MB a minute over the rest's first and second halves, and the
-largest RSS. A leak grows at the same rate in both halves; memory that levels off grows in the first
+imports, first figures), its least-squares growth in MB a minute over the rest and over its first and
+second halves, and the largest RSS. A leak grows at the same rate in both halves; memory that levels off grows in the first
 and not the second.
 """
 from __future__ import annotations
@@ -116,16 +116,22 @@ def soak(minutes: float, clients: int) -> dict:
 
 
 def _growth(samples: list[dict]) -> dict:
-    """RSS after the warm-up, MB a minute over the two halves after it, and the largest RSS."""
+    """RSS after the warm-up, its least-squares growth (MB a minute) over all the samples after it and
+    over their two halves (RSS moves by several MB between samples: endpoints alone would be noise),
+    and the largest RSS."""
+    import numpy as np
+
     after = [s for s in samples if s["seconds"] >= WARM_UP]
-    if len(after) < 4:
+    if len(after) < 6:
         return {}
+    t = np.array([s["seconds"] for s in after]) / 60.0
+    rss = np.array([s["rss_mb"] for s in after])
     half = len(after) // 2
-    rate = lambda a, b: 60.0 * (b["rss_mb"] - a["rss_mb"]) / (b["seconds"] - a["seconds"])  # noqa: E731
-    return {"rss_after_warm_up_mb": after[0]["rss_mb"], "first_half_mb_per_min": rate(after[0], after[half]),
-            "second_half_mb_per_min": rate(after[half], after[-1]),
-            "max_rss_mb": max(s["rss_mb"] for s in samples), "requests": samples[-1]["requests"],
-            "errors": samples[-1]["errors"]}
+    slope = lambda a, b: float(np.polyfit(t[a:b], rss[a:b], 1)[0])  # noqa: E731
+    return {"rss_after_warm_up_mb": float(rss[0]), "mb_per_min": slope(0, None),
+            "first_half_mb_per_min": slope(0, half), "second_half_mb_per_min": slope(half, None),
+            "rss_range_mb": [float(rss.min()), float(rss.max())], "max_rss_mb": max(s["rss_mb"] for s in samples),
+            "requests": samples[-1]["requests"], "errors": samples[-1]["errors"]}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -141,8 +147,8 @@ def main(argv: list[str] | None = None) -> int:
     for s in report["samples"]:
         print(f"{s['seconds']:7.0f} s  RSS {s['rss_mb']:7.1f} MB  requests {s['requests']:6d}  errors {s['errors']}")
     if "first_half_mb_per_min" in report:
-        print(f"after the warm-up: RSS {report['rss_after_warm_up_mb']:.1f} MB, growth "
-              f"{report['first_half_mb_per_min']:.2f} then {report['second_half_mb_per_min']:.2f} MB/min; "
+        print(f"after the warm-up: RSS {report['rss_after_warm_up_mb']:.1f} MB, growth {report['mb_per_min']:.2f} "
+              f"MB/min ({report['first_half_mb_per_min']:.2f} then {report['second_half_mb_per_min']:.2f}); "
               f"largest {report['max_rss_mb']:.1f} MB; {report['requests']} requests, {report['errors']} errors")
     return 0
 
