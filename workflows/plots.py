@@ -411,16 +411,17 @@ def facet_parameter(params: list[str], param: str, combined: xr.Dataset) -> str 
     return best if counts[best] <= _FACETS else None
 
 
-def _panels(combined: xr.Dataset, scalars: list[str], params: list[str]) -> list[tuple]:
-    """``(scalar, param, facet, value)`` per panel: a row per scalar and parameter, a panel per
-    value of its facet parameter (:func:`facet_parameter`; ``None, None`` without one)."""
-    out = []
+def _rows(combined: xr.Dataset, scalars: list[str], params: list[str],
+          facets: dict[str, str | None]) -> dict[tuple[str, str], list[tuple]]:
+    """Per (scalar, parameter) its panels' ``(facet, value)``: one per value of the parameter's facet
+    (:func:`facet_parameter`), else the one ``(None, None)``."""
+    rows = {}
     for scalar in scalars:
         for param in params:
-            facet = facet_parameter(params, param, combined)
+            facet = facets[param]
             values = [None] if facet is None else list(dict.fromkeys(combined[facet].values.tolist()))
-            out.extend((scalar, param, facet, v) for v in values)
-    return out
+            rows[(scalar, param)] = [(facet, v) for v in values]
+    return rows
 
 
 def plot_scalars(combined: xr.Dataset, scalars: list[str] | None = None) -> Figure:
@@ -446,35 +447,36 @@ def plot_scalars(combined: xr.Dataset, scalars: list[str] | None = None) -> Figu
         scalars.sort(key=lambda name: name in DIAGNOSTICS)
     constant = [s for s in scalars if np.allclose(combined[s].values.astype(float),
                                                   float(combined[s].values[0]), rtol=1e-9, atol=0)]
-    panels = _panels(combined, [s for s in scalars if s not in constant], params)
-    if not panels:
+    facets = {p: facet_parameter(params, p, combined) for p in params}
+    rows = _rows(combined, [s for s in scalars if s not in constant], params, facets)
+    if not rows:
         fig = Figure(figsize=(6, 2), layout="constrained")
         fig.text(0.5, 0.5, "no varied parameter, or no scalar that changes: nothing to plot",
                  ha="center", va="center")
         return fig
-    widths = {(s, p): sum(1 for q in panels if q[:2] == (s, p)) for s, p, _, _ in panels}
-    faceted = max(widths.values()) > 1
+    faceted = any(f is not None for f in facets.values())
     if faceted:  # a row per scalar and parameter, its facets side by side
-        ncols, nrows = max(widths.values()), len(widths)
+        ncols, nrows = max(map(len, rows.values())), len(rows)
     else:  # whole rows of scalars: 4 panels a row for one or two parameters, 3 for three
         ncols = len(params) if len(params) == 3 else 4
-        nrows = -(-len(panels) // ncols)
+        nrows = -(-len(rows) // ncols)
     fig = Figure(figsize=(3.4 * ncols, 2.4 * nrows + 0.4), layout="constrained")
-    placed = _place(panels, fig.subplots(nrows, ncols, squeeze=False), faceted)
+    placed = _place(rows, fig.subplots(nrows, ncols, squeeze=False), faceted)
     first = {}
-    for ax, (scalar, param, facet, value) in placed:
-        sub = combined if facet is None else combined.isel(case=np.flatnonzero(
-            np.asarray(combined[facet].values.tolist(), dtype=object) == value))
-        shown = None if facet is None else parameter_text(facet, value)
-        _scalar_panel(ax, sub, scalar, param, legend=first.setdefault(param, ax) is ax, title=shown, facet=facet)
-    for row in {key: [ax for ax, q in placed if q[:2] == key] for key in widths}.values():
-        if len(row) > 1:  # a row's facets on one scale: the panels compare at a glance
-            low, high = min(ax.get_ylim()[0] for ax in row), max(ax.get_ylim()[1] for ax in row)
-            for ax in row:
+    for (scalar, param), members in placed.items():
+        for ax, (facet, value) in members:
+            sub = combined if facet is None else combined.isel(case=np.flatnonzero(
+                np.asarray(combined[facet].values.tolist(), dtype=object) == value))
+            shown = None if facet is None else parameter_text(facet, value)
+            _scalar_panel(ax, sub, scalar, param, legend=first.setdefault(param, ax) is ax, title=shown,
+                          facet=facet)
+        if len(members) > 1:  # a row's facets on one scale: the panels compare at a glance
+            axes = [ax for ax, _ in members]
+            low, high = min(ax.get_ylim()[0] for ax in axes), max(ax.get_ylim()[1] for ax in axes)
+            for ax in axes:
                 ax.set_ylim(low, high)
-    drawn = "; ".join(lines_per(p, [o for o in params if o not in (p, facet_parameter(params, p, combined))])
-                      + (f", one panel per {f}" if (f := facet_parameter(params, p, combined)) else "")
-                      for p in params)
+    drawn = "; ".join(lines_per(p, [o for o in params if o not in (p, facets[p])])
+                      + (f", one panel per {facets[p]}" if facets[p] else "") for p in params)
     title = f"Each result against each varied parameter, {combined.sizes['case']} cases: {drawn}"
     title = "\n".join(textwrap.wrap(title + (" (legend)" if len(params) > 1 else ""), 36 * ncols))
     if constant:
@@ -485,24 +487,19 @@ def plot_scalars(combined: xr.Dataset, scalars: list[str] | None = None) -> Figu
     return fig
 
 
-def _place(panels: list[tuple], axes: np.ndarray, faceted: bool) -> list[tuple]:
-    """Each panel with its axes: a faceted figure gives each (scalar, parameter) a row of its own
-    (its facets side by side, the rest of the row hidden); otherwise the panels fill the rows in
-    order."""
+def _place(rows: dict[tuple, list[tuple]], axes: np.ndarray, faceted: bool) -> dict[tuple, list[tuple]]:
+    """Each row's panels with their axes: a faceted figure gives each (scalar, parameter) a row of
+    its own (its facets side by side, the rest of the row hidden); otherwise the panels fill the
+    rows in order."""
     flat = axes.ravel()
     if not faceted:
-        for ax in flat[len(panels):]:
+        for ax in flat[len(rows):]:
             ax.set_visible(False)
-        return list(zip(flat, panels))
-    rows: dict[tuple, list[tuple]] = {}
-    for panel in panels:
-        rows.setdefault(panel[:2], []).append(panel)
-    placed = []
+        return {key: [(ax, members[0])] for ax, (key, members) in zip(flat, rows.items())}
     for r, members in enumerate(rows.values()):
-        placed.extend(zip(axes[r, :len(members)], members))
         for ax in axes[r, len(members):]:
             ax.set_visible(False)
-    return placed
+    return {key: list(zip(axes[r, :len(members)], members)) for r, (key, members) in enumerate(rows.items())}
 
 
 #: Plots of a sweep (combined results of its finished cases), by name. ``interaction``
