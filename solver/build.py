@@ -165,17 +165,15 @@ class BuiltModel:
         stations, corners = self._joint_corners()
         other = iface.lining_node.copy()
         other[stations] = corners
-        # each corner takes its own edge's Simpson share of the station's weight (L/6 of each edge)
-        theta = iface.theta
-        before = theta[stations] - theta[stations - 2]
+        # each corner takes its own edge's Simpson share of the station's weight (L/6 of each edge;
+        # an edge's middle node weighs 2L/3)
+        before, after = iface.weight[stations - 1], iface.weight[stations + 1]
         share = np.ones(m)
-        share[stations] = before / (before + theta[stations + 2] - theta[stations])
+        share[stations] = before / (before + after)
         Bl_other = interface_operator(lining, other[nodes], directions, -1.0)
         Bl = sp.diags(share[nodes]) @ Bl + sp.diags(1.0 - share[nodes]) @ Bl_other
         height = spec.lining.joints.contact_height or g.thickness
-        self.r_mid = g.inner_radius + 0.5 * g.thickness
-        rows = joints.joint_rows(lining, self.mesh.joints, self.mesh.center, r_mid=self.r_mid, height=height,
-                                 shear=True)
+        rows = joints.joint_rows(lining, self.mesh.joints, height=height, shear=True)
         self.joint_rows, nj = rows, rows.size
         Bl = sp.vstack([Bl[:m], rows.B, Bl[m:]]).tocsr()
         Bg = sp.vstack([Bg[:m], sp.csr_matrix((nj, ground.n)), Bg[m:]]).tocsr()

@@ -75,26 +75,37 @@ def joint_faces(ds: xr.Dataset) -> list[tuple[float, bool, list[np.ndarray]]]:
     """Per joint ``(theta, open, faces)``: the lining nodes of each of its faces (the crown-side
     face first; one face for a joint on the symmetry line), ordered from the intrados out.
 
-    Found from the mesh alone: the lining's nodes at the joint's angle, split by the side of
-    the joint their triangles lie on (the two faces' nodes are distinct copies at one place).
+    Found from the mesh alone: the lining's nodes on the joint's cut (the lining's normal through
+    the joint's interface station: a radial line on a circle), split by the side of the cut their
+    triangles lie on (the two faces' nodes are distinct copies at one place).
     """
     if not has_joints(ds):
         return []
     x, y = ds["node_x"].values, ds["node_y"].values
-    cy = float(np.mean(ds["interface_y"].values[[0, -1]]))
+    center = np.array([0.0, float(np.mean(ds["interface_y"].values[[0, -1]]))])
     tri = ds["face_nodes"].values.astype(np.int64)[:, :3][ds["body"].values == 1]
-    angle = np.degrees(np.arctan2(x, y - cy))
-    radius = np.hypot(x, y - cy)
-    centroid = np.degrees(np.arctan2(x[tri].mean(axis=1), y[tri].mean(axis=1) - cy))
+    xy = np.stack([x, y])
+    station = np.stack([ds["interface_x"].values, ds["interface_y"].values])
+    normal = np.stack([ds["normal_x"].values, ds["normal_y"].values])
+    theta_i = ds["theta"].values
+    reach = np.hypot(*(station - center[:, None]))
+    scale, near = float(reach.max()), 0.5 * float(reach.min())  # the lining lies within ``near`` of a station
     out = []
     for theta, is_open in zip(*joints(ds)):
-        at = np.abs((angle[tri] - theta + 180.0) % 360.0 - 180.0) < 1e-3  # (F, 3) corners on the cut
+        k = int(np.argmin(np.abs(theta_i - theta)))
+        n = normal[:, k] * np.sign(normal[:, k] @ (station[:, k] - center))  # outward
+        t = np.array([n[1], -n[0]])  # towards increasing θ (clockwise on the right half)
+        rel = xy - station[:, k:k + 1]
+        along, across = t @ rel, n @ rel
+        # (F, 3) corners on the cut (the line also crosses the lining's far side: not that piece)
+        at = (np.abs(along) < 1e-7 * scale)[tri] & (np.abs(across) < near)[tri]
+        centroid = t @ (xy[:, tri].mean(axis=2) - station[:, k:k + 1])
         touching = at.any(axis=1)
         faces = []
-        for side in (centroid < theta, centroid > theta):
+        for side in (centroid < 0.0, centroid > 0.0):
             nodes = np.unique(tri[touching & side][at[touching & side]])
             if nodes.size > 1:
-                faces.append(nodes[np.argsort(radius[nodes])])
+                faces.append(nodes[np.argsort(across[nodes])])
         out.append((float(theta), bool(is_open), faces))
     return out
 

@@ -36,18 +36,24 @@ class BodyMesh:
 class Joints:
     """The longitudinal joints of a segmental lining (SPEC §1.6), ordered crown to invert.
 
-    theta : (J,) deg at the tunnel axis.
+    theta : (J,) deg at the tunnel axis (of the joint's station on the excavation boundary).
     before, after : per joint, the lining nodes of the face on the crown side (θ < θj) and on
         the invert side, ordered from the intrados out (vertices and edge nodes). A joint on the
         symmetry line has one face in the half model: ``after`` at the crown, ``before`` at the
         invert, the other empty (the mirror segment's face moves symmetrically).
     segment : (N,) the segment of each lining node, numbered crown to invert.
+    normal : (J,) deg, the turning angle of the lining's outward normal along which each joint
+        cuts it (its hoop direction is (cos, −sin), its outward one (sin, cos)); θ on a circle.
+    across : per joint, each face node's distance (m) from the lining's mid-surface along the
+        cut, outward positive (``r − r_mid`` on a circle), in the order of the face's nodes.
     """
 
     theta: np.ndarray
     before: tuple[np.ndarray, ...]
     after: tuple[np.ndarray, ...]
     segment: np.ndarray
+    normal: np.ndarray
+    across: tuple[np.ndarray, ...]
 
     @property
     def size(self) -> int:

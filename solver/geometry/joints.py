@@ -58,7 +58,7 @@ def radial_pieces(spec: CaseSpec) -> list[RadialPiece]:
     ``interface_size`` at the strip's edges, so that the strip ends at nodes and the zone an
     opening joint bears on is resolved."""
     g, j = spec.geometry, spec.lining.joints
-    a, b = g.inner_radius, g.outer_radius
+    a, b = g.inner_radius, g.inner_radius + g.thickness  # radii on a circle; a + offset on another section
     if not j.count:
         return [RadialPiece(a, b, lining_layers(spec), 1.0)]
     t = g.thickness
@@ -139,17 +139,27 @@ def graded_zones(spec: CaseSpec) -> list[GradedZone]:
     g = spec.geometry
     uniform = 90.0 / interface_segments(spec)  # deg
     size = math.degrees(JOINT_SIZE * joint_edge(spec) / g.hole_radius)
+    others = sorted({0.0, 90.0, 180.0, *joints, *line_angles(spec)})
+    return zones_towards(joints, others, size, uniform, 180.0)
+
+
+def zones_towards(joints: list[float], others: list[float], size: float, uniform: float,
+                  end: float) -> list[GradedZone]:
+    """The graded zones of :func:`graded_zones` in any coordinate along the ring from 0 (the
+    crown) to ``end`` (the invert): degrees on a circle, arc length on another section.
+    ``size``: the element at a joint; ``uniform``: the ring's element it grows to; ``others``:
+    the ring's sector cuts, which a zone reaches at most half the way to."""
     if size >= uniform:
         return []
     n = max(1, math.ceil(math.log(uniform / size) / math.log(JOINT_GROWTH) - 1e-9))
     q = (uniform / size) ** (1.0 / n)
-    others = sorted({0.0, 90.0, 180.0, *joints, *line_angles(spec)})
+    tiny = 1e-9 * end
     zones = []
     for t in joints:
         for side in (-1.0, 1.0):
-            if not 0.0 <= t + side * 1e-9 <= 180.0:
+            if not 0.0 <= t + side * tiny <= end:
                 continue
-            room = min(abs(a - t) for a in others if (a - t) * side > 1e-9)
+            room = min(abs(a - t) for a in others if (a - t) * side > tiny)
             m = n
             while m > 1 and size * (q**m - 1.0) / (q - 1.0) > 0.5 * room:
                 m -= 1
@@ -189,18 +199,19 @@ def hoop_divisions(spec: CaseSpec, angles: list[float]) -> list[tuple[int, float
     return out
 
 
-def cut_along(p: np.ndarray, t: np.ndarray, angles, center) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Cut linear triangles ``t`` along the radial lines at ``angles`` (deg): the vertices on a
-    line get copies (appended to ``p``) that the triangles on its invert side use instead.
-    Returns the new ``p``, ``t`` and, per copy, the vertex it copies."""
-    c = np.asarray(center, dtype=float)
+def cut_along(p: np.ndarray, t: np.ndarray, cuts, angle_of) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Cut linear triangles ``t`` along the lines where ``angle_of`` (of points (2, n)) equals each
+    of ``cuts``: the radial lines at the polar angles (deg) on a circle, the normals at the turning
+    angles on another section. The vertices on a line get copies (appended to ``p``) that the
+    triangles on its invert side use instead. Returns the new ``p``, ``t`` and, per copy, the
+    vertex it copies."""
     origin = np.zeros(0, np.int64)
-    for a in angles:
-        ang = polar_angle(p, c)
-        centroid = polar_angle(p[:, t].mean(axis=1), c)
+    for a in cuts:
+        ang = angle_of(p)
+        centroid = angle_of(p[:, t].mean(axis=1))
         on = np.flatnonzero(np.abs(ang - a) <= 1e-6)
         if on.size < 2:
-            raise RuntimeError(f"no radial line of lining nodes at the joint at {a:g} deg")
+            raise RuntimeError(f"no line of lining nodes across the joint at {a:g} deg")
         remap = np.arange(p.shape[1])
         remap[on] = p.shape[1] + np.arange(on.size)
         t = np.where(centroid[None, :] > a, remap[t], t)
@@ -209,37 +220,73 @@ def cut_along(p: np.ndarray, t: np.ndarray, angles, center) -> tuple[np.ndarray,
     return p, t, origin
 
 
-def joint_faces(lining: BodyMesh, angles: list[float], center) -> Joints:
-    """The faces of the lining's joints at ``angles`` (deg) and the segment of each node."""
+@dataclass(frozen=True)
+class JointCuts:
+    """Where a lining's joints cut it: ``theta`` (deg at the axis, as reported), ``cuts`` in the
+    coordinate of ``angle_of`` (points (2, n) → deg: the polar angle on a circle, the turning
+    angle of the normal cut through the point on another section), ``normal`` (deg, the turning
+    angle of each cut's outward normal) and ``mid`` (m, each cut's mid-surface point projected
+    on that normal from the section's centre)."""
+
+    theta: list[float]
+    cuts: list[float]
+    normal: list[float]
+    mid: list[float]
+    angle_of: object
+
+
+def circle_cuts(spec: CaseSpec, center) -> JointCuts:
+    """A circular lining's joints: radial cuts at their polar angles."""
+    theta = joint_angles(spec)
+    g = spec.geometry
+    return JointCuts(theta=theta, cuts=theta, normal=theta, mid=[g.inner_radius + 0.5 * g.thickness] * len(theta),
+                     angle_of=lambda p: polar_angle(p, center))
+
+
+def joint_faces(lining: BodyMesh, cut: JointCuts, center) -> Joints:
+    """The faces of the lining's joints where ``cut`` says and the segment of each node."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    c = np.asarray(center, dtype=float)
+    c = np.asarray(center, dtype=float)[:, None]
     n = lining.p.shape[1]
     e = lining.t.shape[1]
     incidence = coo_matrix((np.ones(6 * e), (lining.t.ravel(), np.tile(np.arange(e), 6))), shape=(n, e)).tocsr()
     count, label = connected_components(incidence @ incidence.T, directed=False)
-    ang = polar_angle(lining.p, c)
+    ang = cut.angle_of(lining.p)
     mean = np.array([ang[label == k].mean() for k in range(count)])
     segment = np.argsort(np.argsort(mean))[label]
-    radius = np.hypot(*(lining.p - c[:, None]))
-    centroid = polar_angle(lining.p[:, lining.t[:3]].mean(axis=1), c)
-    before, after = [], []
-    for a in angles:
+    centroid = cut.angle_of(lining.p[:, lining.t[:3]].mean(axis=1))
+    before, after, across = [], [], []
+    for a, normal, mid in zip(cut.cuts, cut.normal, cut.mid):
         on = np.flatnonzero(np.abs(ang - a) <= 1e-6)
-        if a == 0.0:
+        out = np.array([np.sin(np.radians(normal)), np.cos(np.radians(normal))]) @ (lining.p[:, on] - c) - mid
+        if normal == 0.0:
             sides = (np.zeros(0, np.int64), on)
-        elif a == 180.0:
+        elif normal == 180.0:
             sides = (on, np.zeros(0, np.int64))
         else:
             early = np.zeros(n, bool)
             early[lining.t[:, centroid < a].ravel()] = True
             sides = (on[early[on]], on[~early[on]])
-        for group, side in zip((before, after), sides):
-            group.append(side[np.argsort(radius[side])])
-        if a not in (0.0, 180.0) and before[-1].size != after[-1].size:
+        for group, side in zip((before, after), sides):  # ordered from the intrados out
+            group.append(side[np.argsort(out[np.searchsorted(on, side)])])
+        face = before[-1] if before[-1].size else after[-1]
+        across.append(out[np.searchsorted(on, face)])
+        if 0.0 < normal < 180.0 and before[-1].size != after[-1].size:
             raise RuntimeError(f"the joint at {a:g} deg has faces of {before[-1].size} and {after[-1].size} nodes")
-    inner = len([a for a in angles if 0.0 < a < 180.0])
+    inner = len([t for t in cut.normal if 0.0 < t < 180.0])
     if count != inner + 1:
         raise RuntimeError(f"the lining's {inner} joints inside the half model make {count} segments, not {inner + 1}")
-    return Joints(theta=np.array(angles, dtype=float), before=tuple(before), after=tuple(after), segment=segment)
+    return Joints(theta=np.array(cut.theta, dtype=float), before=tuple(before), after=tuple(after), segment=segment,
+                  normal=np.array(cut.normal, dtype=float), across=tuple(across))
+
+
+def transfinite(curve: int, elements: int, growth: float) -> None:
+    """``elements`` on a gmsh curve, uniform or in geometric progression (``growth`` along it)."""
+    import gmsh
+
+    if growth == 1.0:
+        gmsh.model.mesh.setTransfiniteCurve(curve, elements + 1)
+    else:
+        gmsh.model.mesh.setTransfiniteCurve(curve, elements + 1, "Progression", growth)

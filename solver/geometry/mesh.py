@@ -32,8 +32,10 @@ from .sizing import (
 )
 from ..spec import CaseSpec
 from ..ground.strata import band_layers, mesh_lines
+from .bands import circle_hole_depths, ground_bands
 from .bodies import BodyMesh, Interface, TunnelMesh
 from .joints import (
+    circle_cuts,
     cut_along,
     graded_zones,
     hoop_divisions,
@@ -43,8 +45,9 @@ from .joints import (
     line_angles,
     polar_angle as _theta,
     radial_pieces,
+    transfinite,
 )
-from .profile_mesh import curve_placer, profile_geometry, profile_interface
+from .profile_mesh import curve_placer, profile_cuts, profile_geometry, profile_interface
 
 # gmsh keeps global state: one meshing at a time per process.
 _GMSH_LOCK = threading.Lock()
@@ -70,13 +73,14 @@ def build_mesh(spec: CaseSpec) -> TunnelMesh:
                 else [None] * 3
             model_nodes = _model_nodes()
             ground, (ground_ring,), band = _body_mesh(ground_surfs, [hole_arcs], center, model_nodes, onto=on[:1])
-            cuts = [t for t in joint_angles(spec) if 0.0 < t < 180.0]
+            cut = (profile_cuts if shaped else circle_cuts)(spec, center)
+            inside = [a for a, n in zip(cut.cuts, cut.normal) if 0.0 < n < 180.0]
             lining, (lining_ring, _), _ = _body_mesh(lining_surfs, [outer_arcs, inner_arcs], center, model_nodes,
-                                                     cuts=cuts, onto=on[1:])
+                                                     cuts=inside, angle_of=cut.angle_of, onto=on[1:])
         finally:
             gmsh.finalize()
     check_mesh_size(ground.t.shape[1] + lining.t.shape[1])
-    joints = joint_faces(lining, joint_angles(spec), center) if spec.lining.joints.count else None
+    joints = joint_faces(lining, cut, center) if spec.lining.joints.count else None
     band = band_layers(spec)[band]  # a band between a table line and a layer line is in that layer
     iface = (Interface(**profile_interface(ground, lining, ground_ring, lining_ring, center,
                                            g.profile(g.thickness + g.gap)))
@@ -112,16 +116,17 @@ def _geometry(spec: CaseSpec):
                   geo.addLine(hole_pts[0], p_tl)]
         ground_surfs = [geo.addPlaneSurface([geo.addCurveLoop(border)])]
     else:
-        ground_surfs = _bands(geo, g, lines, angles, hole_pts, hole, (p_tl, p_tr, p_br, p_bl))
+        ground_surfs = ground_bands(geo, g, lines, circle_hole_depths(g, angles), hole_pts, hole,
+                                    (p_tl, p_tr, p_br, p_bl))
     geo.synchronize()
 
     mesh = gmsh.model.mesh
     for group in (*lining.rings, *([hole] if g.gap > 0 else [])):
         for arc, (n, growth) in zip(group, lining.divisions):
-            _transfinite(arc, n, growth)
+            transfinite(arc, n, growth)
     for lines_k, (n, growth) in zip(lining.radial, lining.pieces):
         for line in lines_k:
-            _transfinite(line, n, growth)
+            transfinite(line, n, growth)
     for s in lining.surfaces:
         mesh.setTransfiniteSurface(s, "Alternate")
 
@@ -131,16 +136,6 @@ def _geometry(spec: CaseSpec):
     gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
     gmsh.option.setNumber("Mesh.Algorithm", 6)
     return ground_surfs, lining.surfaces, hole, lining.rings[-1], lining.rings[0]
-
-
-def _transfinite(curve: int, elements: int, growth: float) -> None:
-    """``elements`` on a gmsh curve, uniform or in geometric progression (``growth`` along it)."""
-    import gmsh
-
-    if growth == 1.0:
-        gmsh.model.mesh.setTransfiniteCurve(curve, elements + 1)
-    else:
-        gmsh.model.mesh.setTransfiniteCurve(curve, elements + 1, "Progression", growth)
 
 
 @dataclass(frozen=True)
@@ -189,55 +184,6 @@ def _lining(geo, spec: CaseSpec, c: int, angles: list[float]) -> _LiningGeometry
                            pieces=[(p.elements, p.growth) for p in pieces])
 
 
-def _bands(geo, g, lines: list[float], angles: list[float], hole_pts, hole, corners) -> list[int]:
-    """The ground as horizontal bands between the layer ``lines`` (depths, m), surface down.
-
-    The ground's left edge, from the surface to the bottom, is monotone in depth: the symmetry
-    line down to the crown, the excavation's arcs (``hole``, between ``hole_pts`` at
-    ``angles``) to the invert, the symmetry line to the bottom. Each layer line runs from its
-    point on that edge (on the symmetry line, or on the excavation where it cuts it: a hole
-    point, see :func:`sector_angles`) to the right side. Each band is bounded by its top line,
-    the right side, its bottom line and the piece of the left edge between them."""
-    p_tl, p_tr, p_br, p_bl = corners
-    rh, d = g.hole_radius, g.depth
-    crown, invert = d - rh, d + rh
-    # the left edge as (depth, point) vertices and the curve from each to the next, top down
-    left = [(0.0, p_tl)]
-    curves = []
-
-    def axis_to(z, point):
-        curves.append(geo.addLine(left[-1][1], point))
-        left.append((z, point))
-
-    for z in lines:
-        if z < crown:
-            axis_to(z, geo.addPoint(0, -z, 0))
-    axis_to(crown, hole_pts[0])
-    for k, arc in enumerate(hole):
-        curves.append(arc)
-        left.append((d - rh * np.cos(np.radians(angles[k + 1])), hole_pts[k + 1]))
-    for z in lines:
-        if z > invert:
-            axis_to(z, geo.addPoint(0, -z, 0))
-    axis_to(g.height, p_bl)
-
-    def left_point(z):
-        return min(range(len(left)), key=lambda i: abs(left[i][0] - z))
-
-    rights = [p_tr] + [geo.addPoint(g.width, -z, 0) for z in lines] + [p_br]
-    tops = [geo.addLine(p_tl, p_tr)] + [geo.addLine(left[left_point(z)][1], rights[k + 1])
-                                         for k, z in enumerate(lines)]
-    bottom = geo.addLine(p_br, p_bl)
-    sides = [geo.addLine(rights[k], rights[k + 1]) for k in range(len(rights) - 1)]
-    at = [0] + [left_point(z) for z in lines] + [len(left) - 1]
-    surfaces = []
-    for k in range(len(lines) + 1):
-        lower = -tops[k + 1] if k < len(lines) else bottom
-        up = [-curves[i] for i in range(at[k + 1] - 1, at[k] - 1, -1)]
-        surfaces.append(geo.addPlaneSurface([geo.addCurveLoop([tops[k], sides[k], lower, *up])]))
-    return surfaces
-
-
 def _model_nodes() -> tuple[np.ndarray, np.ndarray]:
     """Every node of the gmsh model: its tags sorted, and their (x, y) coordinates (N, 2)."""
     import gmsh
@@ -248,7 +194,7 @@ def _model_nodes() -> tuple[np.ndarray, np.ndarray]:
 
 
 def _body_mesh(surfaces, arcs: list, center, model_nodes: tuple[np.ndarray, np.ndarray],
-               cuts: list[float] = (), onto: list | None = None) -> tuple[BodyMesh, list[np.ndarray], np.ndarray]:
+               cuts: list[float] = (), angle_of=None, onto: list | None = None) -> tuple[BodyMesh, list[np.ndarray], np.ndarray]:
     """A body's P2 mesh from gmsh's linear triangles on ``surfaces``, the nodes on each
     group of circle ``arcs`` (vertices and edge nodes) and the index into ``surfaces`` of each
     triangle; ``model_nodes``: :func:`_model_nodes`.
@@ -258,9 +204,10 @@ def _body_mesh(surfaces, arcs: list, center, model_nodes: tuple[np.ndarray, np.n
     point of the arc halfway between the edge's vertices (the chord's midpoint pushed out
     radially from the tunnel axis), which is where ``setOrder`` puts it.
 
-    ``cuts`` (deg): radial lines along which the body is cut (a segmental lining's joints): the
-    triangles on the invert side of each get their own copies of the vertices on it
-    (:func:`_cut`), so the edges on it, and their edge nodes, are made twice.
+    ``cuts`` (deg): lines where ``angle_of`` (points → deg) takes these values, along which the
+    body is cut (a segmental lining's joints): the triangles on the invert side of each get their
+    own copies of the vertices on it (:func:`~solver.geometry.joints.cut_along`), so the edges on
+    it, and their edge nodes, are made twice.
 
     ``onto``: per group of curves, None (a circle about ``center``) or a function of the edge's
     vertices giving its node on the true curve (a section's profile: :func:`.profile_mesh.curve_placer`).
@@ -285,7 +232,7 @@ def _body_mesh(surfaces, arcs: list, center, model_nodes: tuple[np.ndarray, np.n
     cw = e1[0] * e2[1] - e1[1] * e2[0] < 0
     t[1, cw], t[2, cw] = t[2, cw].copy(), t[1, cw].copy()  # counter-clockwise
     n_tagged = p.shape[1]
-    p, t, origin = cut_along(p, t, cuts, center)
+    p, t, origin = cut_along(p, t, cuts, angle_of)
     # scikit-fem's P2 DOF order: vertices, then one node per facet in MeshTri2's facet order
     # (MeshTri2 keeps t as given, hence sort_t=False)
     facets = MeshTri1(p, t, sort_t=False, validate=False)

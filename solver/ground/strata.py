@@ -95,7 +95,8 @@ def table_line(spec) -> float | None:
     if w.table is None or w.lining != "drained" or not 0.0 < w.table < g.height:
         return None
     clear = TANGENT_CLEARANCE * spec.mesh.interface_size
-    near = [g.depth - g.hole_radius, g.depth + g.hole_radius, *layer_lines(spec)]
+    up, down, _ = g.hole_extent
+    near = [g.depth - up, g.depth + down, *layer_lines(spec)]
     if any(abs(w.table - z) < clear for z in near):
         return None
     return float(w.table)

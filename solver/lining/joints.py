@@ -1,6 +1,6 @@
 """Segmental linings (SPEC §1.6): the joints as contact rows, the segments' rigid modes, the joint results.
 
-A joint is a radial cut through the lining (:func:`solver.geometry.mesh.build_mesh` makes each face's
+A joint is a cut through the lining normal to its mid-surface (radial on a circle) (:func:`solver.geometry.mesh.build_mesh` makes each face's
 nodes twice). Over its contact strip, ``a`` high and centred on the mid-surface, the faces touch
 node by node: a *normal row* per node pair, the jump ``J = (u_A - u_B)·e_θ`` (A the crown-side
 face, B the invert side, e_θ the hoop direction towards increasing θ), so that the gap
@@ -37,14 +37,14 @@ from ..geometry.bodies import Joints, TunnelMesh
 class JointRows:
     """The contact rows of the joints, normal rows of each joint then its tangential rows.
 
-    joint : (Rj,) joint of each row; normal : (Rj,) True for a normal row; radius : (Rj,) m, of
-    the row's node; weight : (Rj,) m, the trapezoid weight of the node on its strip;
+    joint : (Rj,) joint of each row; normal : (Rj,) True for a normal row; across : (Rj,) m, the
+    row's node's distance from the mid-surface along the cut (outward +); weight : (Rj,) m, the trapezoid weight of the node on its strip;
     B : (Rj, n) the jumps on the lining's free DOFs; on_axis : (J,) joints on the symmetry line.
     """
 
     joint: np.ndarray
     normal: np.ndarray
-    radius: np.ndarray
+    across: np.ndarray
     weight: np.ndarray
     B: sp.csr_matrix
     on_axis: np.ndarray
@@ -62,49 +62,47 @@ class JointRows:
 
 
 def hoop(theta_deg: float) -> tuple[np.ndarray, np.ndarray]:
-    """Unit hoop (towards increasing θ) and outward radial directions at ``theta_deg``."""
+    """Unit hoop (towards increasing θ) and outward radial directions at ``theta_deg`` (on
+    another section: the turning angle of the outward normal, :attr:`Joints.normal`)."""
     t = np.radians(theta_deg)
     return np.array([np.cos(t), -np.sin(t)]), np.array([np.sin(t), np.cos(t)])
 
 
-def strip_weights(radius: np.ndarray, r_mid: float, height: float) -> np.ndarray:
-    """Trapezoid weights (m) of the face nodes at ``radius`` (increasing) over the strip of
-    ``height`` centred on ``r_mid``; zero outside it. A strip narrower than the node spacing
-    is its one nearest node, weighted by the height."""
-    inside = np.abs(radius - r_mid) <= 0.5 * height * (1 + 1e-9) + 1e-12 * r_mid
-    w = np.zeros(radius.size)
+def strip_weights(across: np.ndarray, height: float) -> np.ndarray:
+    """Trapezoid weights (m) of the face nodes at ``across`` (m from the mid-surface, increasing)
+    over the strip of ``height`` centred on the mid-surface; zero outside it. A strip narrower
+    than the node spacing is its one nearest node, weighted by the height."""
+    inside = np.abs(across) <= 0.5 * height * (1 + 1e-9) + 1e-12
+    w = np.zeros(across.size)
     idx = np.flatnonzero(inside)
     if idx.size < 2:
-        w[np.argmin(np.abs(radius - r_mid))] = height
+        w[np.argmin(np.abs(across))] = height
         return w
-    r = radius[idx]
+    r = across[idx]
     h = np.diff(r)
     w[idx[:-1]] += 0.5 * h
     w[idx[1:]] += 0.5 * h
     return w
 
 
-def joint_rows(lining: Body, joints: Joints, center, *, r_mid: float, height: float, shear: bool) -> JointRows:
+def joint_rows(lining: Body, joints: Joints, *, height: float, shear: bool) -> JointRows:
     """The joints' contact rows (normal, and tangential ones when ``shear``: every interface model of
     the joints but a frictionless one has them)."""
-    rows_joint, rows_normal, rows_radius, rows_weight = [], [], [], []
+    rows_joint, rows_normal, rows_across, rows_weight = [], [], [], []
     nodes_a, nodes_b, dirs = [], [], []
-    p = lining.mesh.p
-    c = np.asarray(center, float)[:, None]
-    for j, theta in enumerate(joints.theta):
+    for j in range(joints.size):
         before, after = joints.before[j], joints.after[j]
-        face = after if before.size == 0 else before
-        radius = np.hypot(*(p[:, face] - c))
-        w = strip_weights(radius, r_mid, height)
+        across = joints.across[j]
+        w = strip_weights(across, height)
         keep = np.flatnonzero(w > 0)
-        e_t, e_r = hoop(theta)
+        e_t, e_r = hoop(joints.normal[j])
         on_axis = before.size == 0 or after.size == 0
         kinds = [(True, e_t)] + ([] if on_axis or not shear else [(False, e_r)])
         for is_normal, e in kinds:
             for k in keep:
                 rows_joint.append(j)
                 rows_normal.append(is_normal)
-                rows_radius.append(radius[k])
+                rows_across.append(across[k])
                 rows_weight.append(w[k])
                 nodes_a.append(before[k] if before.size else -1)
                 nodes_b.append(after[k] if after.size else -1)
@@ -120,7 +118,7 @@ def joint_rows(lining: Body, joints: Joints, center, *, r_mid: float, height: fl
             place = sp.csr_matrix((np.ones(has.size), (has, np.arange(has.size))), shape=(R, has.size))
             B = B + place @ part
     axis = np.array([joints.before[j].size == 0 or joints.after[j].size == 0 for j in range(joints.size)])
-    return JointRows(joint=np.array(rows_joint), normal=np.array(rows_normal, bool), radius=np.array(rows_radius),
+    return JointRows(joint=np.array(rows_joint), normal=np.array(rows_normal, bool), across=np.array(rows_across),
                      weight=np.array(rows_weight), B=sp.csr_matrix(B), on_axis=axis)
 
 
@@ -224,30 +222,26 @@ class JointResults:
 
 
 def joint_results(mesh: TunnelMesh, rows: JointRows, t: np.ndarray, jump: np.ndarray, u_lining: np.ndarray, *,
-                  r_mid: float, height: float, gap_tol: float) -> JointResults:
+                  height: float, gap_tol: float) -> JointResults:
     """The joints' forces from their contact tractions ``t`` and jumps ``jump`` (at ``rows``),
     their opening and their faces' rotation from the lining's nodal displacement ``u_lining`` (2, N)."""
     joints = mesh.joints
     n = joints.size
     thrust, moment, opening, rotation = (np.zeros(n) for _ in range(4))
     is_open = np.zeros(n, bool)
-    p = mesh.lining.p
-    c = np.asarray(mesh.center, float)[:, None]
     for j in range(n):
         normal = (rows.joint == j) & rows.normal
-        lam, w, r = t[normal], rows.weight[normal], rows.radius[normal]
+        lam, w, r = t[normal], rows.weight[normal], rows.across[normal]
         thrust[j] = float(np.sum(w * lam))
-        moment[j] = -float(np.sum(w * lam * (r - r_mid)))
+        moment[j] = -float(np.sum(w * lam * r))
         factor = 2.0 if rows.on_axis[j] else 1.0
         gap = -jump[normal] * factor
         opening[j] = max(0.0, float(gap.max()))
         is_open[j] = bool(gap.max() > gap_tol)
-        e_t, _ = hoop(joints.theta[j])
+        e_t, _ = hoop(joints.normal[j])
         before, after = joints.before[j], joints.after[j]
-        face = after if before.size == 0 else before
-        radius = np.hypot(*(p[:, face] - c))
         ua = e_t @ u_lining[:, before] if before.size else -(e_t @ u_lining[:, after])
         ub = e_t @ u_lining[:, after] if after.size else -(e_t @ u_lining[:, before])
-        rotation[j] = float(np.polyfit(radius - r_mid, ub - ua, 1)[0])
+        rotation[j] = float(np.polyfit(joints.across[j], ub - ua, 1)[0])
     return JointResults(theta=joints.theta.copy(), thrust=thrust, moment=moment, opening=opening,
                         rotation=rotation, open=is_open, contact_height=height)

@@ -8,7 +8,7 @@ import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from ..geometry.sizing import MAX_ELEMENTS, estimated_elements
-from ..ground.strata import geostatic_errors, layer_lines, strata
+from ..ground.strata import geostatic_errors, strata
 from ..lining.design import section_errors
 from .canonical import MAX_STIFFNESS_RATIO, _Frozen, content_id
 from .ground import HOEK_BROWN_DEFAULTS, LAYER_FIELDS, Ground, Strength
@@ -88,8 +88,6 @@ class CaseSpec(_Frozen):
         if errors:
             field, reason = errors[0]
             raise ValueError(f"{field}: {reason}")
-        if not self.geometry.circle:
-            self._section_supported()
         return self._mesh_fits()
 
     def _ground_fits(self) -> None:
@@ -122,18 +120,6 @@ class CaseSpec(_Frozen):
         if errors:
             field, reason = errors[0]
             raise ValueError(f"{field}: {reason}")
-
-    def _section_supported(self) -> None:
-        """What a non-circular section does not have yet: joints (cuts normal to the
-        mid-surface) and layer lines cutting the section."""
-        if self.lining.joints.count:
-            raise ValueError(f"lining.joints.count: a '{self.geometry.section.shape}' section's lining is "
-                             "monolithic so far (segment joints are cut on circles only)")
-        up, down, _ = self.geometry.hole_extent
-        for i, z in enumerate(layer_lines(self)):  # lines near the crown or invert level are moved off it
-            if self.geometry.depth - up < z < self.geometry.depth + down:
-                raise ValueError(f"ground.layers.{i}.thickness: the layer boundary {z:.6g} m deep cuts the "
-                                 f"'{self.geometry.section.shape}' section; so far only a circle may be cut")
 
     @property
     def plastic(self) -> bool:

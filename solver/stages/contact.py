@@ -98,7 +98,8 @@ def floating_contact(model: BuiltModel, spec: CaseSpec, d: np.ndarray, F, rows: 
     g0 = np.zeros(size)
     g0[:m] = spec.geometry.gap
     where = ([f"interface {th:.1f} deg" for th in iface.theta]
-             + [f"joint {model.mesh.joints.theta[j]:.1f} deg r={r:.3f} m" for j, r in zip(jr.joint, jr.radius)]
+             + [f"joint {model.mesh.joints.theta[j]:.1f} deg, {r:+.3f} m from the mid-surface"
+                for j, r in zip(jr.joint, jr.across)]
              + [f"interface shear {th:.1f} deg" for th in iface.theta[model.tangential]])[:size]
     fp = floating.FloatingProblem(
         S=model.flexibility(rows), d=d, g0=g0, w=model.w[:size], G=model.G[:size], F=np.atleast_1d(F),

@@ -82,7 +82,7 @@ def finish(model: BuiltModel, spec: CaseSpec, rows: Rows, loads: StageLoads, sta
         tj, Jj = t[m:m + nj], J[m:m + nj]
         kkt = max(kkt, joints.joint_kkt(jr, tj, Jj, spec.lining.joints, p_ref=p_ref, u_ref=u_ref))
         joint_state = joints.joint_results(
-            model.mesh, jr, tj, Jj, u_lining, r_mid=model.r_mid,
+            model.mesh, jr, tj, Jj, u_lining,
             height=spec.lining.joints.contact_height or spec.geometry.thickness, gap_tol=CONTACT_GAP_TOL * u_ref)
     a = float(sol.a) if np.ndim(sol.a) == 0 else np.asarray(sol.a, float)
     return Solution(spec=spec, u_ground=ground.body.expand(u_g + u1), u_stage1=ground.body.expand(u1),

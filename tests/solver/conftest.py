@@ -49,3 +49,20 @@ def assert_kkt(ds, *, tol: float = 1e-7) -> None:
 @pytest.fixture
 def kkt():
     return assert_kkt
+
+
+def segment_imbalance(model, sol) -> float:
+    """The largest relative imbalance of a segmental lining's rigid modes, ``F + Gᵀ W t`` over the
+    sum of the magnitudes of its terms (round-off when every segment is balanced)."""
+    import solver.stages.contact as contact_stage
+
+    _, _, d, F = contact_stage.forward_stage(model, sol.spec)
+    _, t = contact_stage.contact_tractions(model, sol.spec, d, F)
+    wrench = F + model.G.T @ (model.w * t)
+    scale = np.abs(F) + np.abs(model.G).T @ np.abs(model.w * t)
+    return float(np.max(np.abs(wrench) / scale))
+
+
+@pytest.fixture
+def imbalance():
+    return segment_imbalance
