@@ -7,11 +7,30 @@ taking ``root`` accepts a store or the path of its folder. The studies of SPEC Â
 """
 from __future__ import annotations
 
-from .reliability_methods import reliability_study
-from .result_store import ResultStore, open_case, open_results, run_and_store
-from .studies import Search, reliability, run_search, sensitivity
-from .sweep import MAX_SWEEP_CASES, Sweep, SweepError, expand_sweep, run_sweep
+import importlib
 
-__all__ = ["MAX_SWEEP_CASES", "ResultStore", "Search", "Sweep", "SweepError", "expand_sweep", "open_case",
-           "open_results", "reliability", "reliability_study", "run_and_store", "run_search", "run_sweep",
-           "sensitivity"]
+#: Where each name of the package lives: imported on first use (PEP 562), so that a process
+#: needing one module (a worker's case, the CLI's ``show``) does not import every study's
+#: libraries (scikit-learn, SALib, scipy.stats) at start.
+_HOME = {
+    "reliability_study": ".reliability_methods",
+    "ResultStore": ".result_store", "open_case": ".result_store", "open_results": ".result_store",
+    "run_and_store": ".result_store",
+    "Search": ".studies", "reliability": ".studies", "run_search": ".studies", "sensitivity": ".studies",
+    "MAX_SWEEP_CASES": ".sweep", "Sweep": ".sweep", "SweepError": ".sweep", "expand_sweep": ".sweep",
+    "run_sweep": ".sweep",
+}
+
+__all__ = sorted(_HOME)
+
+
+def __getattr__(name: str):
+    if name in _HOME:
+        value = getattr(importlib.import_module(_HOME[name], __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_HOME))

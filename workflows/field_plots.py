@@ -66,7 +66,7 @@ def _yielded_outline(ax, ds: xr.Dataset, tri: np.ndarray, x: np.ndarray, y: np.n
 def _lining(ax, ds: xr.Dataset, tri: np.ndarray, x: np.ndarray, y: np.ndarray) -> None:
     lining = tri[ds["body"].values == 1]
     ax.add_collection(PolyCollection(np.stack([x[lining], y[lining]], axis=-1), facecolors="0.8",
-                                     edgecolors="none", label="lining"))
+                                     edgecolors="none", label="lining", rasterized=True))
 
 
 def _panel(fig, ax, ds, tri, near, values, *, label: str, cmap: str, faces: bool, symmetric: bool = False) -> None:
@@ -87,6 +87,7 @@ def _panel(fig, ax, ds, tri, near, values, *, label: str, cmap: str, faces: bool
                            vmin=lo, vmax=hi, shading="flat", rasterized=True)
     else:
         art = ax.tricontourf(Triangulation(x, y, tri[ground]), values, levels=levels, cmap=cmap, extend="both")
+        art.set_rasterized(True)
     _lining(ax, ds, tri, x, y)
     joint_plots.draw_on_mesh(ax, ds)
     _yielded_outline(ax, ds, tri, x, y)
@@ -217,7 +218,8 @@ def plot_deformed_mesh(ds: xr.Dataset, *, scale: float | None = None, stage: str
     ax = fig.add_subplot()
     ground = tri[body == 0]
     art = ax.tripcolor(Triangulation(xd, yd, ground), magnitude, cmap="viridis", shading="gouraud", rasterized=True)
-    ax.triplot(Triangulation(xd, yd, ground), color="w", lw=0.15, alpha=0.5)
+    for line in ax.triplot(Triangulation(xd, yd, ground), color="w", lw=0.15, alpha=0.5):
+        line.set_rasterized(True)
     if with_lining:
         _deformed_lining(ax, ds, tri[body == 1], xd, yd, ring, scale, (ux, uy))
     ix, iy = ds["interface_x"].values, ds["interface_y"].values
@@ -244,7 +246,7 @@ def plot_deformed_mesh(ds: xr.Dataset, *, scale: float | None = None, stage: str
 def _deformed_lining(ax, ds, lining, xd, yd, ring, scale, displacement) -> None:
     """The deformed lining, the contact zone on its extrados and its joints."""
     ax.add_collection(PolyCollection(np.stack([xd[lining], yd[lining]], axis=-1), facecolors="0.75",
-                                     edgecolors="0.45", linewidths=0.2, label="lining (deformed)"))
+                                     edgecolors="0.45", linewidths=0.2, label="lining (deformed)", rasterized=True))
     on = ds["in_contact"].values.astype(bool)
     pts = np.column_stack([xd[ring], yd[ring]])
     segs = [pts[i:i + 2] for i in range(len(pts) - 1) if on[i] and on[i + 1]]

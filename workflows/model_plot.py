@@ -64,11 +64,11 @@ def plot_model(ds: xr.Dataset) -> Figure:
         faces = tri[(body == 0) & (layer == k)]
         colour = _LAYER_COLOURS[k % len(_LAYER_COLOURS)]
         ax.add_collection(PolyCollection(np.stack([x[faces], y[faces]], axis=-1), facecolors=colour,
-                                         edgecolors="0.35", linewidths=0.1))
+                                         edgecolors="0.35", linewidths=0.1, rasterized=True))
         handles.append(Patch(facecolor=colour, edgecolor="0.35", label=_layer_label(spec, k)))
     lining = tri[body == 1]
     ax.add_collection(PolyCollection(np.stack([x[lining], y[lining]], axis=-1), facecolors="0.55",
-                                     edgecolors="0.25", linewidths=0.1))
+                                     edgecolors="0.25", linewidths=0.1, rasterized=True))
     handles.append(Patch(facecolor="0.55", label=f"lining, t = {geometry.get('thickness', 0):g} m"))
     table = (spec.get("water") or {}).get("table")
     if table is not None:

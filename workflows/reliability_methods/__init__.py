@@ -9,15 +9,28 @@
 """
 from __future__ import annotations
 
-from .akmcs import ak_mcs
-from .driver import StoreRunner, reliability_study, run_study
-from .form import form
-from .limit_state import BudgetExhausted, CaseFailed, CaseLimitState, FunctionLimitState, LimitState
-from .records import ReliabilityRecord, all_records, read_record
-from .result import ReliabilityResult
-from .study import ReliabilityStudy
-from .subset import subset_simulation
+import importlib
 
-__all__ = ["BudgetExhausted", "CaseFailed", "CaseLimitState", "FunctionLimitState", "LimitState",
-           "ReliabilityRecord", "ReliabilityResult", "ReliabilityStudy", "StoreRunner", "ak_mcs", "all_records",
-           "form", "read_record", "reliability_study", "run_study", "subset_simulation"]
+#: Where each name of the package lives, imported on first use (PEP 562): AK-MCS's scikit-learn
+#: only when a study asks for it.
+_HOME = {
+    "ak_mcs": ".akmcs", "StoreRunner": ".driver", "reliability_study": ".driver", "run_study": ".driver",
+    "form": ".form", "BudgetExhausted": ".limit_state", "CaseFailed": ".limit_state",
+    "CaseLimitState": ".limit_state", "FunctionLimitState": ".limit_state", "LimitState": ".limit_state",
+    "ReliabilityRecord": ".records", "all_records": ".records", "read_record": ".records",
+    "ReliabilityResult": ".result", "ReliabilityStudy": ".study", "subset_simulation": ".subset",
+}
+
+__all__ = sorted(_HOME)
+
+
+def __getattr__(name: str):
+    if name in _HOME:
+        value = getattr(importlib.import_module(_HOME[name], __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_HOME))
