@@ -7,7 +7,7 @@ taking ``root`` accepts a store or the path of its folder. The studies of SPEC Â
 """
 from __future__ import annotations
 
-import importlib
+from .lazy import lazy_exports
 
 #: Where each name of the package lives: imported on first use (PEP 562), so that a process
 #: needing one module (a worker's case, the CLI's ``show``) does not import every study's
@@ -22,15 +22,4 @@ _HOME = {
 }
 
 __all__ = sorted(_HOME)
-
-
-def __getattr__(name: str):
-    if name in _HOME:
-        value = getattr(importlib.import_module(_HOME[name], __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_HOME))
+__getattr__, __dir__ = lazy_exports(__name__, _HOME)
