@@ -26,6 +26,7 @@ from workflows.case_tables import stored_forces
 from workflows.joint_check import statement
 from workflows.section_check import check_of
 from workflows.plots import PLOTS, SWEEP_PLOT_NAMES
+from workflows.reliability_methods.records import design_point_of
 from workflows.studies import MIN_SAMPLES, SENSITIVITY_MIN_SAMPLES
 from workflows.units import DIAGNOSTICS
 
@@ -116,9 +117,10 @@ async def case_page(case_id: CaseId, request: Request) -> HTMLResponse:
     diagnostics = [scalar_column(n) for n in names if n in DIAGNOSTICS]
     verdict = design_verdict(values, case.spec)
     forces = await forces_of(request, case_id) if case.status == "done" else None
+    design_point = await asyncio.to_thread(design_point_of, jobs_of(request).root, case_id)
     return await render(request, "case.html", case=case, values=values, columns=columns, plots=list(PLOTS),
                         diagnostics=diagnostics, verdict=verdict, mesh_check=mesh_check_rows(values, checked),
-                        forces=forces, warnings=case.warnings or input_warnings(case.spec))
+                        forces=forces, warnings=case.warnings or input_warnings(case.spec), design_point=design_point)
 
 
 async def forces_of(request: Request, case_id: str) -> Optional[dict]:

@@ -15,12 +15,15 @@ import re
 from pathlib import Path
 from typing import Optional
 
-from workflows.files import DamagedFile
+from workflows.bounded import BoundedMemo
+from workflows.files import VERIFIED_MEMO, DamagedFile
 from workflows.result_store import FileKey, as_store
 
 logger = logging.getLogger(__name__)
 
-_VERIFIED: dict[str, FileKey] = {}
+#: Case results this process has read whole (case id -> the file version read), the most recent
+#: :data:`workflows.files.VERIFIED_MEMO` (bounded: the API meets every case of its store).
+_VERIFIED: BoundedMemo[str, FileKey] = BoundedMemo(VERIFIED_MEMO)
 
 
 class BrokenResult(Exception):

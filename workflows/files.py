@@ -29,6 +29,8 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from .bounded import BoundedMemo
+
 logger = logging.getLogger(__name__)
 
 TMP_SUFFIX = ".tmp"
@@ -38,8 +40,10 @@ _CHUNK = 1 << 20
 
 #: Files verified by this process: path -> (inode, size, mtime ns, ctime ns) of the version
 #: that matched its digest. Any rewrite changes the key (ctime cannot be set back), so an
-#: unchanged key needs no second read.
-_VERIFIED: dict[str, tuple[int, int, int, int]] = {}
+#: unchanged key needs no second read. The most recent :data:`VERIFIED_MEMO` files (bounded:
+#: a service meets every file of its store).
+VERIFIED_MEMO = 4096
+_VERIFIED: BoundedMemo[str, tuple[int, int, int, int]] = BoundedMemo(VERIFIED_MEMO)
 
 
 class DamagedFile(Exception):

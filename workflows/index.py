@@ -56,6 +56,7 @@ import numpy as np
 import xarray as xr
 from xarray.backends.netCDF4_ import NETCDF4_PYTHON_LOCK
 
+from .bounded import BoundedMemo
 from .combine import label_cases, read_reduced, reduce_case, stack_cases
 from .files import unverifiable, verify, write_atomically
 from .store_files import (OPEN_OPTIONS, FileKey, StoreFiles, check_case_id, data_variables, file_key,
@@ -400,7 +401,8 @@ def _stack_entries(template: xr.Dataset, entries: list[dict[str, np.ndarray]]) -
     return xr.Dataset(data, coords=coords)
 
 
-_TEMPLATES: dict[tuple[str, FileKey], xr.Dataset] = {}
+#: Schema files read (path and version -> its dataset): a few, the most recent kept.
+_TEMPLATES: BoundedMemo[tuple[str, FileKey], xr.Dataset] = BoundedMemo(8)
 
 
 def _template(path: Path) -> xr.Dataset:

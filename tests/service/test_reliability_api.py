@@ -92,6 +92,10 @@ def test_a_form_study_over_rest_and_across_a_restart(tmp_path):
         assert case["status"] == "done" and case["summary"]["max_utilization"] == pytest.approx(1.0, abs=2e-3)
         page = client.get(f"/ui/reliability/{ident}")
         assert page.status_code == 200 and "β = 2.0" in page.text and f"/ui/cases/{done['design_case']}" in page.text
+        case_page = client.get(f"/ui/cases/{done['design_case']}").text  # and the case links back
+        assert "The design point of reliability study" in case_page and f"/ui/reliability/{ident}" in case_page
+        other = next(c for c in done["case_ids"] if c != done["design_case"])
+        assert "The design point of reliability study" not in client.get(f"/ui/cases/{other}").text
         png = client.get(f"/reliability/{ident}/convergence.png")
         assert png.status_code == 200 and png.headers["content-type"] == "image/png"
         assert any(item["id"] == ident for item in client.get("/reliability").json()["items"])

@@ -71,3 +71,35 @@ def test_sweep_analyses_and_a_live_search_page(service, browser, tmp_path):
     screenshot(browser, tmp_path / "search.png")
     browser.get(url)
     assert browser.find_element("css selector", f"#searches tr[data-key='{search['id']}']")
+
+
+def test_a_reliability_study_page_follows_the_study_to_its_answer(service, browser, tmp_path):
+    """A FORM study posted to the service (exact β 2.0): its page shows the progress while it runs
+    and, by itself, β with its interval, the design point and importance factors, the convergence
+    figure and the design-point case, whose page opens."""
+    from test_reliability_api import study_at
+
+    url = service
+    ident = httpx.post(f"{url}/reliability", json=study_at(2.0, 40, "page"), timeout=30).json()["id"]
+    browser.get(f"{url}/ui/reliability/{ident}")
+
+    def shown():
+        return browser.execute_script(
+            "const s = document.getElementById('reliability-status');"
+            "return s ? [s.dataset.status, document.getElementById('reliability-answer').textContent,"
+            "            document.querySelectorAll('#importance-table tbody tr').length] : [null, '', 0];")
+
+    wait_until(lambda: shown()[0] == "done", timeout=240, what="the reliability page to show the answer")
+    done = httpx.get(f"{url}/reliability/{ident}", timeout=30).json()
+    status, answer, rows = shown()
+    assert f"β = {done['beta']:.3f}" in answer and "95 %" in answer and f"{done['calls']} FE calls" in answer
+    assert abs(done["beta"] - 2.0) < 0.02 and rows == 2
+    wait_until(lambda: all(images_loaded(browser, "#reliability-convergence img")), timeout=60,
+               what="the convergence figure")
+    screenshot(browser, tmp_path / "reliability.png")
+    browser.find_element("css selector", f"#reliability-design-point a[href='/ui/cases/{done['design_case']}']").click()
+    wait_until(lambda: done["design_case"] in browser.current_url, timeout=30, what="the design-point case page")
+    link = browser.find_element("css selector", f"#design-point-of a[href='/ui/reliability/{ident}']")
+    assert "The design point of reliability study" in browser.find_element("id", "design-point-of").text
+    link.click()
+    wait_until(lambda: f"/ui/reliability/{ident}" in browser.current_url, timeout=30, what="back to the study")

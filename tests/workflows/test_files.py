@@ -159,3 +159,35 @@ def test_free_space_of_a_store_not_made_yet_is_its_parents(tmp_path):
 
     assert free_bytes(tmp_path / "not" / "made") == pytest.approx(shutil.disk_usage(tmp_path).free, rel=0.01)
     assert free_bytes(tmp_path / "not" / "made") > 0
+
+
+def test_the_memo_of_verified_files_is_bounded_and_an_evicted_file_is_verified_again(tmp_path, monkeypatch):
+    """A long-running process meets every file of its store: the memo of verified versions keeps
+    the most recently used ones only (least recently used evicted first), and a file that left it
+    is hashed again at its next check, so a damage made meanwhile is still found."""
+    import workflows.files as files
+    from workflows.bounded import BoundedMemo
+
+    memo = BoundedMemo(2)
+    monkeypatch.setattr(files, "_VERIFIED", memo)
+    hashed = []
+    real_digest = files.digest
+    monkeypatch.setattr(files, "digest", lambda p: hashed.append(Path(p).name) or real_digest(p))
+    paths = []
+    for name in "abc":
+        path = tmp_path / f"{name}.bin"
+        write_atomically(path, lambda tmp, n=name: tmp.write_bytes(n.encode() * 1000), checksum=True)
+        paths.append(path)
+    a, b, c = paths
+    hashed.clear()  # (writing hashed the temporaries)
+    verify(a), verify(b), verify(a)  # a again: remembered, and now the most recent
+    assert hashed == ["a.bin", "b.bin"]
+    verify(c)  # evicts b, the least recently used
+    assert len(memo) == 2 and str(b) not in memo and str(a) in memo
+    with open(b, "r+b") as fh:  # damaged in place while out of the memo
+        fh.write(b"X")
+    with pytest.raises(DamagedFile):
+        verify(b)
+    assert hashed[-1] == "b.bin"
+    with pytest.raises(ValueError, match="size"):
+        BoundedMemo(0)

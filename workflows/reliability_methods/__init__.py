@@ -11,15 +11,17 @@ from __future__ import annotations
 
 from workflows.lazy import lazy_exports
 
+from .form import form  # (eager: the submodule of the same name would shadow a lazy one)
+
 #: Where each name of the package lives, imported on first use (PEP 562): AK-MCS's scikit-learn
 #: only when a study asks for it.
 _HOME = {
     "ak_mcs": ".akmcs", "StoreRunner": ".driver", "reliability_study": ".driver", "run_study": ".driver",
-    "form": ".form", "BudgetExhausted": ".limit_state", "CaseFailed": ".limit_state",
+    "BudgetExhausted": ".limit_state", "CaseFailed": ".limit_state",
     "CaseLimitState": ".limit_state", "FunctionLimitState": ".limit_state", "LimitState": ".limit_state",
     "ReliabilityRecord": ".records", "all_records": ".records", "read_record": ".records",
     "ReliabilityResult": ".result", "ReliabilityStudy": ".study", "subset_simulation": ".subset",
 }
 
-__all__ = sorted(_HOME)
+__all__ = sorted([*_HOME, "form"])
 __getattr__, __dir__ = lazy_exports(__name__, _HOME)

@@ -83,12 +83,17 @@ def new_record(study) -> ReliabilityRecord:
                              budget=study.budget, submitted_at=time.time())
 
 
-def design_point_notes(root: StoreLike, case_id: str) -> list[str]:
-    """What a case's report says when the case is the design point of finished studies."""
+def design_point_of(root: StoreLike, case_id: str) -> list[ReliabilityRecord]:
+    """The finished reliability studies whose design point is the case ``case_id``."""
     folder = Path(as_store(root).root) / FOLDER
     if not folder.is_dir():
         return []
+    return [r for r in all_records(root) if r.design_case == case_id and r.status == "done"]
+
+
+def design_point_notes(root: StoreLike, case_id: str) -> list[str]:
+    """What a case's report says when the case is the design point of finished studies."""
     return [f"Design point of reliability study '{r.name}' ({r.id}): {r.study.get('method')}, "
             f"beta = {r.beta:.3f}, P = {r.probability:.3g}" if r.beta is not None and r.probability is not None
             else f"Design point of reliability study '{r.name}' ({r.id})"
-            for r in all_records(root) if r.design_case == case_id and r.status == "done"]
+            for r in design_point_of(root, case_id)]
