@@ -113,6 +113,10 @@ def _extent(section: Section, inner_radius: float, offset: float) -> tuple[float
     return float(p[1, 0]), float(-p[1, -1]), float(p[0].max())
 
 
+#: A joint offset this close to 180/n (deg) is taken as 180/n: what a person types for 180/7.
+OFFSET_TOLERANCE = 1e-4
+
+
 class Joints(_Frozen):
     """Longitudinal joints of a segmental lining (SPEC §1.6); ``count = 0`` is a monolithic ring."""
 
@@ -144,9 +148,13 @@ class Joints(_Frozen):
             return self
         if n < 3:
             raise ValueError(f"count: {n} segments cannot form a ring that holds; at least 3")
-        if not any(abs(self.offset - o) <= 1e-9 for o in (0.0, 180.0 / n)):
+        half = 180.0 / n
+        if abs(self.offset - half) <= OFFSET_TOLERANCE and self.offset != half:
+            # 180/7 typed as 25.7143 (as the message below prints it) is the pattern meant: one case, one id
+            object.__setattr__(self, "offset", half)
+        if not any(abs(self.offset - o) <= 1e-9 for o in (0.0, half)):
             raise ValueError(f"offset: {self.offset} deg makes the pattern of {n} segments unsymmetric about "
-                             f"the vertical axis; use 0 or {180.0 / n:.6g}")
+                             f"the vertical axis; use 0 or {half:.6g}")
         if self.shear == "coulomb" and self.friction <= 0:
             raise ValueError("friction: joints.shear 'coulomb' needs joints.friction > 0")
         return self

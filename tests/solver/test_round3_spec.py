@@ -78,6 +78,19 @@ def test_mistakes_are_named_by_their_field(data, field):
     assert [f for f, _ in field_errors(err.value)] == [field]
 
 
+@pytest.mark.parametrize("count", [7, 11, 13])
+def test_a_typed_half_joint_spacing_is_the_symmetric_pattern(count):
+    """180/n as a person types it (six significant digits, as the refusal prints it) is the
+    symmetric pattern: accepted, stored as 180/n, the same case and id as 180/n itself; a value
+    off by more than the typing's rounding is still refused naming the field."""
+    exact = CaseSpec.model_validate({"lining": {"joints": {"count": count, "offset": 180.0 / count}}})
+    typed = CaseSpec.model_validate({"lining": {"joints": {"count": count, "offset": float(f"{180.0 / count:.6g}")}}})
+    assert typed.lining.joints.offset == 180.0 / count and typed.case_id == exact.case_id
+    with pytest.raises(ValidationError) as err:
+        CaseSpec.model_validate({"lining": {"joints": {"count": count, "offset": round(180.0 / count, 2)}}})
+    assert [f for f, _ in field_errors(err.value)] == ["lining.joints.offset"]
+
+
 def test_admissible_k0_of_a_cohesionless_layer_is_between_ka_and_kp():
     phi = 30.0
     ka, kp = (1 - np.sin(np.radians(phi))) / (1 + np.sin(np.radians(phi))), 1 / ((1 - 0.5) / 1.5)

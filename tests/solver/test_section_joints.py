@@ -133,3 +133,30 @@ def test_the_figures_find_a_horseshoe_s_joint_faces_on_their_normal_cuts(horsesh
         assert len(faces) == len(expected)
         for face, nodes in zip(faces, expected):
             np.testing.assert_allclose(xy[:, face], model.mesh.lining.p[:, nodes], atol=1e-9)
+
+
+SHAPES = [HORSESHOE["geometry"]["section"], {"shape": "ellipse", "width": 9.0, "height": 7.0},
+          {"shape": "polycentric", "arcs": [{"radius": 4.0, "angle": 60.0}, {"radius": 2.5, "angle": 70.0},
+                                            {"angle": 50.0}]}]
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_sample_of_segmental_sections_with_a_layer_line(seed, imbalance):
+    """A seeded sample over the space a study samples: three shapes, 4–10 segments, both symmetric
+    offsets, strips of a third to the whole thickness, K0 0.4–1.2, a layer line at a random depth
+    (through the section or not): each meshes, solves with the contact's KKT conditions, every
+    joint's thrust compressive and inside its strip, every segment balanced."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(4, 11))
+    case = {"geometry": {**HORSESHOE["geometry"], "section": SHAPES[seed % 3]},
+            "ground": {"young": 1e8, "layers": [{"thickness": float(rng.uniform(18.0, 32.0)), "young": 5e7},
+                                                {"thickness": 0.0, "young": 2e8}]},
+            "loads": {"lateral_ratio": float(rng.uniform(0.4, 1.2))},
+            "lining": {"joints": {"count": n, "offset": float(rng.choice([0.0, 180.0 / n])),
+                                  "contact_height": float(rng.choice([0.1, 0.15, 0.3]))}},
+            "mesh": {"interface_size": 0.25, "far_size": 8.0}}
+    model, sol = _solve(case)
+    j = sol.joints
+    assert sol.kkt_residual < 1e-8
+    assert np.all(j.thrust > 0) and j.eccentricity_ratio.max() <= 1 + 1e-9
+    assert imbalance(model, sol) < 1e-9
