@@ -243,3 +243,28 @@ def test_unknown_sweep_path_and_base_field_say_did_you_mean():
     with pytest.raises(ValidationError) as info:
         Sweep.model_validate({"name": "typo", "base": {"ground": {"densty": 2000.0}}, "vary": {}})
     assert field_errors(info.value) == [("base.ground.densty", "unknown field; did you mean 'density'?")]
+
+
+def test_a_sweep_over_a_profile_s_arc_radius(tmp_path):
+    """``geometry.section.arcs.0.radius`` is a sweep parameter (SPEC §9.4): each case's first arc
+    has the radius given and its last one is solved for closure; the combined results carry the
+    radius as the case's parameter, and the crown's moment changes with the crown arc's radius."""
+    from workflows.parameters import flat_parameters
+
+    base = {"geometry": {"section": {"shape": "polycentric", "arcs": [
+        {"radius": 4.0, "angle": 60.0}, {"radius": 2.5, "angle": 70.0}, {"angle": 50.0}]},
+        "thickness": 0.3, "depth": 25.0, "width": 60.0, "height": 70.0},
+        "mesh": {"interface_size": 0.4, "far_size": 10.0}}
+    radii = [3.6, 4.0, 4.4]
+    specs = expand_sweep({"name": "crown radius", "base": base, "vary": {"geometry.section.arcs.0.radius": radii}})
+    assert [s.geometry.section.arcs[0].radius for s in specs] == radii
+    closing = [s.geometry.profile().arcs[-1].radius for s in specs]
+    assert len(set(closing)) == 3 and all(r > 0 for r in closing)
+    names = [k for k, v in flat_parameters(specs[0]).items() if v == 3.6]
+    assert len(names) == 1 and "radius" in names[0]
+    store = as_store(tmp_path)
+    ids = [store.run_and_store(s) for s in specs]
+    ds = open_results(tmp_path, ids)
+    assert list(ds[names[0]].values) == radii
+    crown = [float(store.open_case(i)["moment"].values[0]) for i in ids]
+    assert len(set(np.round(crown, 3))) == 3
