@@ -36,8 +36,8 @@ def sector_params(spec) -> list[float]:
     invert, the arcs' tangent points, where a mesh line of the ground (a layer line, a drained
     case's table) meets the excavation (:func:`line_params`), a segmental lining's joints
     (:func:`joint_params`) and where the hoop grading towards each joint ends."""
-    return sorted({*_fixed_params(spec), *joint_params(spec), *(z[0] for z in profile_zones(spec)),
-                   *(z[1] for z in profile_zones(spec))})
+    zones = profile_zones(spec)
+    return sorted({*_fixed_params(spec), *joint_params(spec), *(z[0] for z in zones), *(z[1] for z in zones)})
 
 
 def _fixed_params(spec) -> set[float]:
@@ -61,8 +61,6 @@ def line_params(spec) -> list[float]:
     """Turning angles (rad) where the ground's horizontal mesh lines cut the excavation. A convex
     profile's height falls monotonically from crown to invert along its turning angle, so each
     line inside the excavation's height meets the half profile once."""
-    from ..ground.strata import mesh_lines
-
     g, hole = spec.geometry, _hole(spec)
     top, bottom = (float(v) for v in hole.points(np.array([0.0, math.pi]))[1])
     out = []
