@@ -42,11 +42,6 @@ class BoundedMemo(Generic[K, V]):
         with self._lock:
             return key in self._items
 
-    def __getitem__(self, key: K) -> V:
-        with self._lock:
-            self._items.move_to_end(key)
-            return self._items[key]
-
     def pop(self, key: K, default: Optional[V] = None) -> Optional[V]:
         with self._lock:
             return self._items.pop(key, default)

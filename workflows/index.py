@@ -408,10 +408,11 @@ _TEMPLATES: BoundedMemo[tuple[str, FileKey], xr.Dataset] = BoundedMemo(8)
 def _template(path: Path) -> xr.Dataset:
     """The schema file at ``path``, read once per process and version of the file."""
     key = (str(path), file_key(path.stat()))
-    if key not in _TEMPLATES:
+    template = _TEMPLATES.get(key)
+    if template is None:
         with netcdf_lock, xr.open_dataset(path, **OPEN_OPTIONS) as ds:
-            _TEMPLATES[key] = ds.load()
-    return _TEMPLATES[key]
+            template = _TEMPLATES[key] = ds.load()
+    return template
 
 
 def _stat(path: Path) -> tuple[int, int] | None:

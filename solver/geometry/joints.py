@@ -206,9 +206,10 @@ def cut_along(p: np.ndarray, t: np.ndarray, cuts, angle_of) -> tuple[np.ndarray,
     triangles on its invert side use instead. Returns the new ``p``, ``t`` and, per copy, the
     vertex it copies."""
     origin = np.zeros(0, np.int64)
+    # once: a cut appends copies at the same places and renumbers corners, moving no point
+    ang = angle_of(p) if len(cuts) else None
+    centroid = angle_of(p[:, t].mean(axis=1)) if len(cuts) else None
     for a in cuts:
-        ang = angle_of(p)
-        centroid = angle_of(p[:, t].mean(axis=1))
         on = np.flatnonzero(np.abs(ang - a) <= 1e-6)
         if on.size < 2:
             raise RuntimeError(f"no line of lining nodes across the joint at {a:g} deg")
@@ -216,6 +217,7 @@ def cut_along(p: np.ndarray, t: np.ndarray, cuts, angle_of) -> tuple[np.ndarray,
         remap[on] = p.shape[1] + np.arange(on.size)
         t = np.where(centroid[None, :] > a, remap[t], t)
         p = np.hstack([p, p[:, on]])
+        ang = np.r_[ang, ang[on]]
         origin = np.r_[origin, on]
     return p, t, origin
 
