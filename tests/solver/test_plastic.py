@@ -144,8 +144,21 @@ def test_contact_on_yielding_ground_holds_its_kkt_conditions():
 
 def test_a_case_that_does_not_converge_fails_with_the_reason(monkeypatch):
     monkeypatch.setattr(plastic, "MAX_STEP_ITERATIONS", 2)
-    with pytest.raises(NotConvergedError, match=r"^solver\.load_steps: .*stage 1"):
+    with pytest.raises(NotConvergedError, match=r"^solver\.load_steps: .*stage 1.*(held λd|first increment)"):
         run_case(CaseSpec.model_validate(_hole(0.0)))
+
+
+def test_a_stage_one_failure_says_what_the_ground_held():
+    """The release and convergence of the last converged increment, against the elastic ground's
+    (``unit`` per whole release) and the curve's last slope against the elastic line's."""
+    elastic = [(0.1, 0.2e-3), (0.2, 0.4e-3)]
+    assert plastic.held(elastic, 2e-3) == ("The unsupported ground held λd 0.2 (mean wall convergence 0.4 mm, 1 times "
+                                           "the elastic ground's; the ground reaction curve's last increment 1 times "
+                                           "as steep as the elastic line)")
+    steep = plastic.held(elastic + [(0.3, 1.6e-3)], 2e-3)
+    assert "held λd 0.3 (mean wall convergence 1.6 mm, 2.67 times" in steep and "increment 6 times as steep" in steep
+    assert plastic.held([(0.05, 0.1e-3)], 2e-3).endswith("increment 1 times as steep as the elastic line)")
+    assert "first increment" in plastic.held([], 2e-3)
 
 
 @pytest.mark.slow
