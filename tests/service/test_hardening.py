@@ -60,7 +60,11 @@ def test_a_lone_surrogate_is_invalid_input_not_a_server_error(client, sweep, fie
         assert "not valid Unicode" in response.text
 
 
-def test_an_error_answer_stays_small_for_a_large_body_of_bad_values(client):
+def test_an_error_answer_stays_small_for_a_large_body_of_bad_values(client, monkeypatch):
+    import workflows.sweep
+
+    suggest, asked = workflows.sweep.did_you_mean, []
+    monkeypatch.setattr(workflows.sweep, "did_you_mean", lambda *a: asked.append(a) or suggest(*a))
     body = json.dumps({"name": "big", "vary": {f"lining.no_such_{i}": [1] for i in range(36_000)}})
     assert len(body) > 900_000
     response = client.post("/sweeps", content=body.encode(), headers={"content-type": "application/json"})
@@ -69,6 +73,8 @@ def test_an_error_answer_stays_small_for_a_large_body_of_bad_values(client):
     errors = response.json()["errors"]
     assert len(errors) <= 51 and errors[0]["field"] == "lining.no_such_0"
     assert errors[-1]["reason"] == "and 35,950 more errors not listed"
+    assert "did you mean 'lining.young'" in errors[0]["reason"]
+    assert len(asked) == workflows.sweep.SUGGESTED  # suggestions for the listed errors only (1 ms each)
 
 
 # -- other origins ------------------------------------------------------------------------------
