@@ -89,8 +89,8 @@ def _start(kind: str, folder: Path) -> tuple[subprocess.Popen, int]:
             "-master.volumeSizeLimitMB=64", "-filer", f"-filer.port={filer}",
             "-s3", f"-s3.port={s3}", "-s3.port.iceberg=0", "-s3.port.lance=0", "-metricsPort=0",
             "-volume.preStopSeconds=0"]
-    log = open(folder / "weed.log", "wb")
-    server = subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT)
+    with open(folder / "weed.log", "wb") as log:  # the child keeps its own handle
+        server = subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT)
     return server, s3
 
 
@@ -101,9 +101,19 @@ def serve(kind: str | None = None):
     nothing in this process's."""
     kind = kind or default_server()
     with tempfile.TemporaryDirectory(prefix=f"s3-{kind}-") as folder:
-        server, port = _start(kind, Path(folder))
+        for attempt in range(3):  # a port found free may be taken before the server binds it
+            here = Path(folder) / str(attempt)
+            here.mkdir()
+            server, port = _start(kind, here)
+            try:
+                _wait(port, server, kind)
+                break
+            except RuntimeError:
+                server.kill()
+                server.wait()
+                if attempt == 2:
+                    raise
         try:
-            _wait(port, server, kind)
             yield {"AWS_ENDPOINT_URL": f"http://127.0.0.1:{port}", "AWS_ACCESS_KEY_ID": "bench",
                    "AWS_SECRET_ACCESS_KEY": "bench", "AWS_DEFAULT_REGION": "us-east-1"}
         finally:
