@@ -211,8 +211,9 @@ def main(argv: list[str] | None = None) -> int:
               f"warm {o['warm_seconds']:.2f} s; publishing them took {o['fill_seconds']:.1f} s")
     if "throughput" in out:  # also without the open_results figures (--cases 0)
         t = out["throughput"]
-        print(f"sweep of {t['cases']} coarse cases (S3 server: {out['server']}) on two workers: folder {t['local_cases_per_minute']:.0f}, "
-              f"bucket {t['s3_cases_per_minute']:.0f} cases/min: {100 * t['ratio']:.0f} %")
+        print(f"sweep of {t['cases']} coarse cases (S3 server: {out['server']}) on two workers: "
+              f"folder {t['local_cases_per_minute']:.0f}, bucket {t['s3_cases_per_minute']:.0f} cases/min: "
+              f"{100 * t['ratio']:.0f} %")
     return 0
 
 

@@ -12,8 +12,8 @@ geometry. The stop test is the equilibrium residual: the out-of-balance force
 ``‖K u - f - p(u)‖`` of the iterate, relative to the load released so far (stage 1: the released
 fraction of the excavation load; stage 2: that of the stage's load with the stage-1 plastic load),
 at most ``solver.tolerance`` floored at :data:`MIN_TOLERANCE` (SPEC §9.1 asks for the increment's
-load: k times tighter at increment k, which this iteration does not reach, docs/method.md); the plastic consistency holds at every point by the return
-mapping (:mod:`solver.ground.mohr_coulomb`).
+load: k times tighter at increment k, which this iteration does not reach, docs/method.md); the
+plastic consistency holds at every point by the return mapping (:mod:`solver.ground.mohr_coulomb`).
 
 Where an increment stalls (:data:`STAGNATION`) it is split in halves, down to 1/64 of it,
 and the sub-increments grow again as they converge (:func:`_follow`; the automatic step

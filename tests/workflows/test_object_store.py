@@ -1,7 +1,7 @@
-"""The result store on object storage (``s3://bucket/prefix``) against a real S3-compatible server
-(moto's server mode and SeaweedFS on loopback: the ``s3`` and ``seaweedfs`` fixtures): one object per file, written whole, read
-back only when it matches its checksum, the index answering ``open_results`` for a process
-that computed none of the cases, identical to a local store."""
+"""The result store on object storage (``s3://bucket/prefix``) against real S3-compatible servers
+(moto's server mode and SeaweedFS on loopback: the ``s3`` and ``seaweedfs`` fixtures): one object
+per file, written whole, read back only when it matches its checksum, the index answering
+``open_results`` for a process that computed none of the cases, identical to a local store."""
 from __future__ import annotations
 
 import uuid
