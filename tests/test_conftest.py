@@ -1,6 +1,7 @@
 """The suite's own plumbing (``tests/conftest.py``): what ``make test`` relies on to run in parallel."""
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -30,9 +31,11 @@ def test_a_module_with_a_module_fixture_runs_on_one_process(tmp_path):
         "    time.sleep(0.05)\n    record('shared')\n"))
     (tmp_path / "test_free.py").write_text(body.format(out=out) + (
         "@pytest.mark.parametrize('i', range(16))\ndef test_free(i):\n    time.sleep(0.1)\n    record('free')\n"))
-    run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-n", "2",
-                          "--dist", "loadgroup", str(tmp_path)], cwd=tmp_path, capture_output=True, text=True,
-                         timeout=300)
+    # only xdist's plugin loaded (the installed others, schemathesis's and hypothesis's, cost each of the
+    # three processes seconds to import)
+    run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-p", "xdist.plugin",
+                          "-n", "2", "--dist", "loadgroup", str(tmp_path)], cwd=tmp_path, capture_output=True,
+                         text=True, timeout=300, env={**os.environ, "PYTEST_DISABLE_PLUGIN_AUTOLOAD": "1"})
     assert run.returncode == 0, run.stdout + run.stderr
     lines = [line.split() for line in Path(out).read_text().splitlines()]
     shared = {w for kind, w in lines if kind == "shared"}

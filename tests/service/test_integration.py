@@ -131,7 +131,13 @@ def test_cases_queued_when_the_api_is_killed_complete_after_restart(api):
 
 def test_api_started_before_the_scheduler_catches_up(tmp_path):
     """Compose may start the API first: it serves degraded, then connects and runs what was queued."""
-    port = free_port()
+    import socket
+
+    # the scheduler's port held (bound, not listening: a connection is refused) until the scheduler
+    # starts, so that no other test's process takes it meanwhile (as a scheduler or a worker did once)
+    holder = socket.socket()
+    holder.bind(("127.0.0.1", 0))
+    port = holder.getsockname()[1]
     address = f"tcp://127.0.0.1:{port}"
     api = Api(address, tmp_path / "results", tmp_path / "api.log")
     api.process = start(api_command(port=api.port, results=api.results, scheduler=address), log=api.log,
@@ -142,10 +148,12 @@ def test_api_started_before_the_scheduler_catches_up(tmp_path):
         queued = api.post("/cases", coarse_case(loads={"surface_load": 6.5e4}))
         assert queued.status_code == 202 and queued.json()["status"] == "queued"
 
+        holder.close()
         with running_cluster(1, logs=tmp_path, port=port):
             wait_healthy(api.url, timeout=60, workers=1, process=api.process)
             wait_until(lambda: all_done(api, [queued.json()["id"]]), timeout=60, what="the queued case")
     finally:
+        holder.close()
         stop(api.process)
     assert '"POST /cases HTTP/1.1" 202' in api.log.read_text()  # asked for: every request logged
 
