@@ -109,6 +109,11 @@ class FactoredBody:
     scale = 1.0
 
     @property
+    def pinned(self) -> bool:
+        """Whether a DOF is pinned (a floating body): then ``K K⁺ f`` differs from ``f`` there."""
+        return self._keep is not None
+
+    @property
     def base(self) -> "FactoredBody":
         """The body whose factorizations serve (itself; a :class:`ScaledBody`'s base)."""
         return self

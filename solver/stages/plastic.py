@@ -218,26 +218,35 @@ class _Anderson:
 
     def __init__(self, m: int = 8):
         self.m, self.count = m, 0
-        self.last = None  # the last G(x) and residual
-        self.dG = self.dR = None  # (m, n) their differences, the newest at row (count - 1) % m
+        self.last = None  # the last G(x), residual and companion
+        self.dG = self.dR = self.dB = None  # (m, n) their differences, the newest at row (count - 1) % m
 
-    def step(self, x: np.ndarray, gx: np.ndarray) -> np.ndarray:
+    def step(self, x: np.ndarray, gx: np.ndarray, companion: np.ndarray | None = None):
+        """The next iterate from ``x`` and ``G(x)``. With a ``companion`` of ``G(x)`` (a vector
+        linear in it: here ``K G(x)``, the load it was solved for), also the same mix of the
+        companions, so that ``K`` of the next iterate is known without a product."""
         r = gx - x
-        last, self.last = self.last, (gx, r)
+        last, self.last = self.last, (gx, r, companion)
         if last is None or self.m == 0:
-            return gx
+            return gx if companion is None else (gx, companion)
         if self.dR is None:
             self.dG, self.dR = np.empty((self.m, r.size)), np.empty((self.m, r.size))
+            if companion is not None:
+                self.dB = np.empty((self.m, companion.size))
         row = self.count % self.m
         np.subtract(gx, last[0], out=self.dG[row])
         np.subtract(r, last[1], out=self.dR[row])
+        if companion is not None:
+            np.subtract(companion, last[2], out=self.dB[row])
         self.count += 1
         k = min(self.count, self.m)
         dR, dG = self.dR[:k], self.dG[:k]
         # the least-squares mix from its normal equations (k ≤ m unknowns; lstsq: the least-norm
         # solution if the differences are dependent)
         gamma = np.linalg.lstsq(dR @ dR.T, dR @ r, rcond=None)[0]
-        return gx - gamma @ dG
+        if companion is None:
+            return gx - gamma @ dG
+        return gx - gamma @ dG, companion - gamma @ self.dB[:k]
 
 
 class _Stalled(Exception):
@@ -250,20 +259,26 @@ class _Stalled(Exception):
 
 
 def _fixed_point(G, x0: np.ndarray, K, atol: float, patience: int | None = STAGNATION,
-                 limit: int = MAX_STEP_ITERATIONS):
+                 limit: int = MAX_STEP_ITERATIONS, load=None):
     """Solve ``x = G(x)`` by constant-stiffness iterations with Anderson mixing, until the
     out-of-balance force ``‖K (G(x) - x)‖`` of an iterate ``x`` is at most ``atol``. ``G``
     returns the new iterate, the plastic load and the yield state at ``x``; the answer is that
     iterate with its plastic load, yield state (the state the stop test measured) and the
     iterations taken. Raises :class:`_Stalled` when the least force so far has not fallen by a
-    tenth in ``patience`` iterations (if given), is not finite, or after ``limit`` iterations."""
+    tenth in ``patience`` iterations (if given), is not finite, or after ``limit`` iterations.
+
+    ``load(p)``, if given, is the load ``G`` solved for (``K G(x) = load(p)`` with ``p`` the
+    plastic load at ``x``): then ``K x`` is carried along Anderson's mix of those loads (one
+    product with ``K`` at the start, none after), and the force is ``‖load(p) - K x‖``."""
     acc = _Anderson(DEPTH)
     x, force = x0, float("inf")
     mark, since = float("inf"), 0
+    Kx = None if load is None else K @ x0
     for count in range(1, limit + 1):
         check_time("plastic iteration", count)
         gx, p, state = G(x)
-        force = float(np.linalg.norm(K @ (gx - x)))
+        b = None if load is None else load(p)
+        force = float(np.linalg.norm(K @ (gx - x) if b is None else b - Kx))
         if force <= atol:
             return x, p, state, count
         if not np.isfinite(force):
@@ -274,7 +289,10 @@ def _fixed_point(G, x0: np.ndarray, K, atol: float, patience: int | None = STAGN
             since += 1
             if patience is not None and since >= patience:
                 break
-        x = acc.step(x, gx)
+        if b is None:
+            x = acc.step(x, gx)
+        else:
+            x, Kx = acc.step(x, gx, b)
     raise _Stalled(force, atol, count)
 
 
@@ -360,7 +378,9 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "
                 p = _plastic_load(gauss, state[-1])
                 return ground.backward(base + ground.forward(p, rows), rows), p, state
 
-            return _fixed_point(G, guess, K, tol * ref, patience, limit)
+            # the load G solves for: K K⁺ f = f where no DOF is pinned (the ground's boundary holds it)
+            load = None if ground.pinned else (lambda p: frac * release + p)
+            return _fixed_point(G, guess, K, tol * ref, patience, limit, load)
 
         size = 2**MAX_SPLITS
         for k in range(elastic + 1, steps + 1):
