@@ -286,3 +286,24 @@ def test_a_stalling_increment_is_split_and_the_answer_holds_equilibrium_and_cons
         level = np.maximum(np.abs(ordered).max(axis=0), 1.5e4)  # the return mapping's stress scale
         assert f.max() <= 1e-9 * level.max()
         assert flags.sum() > 100 and np.all(f[flags] >= -1e-3 * level[flags])
+
+
+def test_anderson_carries_k_times_the_iterate_along_its_mix():
+    """The stop test's ``K x`` without a product: Anderson's mix of the loads each ``G(x)`` was
+    solved for is ``K`` times its mix of the ``G(x)`` (checked against the product on a
+    contractive affine map with a plastic-like nonlinearity, over several mixes of full depth)."""
+    rng = np.random.default_rng(7)
+    n = 40
+    A = rng.normal(size=(n, n))
+    K = A @ A.T + n * np.eye(n)
+    f = rng.normal(size=n)
+    plastic_load = lambda x: 0.3 * np.tanh(x)  # noqa: E731
+    acc = plastic._Anderson(4)
+    x = np.zeros(n)
+    Kx = K @ x
+    for _ in range(12):
+        b = f + plastic_load(x)
+        gx = np.linalg.solve(K, b)
+        x, Kx = acc.step(x, gx, b)
+        assert np.allclose(Kx, K @ x, rtol=1e-10, atol=1e-10 * np.abs(b).max())
+    assert np.linalg.norm(f + plastic_load(x) - K @ x) < 1e-8 * np.linalg.norm(f)  # and it converged
