@@ -28,6 +28,7 @@ import copy
 import io
 import logging
 import math
+import threading
 from typing import Any, Literal, Optional
 
 import numpy as np
@@ -94,6 +95,25 @@ def study_sample(root: StoreLike, case_ids: list[str], output: str, minimum: int
     return [parameter_path(n) for n in names], X, combined[output].values.astype(float), len(case_ids) - len(done)
 
 
+#: one analysis at a time seeds numpy's global generator (:func:`_seeded`)
+_GLOBAL_RNG = threading.Lock()
+
+
+@contextlib.contextmanager
+def _seeded(seed: int):
+    """numpy's global generator seeded with ``seed`` (0 included), one caller at a time, its
+    state put back after. SALib's HDMR and delta estimators draw their bootstrap from the global
+    generator and seed it only for a truthy ``seed``: with the default 0 the same sample gave
+    other indices each time, and two analyses in one process's threads would share the draws."""
+    with _GLOBAL_RNG:
+        state = np.random.get_state()
+        np.random.seed(seed)
+        try:
+            yield
+        finally:
+            np.random.set_state(state)
+
+
 def sensitivity(root: StoreLike, case_ids: list[str], output: str, *, seed: int = 0) -> xr.Dataset:
     """First-order and total sensitivity indices of the result scalar ``output`` to each
     parameter that varies across the done cases of ``case_ids`` (see the module's notes).
@@ -120,7 +140,8 @@ def sensitivity(root: StoreLike, case_ids: list[str], output: str, *, seed: int 
             from SALib.analyze import hdmr
 
             try:
-                si = hdmr.analyze(problem, X, Y, maxorder=2 if d > 1 else 1, seed=seed)
+                with _seeded(seed):
+                    si = hdmr.analyze(problem, X, Y, maxorder=2 if d > 1 else 1)
             except (RuntimeError, ValueError, np.linalg.LinAlgError) as exc:  # too many terms for the sample
                 logger.warning("HDMR failed on %d cases of %d parameters (%s): the delta method instead", n, d, exc)
                 method = "delta"
@@ -137,10 +158,11 @@ def sensitivity(root: StoreLike, case_ids: list[str], output: str, *, seed: int 
             # this sample: an index at or below the dummy's cannot be told from zero
             dummy = np.random.default_rng(seed).random(n)
             with_dummy = {"num_vars": d + 1, "names": names + ["dummy"], "bounds": problem["bounds"] + [[0.0, 1.0]]}
-            with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):  # its notices
+            with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()), \
+                    _seeded(seed):  # its notices; its bootstrap
                 # method="sobol": the first-order index alone (the moment-independent delta, which
                 # is not reported, is its kernel-density part: 25 times the cost)
-                si = delta.analyze(with_dummy, np.column_stack([X, dummy]), Y, seed=seed, method="sobol")
+                si = delta.analyze(with_dummy, np.column_stack([X, dummy]), Y, method="sobol")
             first, first_ci = np.asarray(si["S1"][:d], float), np.asarray(si["S1_conf"][:d], float)
             floor = float(si["S1"][d] + si["S1_conf"][d])
             method = "delta (first order only)"

@@ -222,9 +222,8 @@ class _Anderson:
         self.dG = self.dR = self.dB = None  # (m, n) their differences, the newest at row (count - 1) % m
 
     def step(self, x: np.ndarray, gx: np.ndarray, companion: np.ndarray | None = None):
-        """The next iterate from ``x`` and ``G(x)``. With a ``companion`` of ``G(x)`` (a vector
-        linear in it: here ``K G(x)``, the load it was solved for), also the same mix of the
-        companions, so that ``K`` of the next iterate is known without a product."""
+        """The next iterate from ``x`` and ``G(x)``; with a ``companion`` (``K G(x)``: the load ``G``
+        solved for) also the same mix of companions: ``K`` times the next iterate, without a product."""
         r = gx - x
         last, self.last = self.last, (gx, r, companion)
         if last is None or self.m == 0:
