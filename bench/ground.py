@@ -47,6 +47,10 @@ CASES = {
     "layered-drained": {"ground": {"layers": LAYERS}, "water": {"table": 3.0, "lining": "drained"}},
     "mohr-coulomb": {"ground": {"model": "mohr-coulomb", "cohesion": 3.0e4, "friction_angle": 28.0,
                                 "tensile_strength": 1.0e4}},
+    # the README's default tunnel in weak rock (issue 36: ≤ 3.5 times its elastic twin, the next row)
+    "hoek-brown": {"ground": {"model": "hoek-brown", "young": 5.0e8, "ucs": 1.0e6, "gsi": 30.0, "mi": 8.0,
+                              "dilatancy": 5.0}},
+    "hoek-brown-elastic": {"ground": {"young": 5.0e8}},
 }
 #: issue 25's weak ground under a thin stiff lining (the plastic iteration splits its stalled increments)
 WEAK = {"ground": {"model": "mohr-coulomb", "cohesion": 1.5e4, "friction_angle": 25.0},
@@ -218,6 +222,9 @@ def main(argv=None) -> None:
               f" {r['next_case_on_model_s']:21.4f} {r['next_ratio']:10.1f} {r['plastic_iterations'] or '':>19}")
     for name, seconds in seepage.items():
         print(f"{name}: the unconfined seepage alone (Picard, on the built model) {seconds:.3f} s")
+    hb, twin = rows["hoek-brown"], rows["hoek-brown-elastic"]
+    print(f"hoek-brown against its elastic twin: run_case {hb['run_case_s'] / twin['run_case_s']:.2f}x, "
+          f"next case on its model {hb['next_case_on_model_s'] / twin['next_case_on_model_s']:.2f}x")
     if weak is not None:
         print(f"weak ground (issue 25), solve on its built model: {weak['solve_s']:.2f} s, "
               + (f"{weak['iterations']} plastic iterations" if "iterations" in weak else weak["failed"]))
