@@ -373,10 +373,16 @@ def _scalar_panel(ax, combined: xr.Dataset, scalar: str, param: str, *, legend: 
         bar = ax.figure.colorbar(mappable, ax=ax, pad=0.01)
         bar.set_label(parameter_label(others[0]), fontsize="xx-small")
         bar.ax.tick_params(labelsize="xx-small")
-    for color, (key, members) in zip(colors, groups.items()):
-        members = sorted(members, key=lambda i: x[i])
-        ax.plot(x[members], y[members], "o-", ms=3, lw=1, color=color,
-                label=", ".join(parameter_text(o, v) for o, v in zip(others, key)))
+    if len(groups) > _LEGEND_LINES and all(len(members) == 1 for members in groups.values()):
+        # a sampled sweep: no two cases share the other parameters, so there are no lines to draw,
+        # only points: one collection (a line object a case made a 40-case, 84-panel figure 14 s)
+        first = [members[0] for members in groups.values()]
+        ax.scatter(x[first], y[first], s=9, c=list(colors), linewidths=0)
+    else:
+        for color, (key, members) in zip(colors, groups.items()):
+            members = sorted(members, key=lambda i: x[i])
+            ax.plot(x[members], y[members], "o-", ms=3, lw=1, color=color,
+                    label=", ".join(parameter_text(o, v) for o, v in zip(others, key)))
     if legend and others and len(groups) <= _LEGEND_LINES:
         ax.legend(fontsize="xx-small", ncol=1 if len(groups) <= 5 else 2)
     if categories is not None:

@@ -45,6 +45,24 @@ def test_scalars_one_panel_per_changing_scalar_and_parameter_diagnostics_last():
     np.testing.assert_allclose(lines[0].get_ydata(), [10.0, 25.0])
 
 
+def test_a_sampled_sweeps_scalars_are_points_in_one_collection():
+    """A sampled sweep (no two cases share the other parameters): each panel's points are one
+    collection at the cases' values, not one line object a case."""
+    rng = np.random.default_rng(3)
+    n = 30
+    thickness, young = rng.uniform(0.2, 0.4, n), rng.uniform(2e7, 8e7, n)
+    ds = xr.Dataset({"max_abs_moment": ("case", 1e4 * young / 2e7, {"units": "N m m-1"})},
+                    coords={"case_id": ("case", [f"{i:016x}" for i in range(n)]),
+                            "lining_thickness": ("case", thickness), "ground_young": ("case", young)})
+    panels = [ax for ax in plot_scalars(ds).axes if ax.get_visible() and ax.get_label() != "<colorbar>"]
+    assert len(panels) == 2  # (each with a colour bar of the other parameter)
+    for ax, x in zip(panels, (thickness, young / 1e6)):
+        assert ax.get_lines() == [] and len(ax.collections) == 1
+        points = ax.collections[0].get_offsets()
+        np.testing.assert_allclose(np.sort(points[:, 0]), np.sort(x))
+        np.testing.assert_allclose(np.sort(points[:, 1]), np.sort(10.0 * young / 2e7))
+
+
 def legend_texts(ax) -> list[str]:
     return [t.get_text() for t in ax.get_legend().get_texts()]
 
