@@ -60,7 +60,9 @@ def browser(tmp_path_factory):
         options.add_argument(flag)
     options.add_argument(f"--user-data-dir={tmp_path_factory.mktemp('chromium-profile')}")
     driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
-    driver.set_page_load_timeout(30)
+    # a page's load waits for its figures, which the API renders on first request (a case page's eight
+    # take some 5 s of CPU alone): on two cores shared with the rest of the suite that took over 30 s once
+    driver.set_page_load_timeout(120)
     driver.set_script_timeout(30)
     try:
         yield driver
