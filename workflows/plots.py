@@ -481,7 +481,7 @@ def plot_scalars(combined: xr.Dataset, scalars: list[str] | None = None) -> Figu
             low, high = min(ax.get_ylim()[0] for ax in axes), max(ax.get_ylim()[1] for ax in axes)
             for ax in axes:
                 ax.set_ylim(low, high)
-    drawn = "; ".join(lines_per(p, [o for o in params if o not in (p, facets[p])])
+    drawn = "; ".join(_drawn_against(combined, p, [o for o in params if o not in (p, facets[p])])
                       + (f", one panel per {facets[p]}" if facets[p] else "") for p in params)
     title = f"Each result against each varied parameter, {combined.sizes['case']} cases: {drawn}"
     title = "\n".join(textwrap.wrap(title + (" (legend)" if len(params) > 1 else ""), 36 * ncols))
@@ -491,6 +491,15 @@ def plot_scalars(combined: xr.Dataset, scalars: list[str] | None = None) -> Figu
         title += "\nthe same in every case: " + "\n".join(textwrap.wrap(shown, 30 * ncols))
     fig.suptitle(title, fontsize="small")
     return fig
+
+
+def _drawn_against(combined: xr.Dataset, param: str, others: list[str]) -> str:
+    """What the panels against ``param`` draw: one line per combination of the ``others``, or one
+    point per case where no two cases share them (a sampled sweep: :func:`_scalar_panel`)."""
+    keys = list(zip(*(combined[o].values.tolist() for o in others)))
+    if others and len(keys) > _LEGEND_LINES and len(set(keys)) == len(keys):
+        return f"against {param}: one point per case"
+    return lines_per(param, others)
 
 
 def _place(rows: dict[tuple, list[tuple]], axes: np.ndarray, faceted: bool) -> dict[tuple, list[tuple]]:

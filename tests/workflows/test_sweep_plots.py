@@ -54,7 +54,10 @@ def test_a_sampled_sweeps_scalars_are_points_in_one_collection():
     ds = xr.Dataset({"max_abs_moment": ("case", 1e4 * young / 2e7, {"units": "N m m-1"})},
                     coords={"case_id": ("case", [f"{i:016x}" for i in range(n)]),
                             "lining_thickness": ("case", thickness), "ground_young": ("case", young)})
-    panels = [ax for ax in plot_scalars(ds).axes if ax.get_visible() and ax.get_label() != "<colorbar>"]
+    figure = plot_scalars(ds)
+    title = " ".join(figure._suptitle.get_text().split())
+    assert "against lining_thickness: one point per case; against ground_young: one point per case" in title
+    panels = [ax for ax in figure.axes if ax.get_visible() and ax.get_label() != "<colorbar>"]
     assert len(panels) == 2  # (each with a colour bar of the other parameter)
     for ax, x in zip(panels, (thickness, young / 1e6)):
         assert ax.get_lines() == [] and len(ax.collections) == 1
