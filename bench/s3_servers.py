@@ -133,7 +133,7 @@ def s3_endpoint(kind: str | None = None):
     if os.environ.get("AWS_ENDPOINT_URL"):
         yield "configured"
         return
-    kind = kind or default_server()  # (to name it)
+    kind = kind or default_server()
     with serve(kind) as environment:
         os.environ.update(environment)
         try:

@@ -362,10 +362,7 @@ def _scalar_panel(ax, combined: xr.Dataset, scalar: str, param: str, *, legend: 
     if categories is None:
         x = x * shown_parameter_unit(param)[1]
     others = [p for p in case_parameters(combined) if p not in (param, facet)]
-    values = {o: combined[o].values.tolist() for o in others}
-    groups: dict[tuple, list[int]] = {}
-    for i in range(combined.sizes["case"]):
-        groups.setdefault(tuple(values[o][i] for o in others), []).append(i)
+    groups = _groups(combined, others)
     colors = _case_colors(len(groups))
     by_value = len(groups) > 6 and len(others) == 1 and np.issubdtype(combined[others[0]].dtype, np.number)
     if by_value:  # many lines of one other number: coloured by it, with a colour bar
@@ -373,9 +370,7 @@ def _scalar_panel(ax, combined: xr.Dataset, scalar: str, param: str, *, legend: 
         bar = ax.figure.colorbar(mappable, ax=ax, pad=0.01)
         bar.set_label(parameter_label(others[0]), fontsize="xx-small")
         bar.ax.tick_params(labelsize="xx-small")
-    if len(groups) > _LEGEND_LINES and all(len(members) == 1 for members in groups.values()):
-        # a sampled sweep: no two cases share the other parameters, so there are no lines to draw,
-        # only points: one collection (a line object a case made a 40-case, 84-panel figure 14 s)
+    if _points_only(groups):  # one collection (a line object a case made an 84-panel figure 14 s)
         first = [members[0] for members in groups.values()]
         ax.scatter(x[first], y[first], s=9, c=list(colors), linewidths=0)
     else:
@@ -493,11 +488,25 @@ def plot_scalars(combined: xr.Dataset, scalars: list[str] | None = None) -> Figu
     return fig
 
 
+def _groups(combined: xr.Dataset, others: list[str]) -> dict[tuple, list[int]]:
+    """The cases (indices) by their values of the parameters ``others``: a panel's lines."""
+    values = [combined[o].values.tolist() for o in others]
+    groups: dict[tuple, list[int]] = {}
+    for i in range(combined.sizes["case"]):
+        groups.setdefault(tuple(v[i] for v in values), []).append(i)
+    return groups
+
+
+def _points_only(groups: dict[tuple, list[int]]) -> bool:
+    """A sampled sweep's panel: more cases than a legend takes and no two sharing the other
+    parameters, so there are no lines to draw, only points."""
+    return len(groups) > _LEGEND_LINES and all(len(members) == 1 for members in groups.values())
+
+
 def _drawn_against(combined: xr.Dataset, param: str, others: list[str]) -> str:
-    """What the panels against ``param`` draw: one line per combination of the ``others``, or one
-    point per case where no two cases share them (a sampled sweep: :func:`_scalar_panel`)."""
-    keys = list(zip(*(combined[o].values.tolist() for o in others)))
-    if others and len(keys) > _LEGEND_LINES and len(set(keys)) == len(keys):
+    """What the panels against ``param`` draw (:func:`_scalar_panel`): one line per combination
+    of the ``others``, or one point per case."""
+    if others and _points_only(_groups(combined, others)):
         return f"against {param}: one point per case"
     return lines_per(param, others)
 

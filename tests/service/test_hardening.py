@@ -75,6 +75,9 @@ def test_an_error_answer_stays_small_for_a_large_body_of_bad_values(client, monk
     assert errors[-1]["reason"] == "and 35,950 more errors not listed"
     assert "did you mean 'lining.young'" in errors[0]["reason"]
     assert len(asked) == workflows.sweep.SUGGESTED  # suggestions for the listed errors only (1 ms each)
+    from service.errors import MAX_ERRORS
+
+    assert workflows.sweep.SUGGESTED == MAX_ERRORS  # (workflows does not import the service)
 
 
 # -- other origins ------------------------------------------------------------------------------

@@ -300,7 +300,6 @@ def test_anderson_carries_k_times_the_iterate_along_its_mix():
     plastic_load = lambda x: 0.3 * np.tanh(x)  # noqa: E731
     acc = plastic._Anderson(4)
     x = np.zeros(n)
-    Kx = K @ x
     for _ in range(12):
         b = f + plastic_load(x)
         gx = np.linalg.solve(K, b)
