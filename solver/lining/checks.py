@@ -48,7 +48,8 @@ K_PLAIN = 1.5              #: k of (12.4)
 ALPHA_CT_PL = 0.8          #: αct,pl of 12.3.1
 KT = 0.4                   #: kt of (7.9), long-term loading
 K1_BOND, K3, K4 = 0.8, 3.4, 0.425   #: (7.11), high-bond bars
-_BISECTIONS = 80
+_BISECTIONS = 12      # in t: a finite bracket of x, then Newton's method kept in it
+_NEWTON = 40          # at most; it stops where x no longer moves
 
 
 def fctm(fck: float) -> float:
@@ -117,13 +118,15 @@ def shear_utilization(N, M, V, thickness: float, design, *, width: float = 1.0) 
 
 def _cracked_stiffness(x, h, d1, area, alpha, width):
     """N̂, M̂ per unit curvature and Ec of the no-tension section with neutral axis depth ``x`` (m from
-    the compressed face; any real: x ≤ 0 is a section wholly in tension, x ≥ h wholly compressed)."""
+    the compressed face; any real: x ≤ 0 is a section wholly in tension, x ≥ h wholly compressed),
+    and their derivatives in x: dN̂/dx = b·xc + 2αAs, dM̂/dx = b·xc(h - xc)/2 (the bars' moment about
+    mid-depth does not change with x)."""
     xc = np.clip(x, 0.0, h)
     d = h - d1
     n = width * (x * xc - 0.5 * xc ** 2) + alpha * area * ((x - d1) + (x - d))
     m = width * (0.5 * h * x * xc - 0.5 * (x + 0.5 * h) * xc ** 2 + xc ** 3 / 3.0) \
         + alpha * area * ((x - d1) * (0.5 * h - d1) + (x - d) * (0.5 * h - d))
-    return n, m
+    return n, m, width * xc + 2.0 * alpha * area, 0.5 * width * xc * (h - xc)
 
 
 def cracked_section(N, M, thickness: float, design, *, width: float = 1.0):
@@ -131,19 +134,33 @@ def cracked_section(N, M, thickness: float, design, *, width: float = 1.0):
     cracked reinforced section under characteristic N (compression +) and M (module docstring).
 
     The direction of (N̂(x), M̂(x)) turns monotonically from pure tension (x → −∞) to pure
-    compression (x → +∞); x is found where it is the direction of (N, |M|), by bisection on
-    x = h/2 + h tan t."""
+    compression (x → +∞); x is where it is the direction of (N, |M|): g(x) = N̂ |M| - M̂ N = 0, g
+    rising through it. A few bisections on x = h/2 + h tan t give a finite bracket, Newton's method
+    on g (its steps kept inside the shrinking bracket, else halving it) the root to round-off."""
     h, d1, As = thickness, design.axis_distance, design.reinforcement_area
     alpha = ES / ecm(design.concrete_strength)
     N, M = np.broadcast_arrays(np.asarray(N, float), np.abs(np.asarray(M, float)))
     lo, hi = np.full(N.shape, -0.5 * np.pi), np.full(N.shape, 0.5 * np.pi)
     for _ in range(_BISECTIONS):
         t = 0.5 * (lo + hi)
-        n_hat, m_hat = _cracked_stiffness(0.5 * h + h * np.tan(t), h, d1, As, alpha, width)
+        n_hat, m_hat = _cracked_stiffness(0.5 * h + h * np.tan(t), h, d1, As, alpha, width)[:2]
         right = n_hat * M - m_hat * N > 0   # (N, |M|) lies counter-clockwise of the trial direction
         lo, hi = np.where(right, lo, t), np.where(right, t, hi)
-    x = 0.5 * h + h * np.tan(0.5 * (lo + hi))
-    n_hat, m_hat = _cracked_stiffness(x, h, d1, As, alpha, width)
+    low, high = 0.5 * h + h * np.tan(lo), 0.5 * h + h * np.tan(hi)
+    x = 0.5 * (low + high)
+    for _ in range(_NEWTON):
+        n_hat, m_hat, dn, dm = _cracked_stiffness(x, h, d1, As, alpha, width)
+        g, slope = n_hat * M - m_hat * N, dn * M - dm * N
+        low, high = np.where(g > 0, low, x), np.where(g > 0, x, high)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step = x - g / slope
+        inside = (step >= low) & (step <= high)
+        new = np.where(g == 0, x, np.where(inside, step, 0.5 * (low + high)))
+        done = np.all(np.abs(new - x) <= 1e-14 * np.maximum(np.abs(x), h))
+        x = new
+        if done:
+            break
+    n_hat, m_hat = _cracked_stiffness(x, h, d1, As, alpha, width)[:2]
     kappa_ec = np.hypot(N, M) / np.hypot(n_hat, m_hat)     # Ec κ (Pa/m)
     return x, alpha * kappa_ec * (h - d1 - x)
 
@@ -175,5 +192,5 @@ def crack_width(N, M, thickness: float, design, *, width: float = 1.0) -> np.nda
         s_r = 1.3 * (h - np.maximum(x, 0.0))
     else:
         s_r = K3 * cover + K1_BOND * k2 * K4 * phi / rho
-    out[cracked] = s_r * strain
+    out[cracked] = np.maximum(s_r * strain, 0.0)   # bars in the compressed zone (x > d): no crack at them
     return out

@@ -159,6 +159,18 @@ def test_crack_width_uncracked_zero_and_plain_inf():
     assert w[0] == 0.0 and np.isinf(w[1])
 
 
+def test_bars_in_compression_under_a_cracked_face_give_no_crack_width():
+    """A thrust so high that the neutral axis lies past the tension bars: the face still cracks
+    (gross stress above fctm), the bars are compressed, and EN 1992's (7.8) at the bars gives no
+    crack (w = 0), not a negative width. 3 MN/m and 130 kN·m/m on 0.2 m: -15 + 19.5 = 4.5 MPa > fctm;
+    the neutral axis at 0.168 m, past the bars at d = 0.15 m."""
+    d = design()
+    x, sigma_s = cracked_section(3.0e6, 130e3, 0.2, d)
+    assert x > 0.2 - d.axis_distance + 0.01 and sigma_s < 0    # the bars lie in the compressed zone
+    assert crack_width(3.0e6, 130e3, 0.2, d) == 0.0
+    assert crack_width([3.0e6, 0.0], [150e3, 60e3], 0.2, d)[1] > 0   # a tension face's bars: a crack
+
+
 def test_favourable_thrust_governs_plain_section_by_hand():
     """Plain section, rectangular block (12.10): η = N_Ed / (fcd,pl b (h − 2e)), e = M_Ed / N_Ed
     (the ray meets N_Rd = fcd,pl b (h − 2e)). N = 500 kN/m:
