@@ -43,22 +43,42 @@ def _near(ds: xr.Dataset) -> np.ndarray:
     return np.any((x < 1.05 * view) & (np.abs(y - cy) < 1.05 * view), axis=1)
 
 
-def _yielded_outline(ax, ds: xr.Dataset, tri: np.ndarray, x: np.ndarray, y: np.ndarray, name: str = "plastic",
-                     color: str = "magenta", label: str = "yielded zone", style: str = "-") -> bool:
-    """Outline the zone where the face flag ``name`` is set (edges between a flagged and an
-    unflagged face): the yielded zone at the end, or before the lining (``stage1_plastic``);
-    True if drawn."""
+def _in_view(ds: xr.Dataset, tri: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Faces whose bounding box meets the view (:func:`_window`, with a margin): no other face
+    can show in it, so drawing only these gives the same picture at a fraction of the polygons
+    (far from the tunnel the mesh is coarse, but the model is many views wide)."""
+    cy, _, view = _frame(ds)
+    xs, ys = x[tri], y[tri]
+    margin = 0.05 * view
+    return ((xs.min(axis=1) <= view + margin) & (xs.max(axis=1) >= -margin)
+            & (ys.min(axis=1) <= cy + view + margin) & (ys.max(axis=1) >= cy - view - margin))
+
+
+def zone_border(ds: xr.Dataset, tri: np.ndarray, name: str = "plastic") -> np.ndarray | None:
+    """The edges (k, 2) (node pairs) between a face where the flag ``name`` is set and one where
+    it is not (or the mesh's edge): the outline of the yielded zone, at the end or before the
+    lining (``stage1_plastic``); None where no face has the flag."""
     if name not in ds or not np.any(ds[name].values > 0):
-        return False
+        return None
     plastic = ds[name].values > 0
     edges = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
-    owner = np.tile(np.arange(tri.shape[0]), 3)
-    keys, inverse = np.unique(edges, axis=0, return_inverse=True)
-    state = np.zeros(keys.shape[0], dtype=int)
-    np.add.at(state, inverse.ravel(), plastic[owner].astype(int))
-    border = state == 1  # on the zone's boundary: exactly one plastic face beside the edge
-    segs = np.stack([np.column_stack([x[keys[border, 0]], y[keys[border, 0]]]),
-                     np.column_stack([x[keys[border, 1]], y[keys[border, 1]]])], axis=1)
+    n = int(tri.max()) + 1
+    keys, inverse = np.unique(edges[:, 0] * n + edges[:, 1], return_inverse=True)  # one integer per edge
+    state = np.bincount(inverse.ravel(), weights=np.tile(plastic, 3), minlength=keys.size)
+    border = keys[state == 1]  # exactly one flagged face beside the edge
+    return np.column_stack([border // n, border % n])
+
+
+def _yielded_outline(ax, ds: xr.Dataset, tri: np.ndarray, x: np.ndarray, y: np.ndarray, name: str = "plastic",
+                     color: str = "magenta", label: str = "yielded zone", style: str = "-",
+                     border: np.ndarray | None = None) -> bool:
+    """Outline the zone of the face flag ``name`` (:func:`zone_border`, or the ``border`` found
+    already); True if drawn."""
+    border = zone_border(ds, tri, name) if border is None else border
+    if border is None:
+        return False
+    segs = np.stack([np.column_stack([x[border[:, 0]], y[border[:, 0]]]),
+                     np.column_stack([x[border[:, 1]], y[border[:, 1]]])], axis=1)
     ax.add_collection(LineCollection(segs, colors=color, linewidths=1.2, linestyles=style, label=label))
     return True
 
@@ -69,11 +89,13 @@ def _lining(ax, ds: xr.Dataset, tri: np.ndarray, x: np.ndarray, y: np.ndarray) -
                                      edgecolors="none", label="lining", rasterized=True))
 
 
-def _panel(fig, ax, ds, tri, near, values, *, label: str, cmap: str, faces: bool, symmetric: bool = False) -> None:
+def _panel(fig, ax, ds, tri, near, values, *, label: str, cmap: str, faces: bool, symmetric: bool = False,
+           drawn: np.ndarray, borders=(None, None)) -> None:
     """One field on the ground near the tunnel (``near``: the ground faces in view, which set
-    the colour range)."""
+    the colour range; ``drawn``: the ground faces that can show in the view, :func:`_in_view`;
+    ``borders``: the two yielded zones' outlines, :func:`zone_border`)."""
     x, y = ds["node_x"].values, ds["node_y"].values
-    ground = ds["body"].values == 0
+    ground = drawn
     shown = values[near] if faces else values[np.unique(tri[near])]
     lo, hi = (float(np.min(shown)), float(np.max(shown))) if shown.size else (0.0, 1.0)
     if symmetric:
@@ -90,8 +112,11 @@ def _panel(fig, ax, ds, tri, near, values, *, label: str, cmap: str, faces: bool
         art.set_rasterized(True)
     _lining(ax, ds, tri, x, y)
     joint_plots.draw_on_mesh(ax, ds)
-    _yielded_outline(ax, ds, tri, x, y)
-    _yielded_outline(ax, ds, tri, x, y, "stage1_plastic", "darkorange", "yielded before the lining", "--")
+    if borders[0] is not None:
+        _yielded_outline(ax, ds, tri, x, y, border=borders[0])
+    if borders[1] is not None:
+        _yielded_outline(ax, ds, tri, x, y, "stage1_plastic", "darkorange", "yielded before the lining", "--",
+                         border=borders[1])
     _ground_lines(ax, ds)
     _window(ax, ds)
     bar = fig.colorbar(art, ax=ax, shrink=0.85)
@@ -126,8 +151,11 @@ def plot_contours(ds: xr.Dataset) -> Figure:
     for ax in axes[len(panels):]:
         ax.set_visible(False)
     near = _near(ds) & (ds["body"].values == 0)
+    drawn = _in_view(ds, tri, ds["node_x"].values, ds["node_y"].values) & (ds["body"].values == 0)
+    borders = (zone_border(ds, tri), zone_border(ds, tri, "stage1_plastic"))
     for ax, (label, cmap, faces, symmetric, values) in zip(axes, panels):
-        _panel(fig, ax, ds, tri, near, values, label=label, cmap=cmap, faces=faces, symmetric=symmetric)
+        _panel(fig, ax, ds, tri, near, values, label=label, cmap=cmap, faces=faces, symmetric=symmetric,
+               drawn=drawn, borders=borders)
     for ax in axes[len(panels) - ncols:len(panels)]:
         ax.set_xlabel("x (m)", fontsize="x-small")
     yielded = "plastic" in ds and bool(np.any(ds["plastic"].values > 0))
@@ -216,7 +244,7 @@ def plot_deformed_mesh(ds: xr.Dataset, *, scale: float | None = None, stage: str
     magnitude = 1e3 * np.hypot(ux, uy)
     fig = Figure(figsize=(6.4, 7), layout="constrained")
     ax = fig.add_subplot()
-    ground = tri[body == 0]
+    ground = tri[(body == 0) & _in_view(ds, tri, xd, yd)]  # the faces that can show (the same picture)
     art = ax.tripcolor(Triangulation(xd, yd, ground), magnitude, cmap="viridis", shading="gouraud", rasterized=True)
     for line in ax.triplot(Triangulation(xd, yd, ground), color="w", lw=0.15, alpha=0.5):
         line.set_rasterized(True)

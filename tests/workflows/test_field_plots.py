@@ -6,7 +6,8 @@ import pytest
 
 from solver.run import run_case
 from solver.spec import CaseSpec
-from workflows.field_plots import plot_contours, plot_deformed_mesh
+from workflows import field_plots
+from workflows.field_plots import _in_view, plot_contours, plot_deformed_mesh, zone_border
 
 COARSE = {"interface_size": 0.15, "far_size": 6.0}
 
@@ -47,7 +48,55 @@ def test_yielding_wet_case_adds_pore_pressure_and_plastic_strain_and_outlines_th
         assert len(outlines) == 1 and len(outlines[0].get_segments()) > 10
     pore = next(ax for ax in panels if ax.get_title().startswith("p "))
     faces = pore.collections[0].get_array()
-    assert faces.max() == pytest.approx(ds["pore_pressure"].values[ds["body"].values == 0].max() / 1e3)
+    # the ground faces that can show in the view, each coloured by its own pore pressure (kPa)
+    drawn = _in_view(ds, *_mesh(ds)) & (ds["body"].values == 0)
+    np.testing.assert_array_equal(faces, ds["pore_pressure"].values[drawn] / 1e3)
+    view = pore.get_xlim(), pore.get_ylim()
+    tri, x, y = _mesh(ds)
+    corner_inside = ((x[tri] >= view[0][0]) & (x[tri] <= view[0][1])
+                     & (y[tri] >= view[1][0]) & (y[tri] <= view[1][1])).any(axis=1)
+    assert not np.any(corner_inside & (ds["body"].values == 0) & ~drawn)  # none that shows is left out
+
+
+def _mesh(ds):
+    return ds["face_nodes"].values.astype(np.int64)[:, :3], ds["node_x"].values, ds["node_y"].values
+
+
+def _png(figure) -> np.ndarray:
+    import io
+
+    import matplotlib.image as mpimg
+
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=60)
+    buffer.seek(0)
+    return mpimg.imread(buffer)
+
+
+def test_drawing_only_the_faces_in_view_gives_the_same_picture(yielding_wet, monkeypatch):
+    """The figures draw the faces that can show in the view; drawing every face gives the same
+    pixels (both figures, a yielding case with its zone outlined)."""
+    ours = [_png(plot_contours(yielding_wet)), _png(plot_deformed_mesh(yielding_wet))]
+    tri = _mesh(yielding_wet)[0]
+    assert 0 < _in_view(yielding_wet, *_mesh(yielding_wet)).sum() < 0.9 * tri.shape[0]  # some left out
+    monkeypatch.setattr(field_plots, "_in_view", lambda ds, tri, x, y: np.ones(tri.shape[0], bool))
+    every = [_png(plot_contours(yielding_wet)), _png(plot_deformed_mesh(yielding_wet))]
+    for a, b in zip(ours, every):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_the_zone_border_is_every_edge_with_one_flagged_face_beside_it(yielding_wet):
+    tri = _mesh(yielding_wet)[0]
+    plastic = yielding_wet["plastic"].values > 0
+    count: dict[tuple[int, int], int] = {}
+    for face, flagged in zip(tri, plastic):
+        for a, b in ((face[0], face[1]), (face[1], face[2]), (face[2], face[0])):
+            key = (min(a, b), max(a, b))
+            count[key] = count.get(key, 0) + int(flagged)
+    expected = sorted(k for k, n in count.items() if n == 1)
+    got = sorted(map(tuple, zone_border(yielding_wet, tri).tolist()))
+    assert got == expected and len(got) > 10
+    assert zone_border(yielding_wet, tri, "no_such_flag") is None
 
 
 def test_deformed_mesh_magnifies_the_rings_own_deformation_and_colours_by_displacement(yielding_wet):
