@@ -264,3 +264,43 @@ def test_the_facets_of_a_row_share_their_scale():
     row = [ax for ax in figure.axes if ax.get_visible() and ax.get_xlabel() == "lining_thickness (m)"]
     assert len(row) == 2 and row[0].get_ylim() == row[1].get_ylim()
     assert row[0].get_ylim()[0] <= 0.3 / 0.4 + 0.2 + 0.5 and row[0].get_ylim()[1] >= 0.3 / 0.2 + 0.5 + 1.0
+
+
+def many_lines() -> xr.Dataset:
+    """3 thicknesses × 8 ground stiffnesses: against thickness, eight lines coloured by E with a colour bar."""
+    t, E = (a.ravel() for a in np.meshgrid([0.2, 0.3, 0.4], np.linspace(2e7, 9e7, 8), indexing="ij"))
+    return xr.Dataset({"max_utilization": ("case", 0.3 / t + E / 1e8, {"units": "1"})},
+                      coords={"case_id": ("case", [f"{i:016x}" for i in range(t.size)]),
+                              "lining_thickness": ("case", t), "ground_young": ("case", E)})
+
+
+@pytest.mark.parametrize("combined", [combined_results(), three_parameter_grid(), many_lines()],
+                         ids=["grid", "faceted", "colour-bar"])
+def test_the_scalars_panels_labels_stay_clear_of_the_other_panels_and_inside_the_figure(combined):
+    """The scalars figure's fixed grid (no layout engine: :func:`workflows.plots._panel_grid`) leaves
+    each panel room for its tick labels, axis labels and facet title: drawn, none reaches into
+    another panel's axes or out of the figure, and the figure's title is above every panel."""
+    combined = combined.assign(stage1_max_plastic_extent=("case", np.linspace(1.0, 2.0, combined.sizes["case"]),
+                                                          {"units": "m"}))  # a long label
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    figure = plot_scalars(combined)
+    canvas = FigureCanvasAgg(figure)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    panels = [ax for ax in figure.axes if ax.get_visible()]  # colour bars too
+    boxes = {ax: ax.get_tightbbox(renderer) for ax in panels}
+    frame = figure.bbox
+    title = figure._suptitle.get_window_extent(renderer)
+    for ax, box in boxes.items():
+        assert box.x0 >= frame.x0 - 0.5 and box.x1 <= frame.x1 + 0.5 and box.y0 >= frame.y0 - 0.5, ax.get_ylabel()
+        assert box.y1 <= title.y0, ax.get_ylabel()
+        for other in panels:
+            if other is not ax and not _bar_of(other, ax) and not _bar_of(ax, other):
+                assert not box.overlaps(other.get_window_extent(renderer)), (ax.get_ylabel(), other.get_ylabel())
+
+
+def _bar_of(bar, ax) -> bool:
+    """Whether ``bar`` is the colour bar drawn beside the panel ``ax`` (they touch by design)."""
+    return bar.get_label() == "<colorbar>" and ax.get_label() != "<colorbar>" and \
+        abs(bar.get_position().y0 - ax.get_position().y0) < 0.02 and 0 <= bar.get_position().x0 - ax.get_position().x1 < 0.05
