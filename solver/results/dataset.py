@@ -288,7 +288,7 @@ def _lining_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict]:
         "shear_utilization": _var("interface", shear_eta, "1", "EN 1992-1-1 shear utilization |gamma_F V| / V_Rd,c "
                                   "(6.2.2 reinforced, 12.6.3 plain; <= 1 passes)"),
         "crack_width": _var("interface", crack, "m", "characteristic crack width w_k (EN 1992-1-1 7.3.4, gamma_F = 1; "
-                            "0 uncracked, inf where a plain section cracks)",
+                            "0 uncracked or where the tension bars are compressed, inf where a plain section cracks)",
                             crack_width_limit=float(design.crack_width_limit)),
         "capacity_thrust": _var("envelope", env_n, "N m-1", "design N-M resistance envelope: thrust (compression positive)"),
         "capacity_moment": _var("envelope", env_m, "N m m-1", "design N-M resistance envelope: moment"),
