@@ -472,10 +472,11 @@ def plot_scalars(combined: xr.Dataset, scalars: list[str] | None = None) -> Figu
     fig = _panel_grid(ncols, nrows, title_lines=title.count("\n") + 1)
     placed = _place(rows, fig.subplots(nrows, ncols, squeeze=False), faceted)
     first = {}
+    plotted = combined[list(dict.fromkeys(scalar for scalar, _ in placed))]  # a facet's cases: a cheap isel
     for (scalar, param), members in placed.items():
         for ax, (facet, value) in members:
-            sub = combined if facet is None else combined.isel(case=np.flatnonzero(
-                np.asarray(combined[facet].values.tolist(), dtype=object) == value))
+            sub = plotted if facet is None else plotted.isel(case=np.flatnonzero(
+                np.asarray(plotted[facet].values.tolist(), dtype=object) == value))
             shown = None if facet is None else parameter_text(facet, value)
             _scalar_panel(ax, sub, scalar, param, legend=first.setdefault(param, ax) is ax, title=shown,
                           facet=facet)
