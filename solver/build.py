@@ -19,6 +19,7 @@ from .fe.assembly import (
     gravity_load,
     ground_constraints,
     lining_constraints,
+    nodal_gradient_operator,
     point_basis,
     vector_basis,
 )
@@ -212,6 +213,14 @@ class BuiltModel:
         if body not in self._point_bases:
             self._point_bases[body] = point_basis(getattr(self, body).body)
         return self._point_bases[body]
+
+    def point_gradient(self, body: str):
+        """``'ground'`` or ``'lining'``: the gradient at the sub-triangle centroids on the full DOF vector
+        (:func:`~solver.fe.assembly.nodal_gradient_operator`: every case's stored stresses; built once)."""
+        key = ("nodal", body)
+        if key not in self._gradients:
+            self._gradients[key] = nodal_gradient_operator(self.point_basis(body))
+        return self._gradients[key]
 
     def gradient_operator(self, where: str):
         """The ground's displacement gradient, as an operator on its unknowns, at its quadrature

@@ -333,25 +333,42 @@ def point_basis(body: Body, points: np.ndarray = SUBTRIANGLE_CENTROIDS) -> Basis
     return Basis(body.basis.mesh, body.basis.elem, quadrature=(points, W))
 
 
+def _gradient_entries(basis: Basis):
+    """``(rows, dofs, values)`` of the displacement gradient at the points of ``basis`` on the full
+    DOF vector: row ``(i, j, e, q)`` of ``du_i/dx_j`` (flattened), each vector basis function moving
+    one component and so filling that component's two rows."""
+    dofs = basis.element_dofs  # (Nbfun, E)
+    E, Q = basis.dx.shape
+    index = np.arange(4 * E * Q).reshape(2, 2, E, Q)
+    grads = [basis.basis[i][0].grad for i in range(basis.Nbfun)]  # (2, 2, E, Q): one component non-zero
+    comp = [0 if np.any(g[0]) else 1 for g in grads]
+    vals = np.stack([g[c] for g, c in zip(grads, comp)])           # (Nbfun, 2, E, Q)
+    rows = index[comp]                                               # (Nbfun, 2, E, Q)
+    return rows, np.broadcast_to(dofs[:, None, :, None], rows.shape), vals
+
+
+def nodal_gradient_operator(basis: Basis) -> sp.csr_matrix:
+    """The displacement gradient at the points of ``basis`` as a sparse operator on the full DOF
+    vector (:meth:`Body.full` of the nodal displacements): ``(G @ x).reshape(2, 2, E, P)`` is
+    scikit-fem's ``basis.interpolate(x).grad``, a tenth of its cost once built (a built model's
+    stored stresses, :func:`stress_at`)."""
+    rows, cols, vals = _gradient_entries(basis)
+    E, P = basis.dx.shape
+    return sp.csr_matrix((vals.ravel(), (rows.ravel(), cols.ravel())), shape=(4 * E * P, basis.N))
+
+
 def gradient_operator(body: Body, basis: Basis) -> sp.csr_matrix:
     """The displacement gradient at the quadrature points of ``basis`` as a sparse operator on
     ``body``'s unknowns: ``(G @ x).reshape(2, 2, E, Q)`` is ``du_i/dx_j`` of the free-DOF vector
     ``x`` (in the unknowns' basis). Its transpose integrates: ``Gᵀ w`` with ``w`` a gradient-shaped
     field times the points' weights is ``∫ w : ∇v`` for every test function ``v``.
 
-    Built as one COO in the unknowns' numbering: each vector basis function moves one component,
-    so its gradient fills the two rows ``du_c/dx_j`` of that component; a skew node's x and y
+    Built as one COO in the unknowns' numbering (:func:`_gradient_entries`); a skew node's x and y
     columns are turned into its pair of unknowns entry by entry (``G T`` without a product)."""
-    dofs = basis.element_dofs  # (Nbfun, E)
-    E, Q = basis.dx.shape
-    index = np.arange(4 * E * Q).reshape(2, 2, E, Q)
+    rows, full, vals = _gradient_entries(basis)
     unknown = np.full(basis.N, -1, np.int64)
     unknown[body.free] = np.arange(body.free.size)
-    grads = [basis.basis[i][0].grad for i in range(basis.Nbfun)]  # (2, 2, E, Q): one component non-zero
-    comp = [0 if np.any(g[0]) else 1 for g in grads]
-    vals = np.stack([g[c] for g, c in zip(grads, comp)])           # (Nbfun, 2, E, Q)
-    rows = index[comp]                                               # (Nbfun, 2, E, Q)
-    cols = np.broadcast_to(unknown[dofs][:, None, :, None], rows.shape)
+    cols = unknown[full]
     keep = cols >= 0
     rows, cols, vals = rows[keep], cols[keep], vals[keep]
     if body.skew is not None:  # (G T)[:, a] = c G[:, a] + s G[:, b], (G T)[:, b] = -s G[:, a] + c G[:, b]
@@ -368,19 +385,22 @@ def gradient_operator(body: Body, basis: Basis) -> sp.csr_matrix:
         rows = np.r_[rows[~on], r, r]
         cols = np.r_[cols[~on], t.a[k], t.b[k]]
         vals = np.r_[vals[~on], to_a, to_b]
-    return sp.csr_matrix((vals, (rows, cols)), shape=(index.size, body.free.size))
+    return sp.csr_matrix((vals, (rows, cols)), shape=(4 * basis.dx.size, body.free.size))
 
 
 def stress_at(body: Body, young: float, poisson: float, u_nodes: np.ndarray,
-              basis: Basis | None = None) -> np.ndarray:
+              basis: Basis | None = None, gradient: sp.csr_matrix | None = None) -> np.ndarray:
     """Stress (4, E, P) in Pa (xx, yy, xy, zz; tension positive) at the points of ``basis``
-    (:func:`point_basis`, the sub-triangle centroids by default).
+    (:func:`point_basis`, the sub-triangle centroids by default), through ``gradient`` (its
+    :func:`nodal_gradient_operator`) if given.
 
     ``u_nodes`` is the nodal displacement (2, N); plane strain gives
     σ_zz = λ (ε_xx + ε_yy).
     """
     basis = point_basis(body) if basis is None else basis
-    grad = basis.interpolate(body.full(u_nodes)).grad  # (2, 2, E, P): du_i/dx_j
+    x = body.full(u_nodes)
+    grad = (basis.interpolate(x).grad if gradient is None  # (2, 2, E, P): du_i/dx_j
+            else (gradient @ x).reshape((2, 2) + basis.dx.shape))
     return _hooke(grad, young, poisson)
 
 

@@ -56,7 +56,8 @@ def _faces(t: np.ndarray) -> np.ndarray:
 def _lining_stress(model: TunnelModel, spec, u_nodes: np.ndarray) -> np.ndarray:
     """(4, 4E) stress in the lining at the sub-triangle centroids."""
     basis = model.point_basis("lining")
-    return stress_at(model.lining.body, spec.lining.young, spec.lining.poisson, u_nodes, basis).reshape(4, -1)
+    return stress_at(model.lining.body, spec.lining.young, spec.lining.poisson, u_nodes, basis,
+                     model.point_gradient("lining")).reshape(4, -1)
 
 
 def _ground_state(model: TunnelModel, sol: Solution) -> dict:
@@ -70,7 +71,8 @@ def _ground_state(model: TunnelModel, sol: Solution) -> dict:
     if sol.plastic is not None:  # the return-mapped history at these points, not Hooke's law
         effective = sol.plastic["stress"].reshape((4,) + y.shape)
     else:
-        effective = stress_at(model.ground.body, young, poisson, sol.u_ground, basis)  # (4, E, 4)
+        effective = stress_at(model.ground.body, young, poisson, sol.u_ground, basis,
+                              model.point_gradient("ground"))  # (4, E, 4)
     if spec.excavation.method == "deconfinement" and sol.plastic is None:
         effective = effective + in_situ_stress(spec, strata(spec), model.band, y)["effective"]
     if spec.water.table is None:

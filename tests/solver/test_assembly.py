@@ -93,3 +93,25 @@ def test_pair_rotation_applies_t_and_its_transpose():
     X = rng.standard_normal((n, 2))
     np.testing.assert_allclose(rotation.apply(X), T @ X, atol=1e-15)
     np.testing.assert_allclose(rotation.apply_transpose(X), T.T @ X, atol=1e-15)
+
+
+def test_the_gradient_operators_are_scikit_fems_interpolation():
+    """The model's operators give the displacement gradient scikit-fem's ``interpolate`` does, on
+    both bodies at the stored points (``nodal_gradient_operator``, on the full DOF vector) and on
+    the ground's unknowns (``gradient_operator``: the skew interface basis turned back); a random
+    displacement, so every basis function is seen."""
+    from solver.model import TunnelModel
+
+    model = TunnelModel(CaseSpec(mesh=dict(interface_size=0.3, far_size=10.0)))
+    rng = np.random.default_rng(7)
+    for name in ("ground", "lining"):
+        body, basis = getattr(model, name).body, model.point_basis(name)
+        u = rng.standard_normal((2, body.basis.mesh.p.shape[1]))
+        expected = basis.interpolate(body.full(u)).grad
+        got = (model.point_gradient(name) @ body.full(u)).reshape(expected.shape)
+        assert np.abs(got - expected).max() <= 1e-12 * np.abs(expected).max()
+    body = model.ground.body
+    x = rng.standard_normal(body.n)
+    expected = model.point_basis("ground").interpolate(body.full(body.expand(x))).grad
+    got = (model.gradient_operator("points") @ x).reshape(expected.shape)
+    assert np.abs(got - expected).max() <= 1e-12 * np.abs(expected).max()
