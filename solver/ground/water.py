@@ -298,32 +298,70 @@ def _local_matrices(basis):
     return local, rows, cols
 
 
+@dataclass(frozen=True)
+class PhreaticSampler:
+    """The verticals above surface points ``x`` sampled for the phreatic surface: depths ``z`` (K,)
+    below the surface, ``A`` (n K, N) the P2 interpolation of a head field at the samples (vertical i,
+    depth k at row i K + k) and ``open`` (n, K) the samples that can be wet: inside a triangle (the
+    straight-sided ones) and clear of the excavation. Geometry alone: built once for a model's mesh
+    (:func:`phreatic_sampler`), it gives every case's phreatic surface with one product
+    (:meth:`depth`)."""
+
+    z: np.ndarray
+    A: "sp.csr_matrix"
+    open: np.ndarray
+
+    def depth(self, head: np.ndarray) -> np.ndarray:
+        """Depth (m below the surface) of the phreatic surface above each point: the topmost sample
+        where the pressure head ``h - y`` of the P2 field ``head`` is ≥ 0, linear from the dry sample
+        above it; NaN where the vertical is dry to the model's bottom."""
+        n, K = self.open.shape
+        psi = np.where(self.open, (self.A @ head).reshape(n, K) + self.z, -np.inf)
+        wet = psi >= 0.0
+        rows = np.flatnonzero(wet.any(axis=1))
+        k = np.argmax(wet[rows], axis=1)  # the first wet sample from the surface down
+        above = psi[rows, np.maximum(k - 1, 0)]
+        between = (k > 0) & np.isfinite(above)  # a dry sample above it: linear between the two
+        z0, z1, now = self.z[np.maximum(k - 1, 0)], self.z[k], psi[rows, k]
+        out = np.full(n, np.nan)
+        out[rows] = np.where(between, z0 + (z1 - z0) * -above / np.where(between, now - above, 1.0), z1)
+        return out
+
+
+def phreatic_sampler(mesh, x: np.ndarray, *, height: float, center, radius: float, step: float) -> PhreaticSampler:
+    """The :class:`PhreaticSampler` of the verticals at ``x`` (m) on the ground's P2 ``mesh``
+    (:class:`~solver.geometry.mesh.BodyMesh`), samples ``step`` m apart down to ``height``; the
+    excavation (``radius`` about ``center``) is dry. The samples are located in the straight-sided
+    triangles and keep clear of the curved excavation edges."""
+    import scipy.sparse as sp
+
+    z = np.linspace(0.0, height, max(2, int(np.ceil(height / step)) + 1))
+    x = np.asarray(x, dtype=float)
+    rows, cols, vals = [], [], []
+    able = np.zeros((x.size, z.size), bool)
+    for i, xc in enumerate(x):
+        found, nodes, shape = _column_samples(mesh, xc, z)
+        able[i] = found & (np.hypot(xc - center[0], -z - center[1]) >= radius + 0.5 * step)
+        k = np.flatnonzero(found)
+        rows.append(np.repeat(i * z.size + k, 6))
+        cols.append(nodes[:, k].T.ravel())
+        vals.append(shape[:, k].T.ravel())
+    A = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                      shape=(x.size * z.size, mesh.p.shape[1]))
+    return PhreaticSampler(z, A, able)
+
+
 def phreatic_depth(mesh, head: np.ndarray, x: np.ndarray, *, height: float, center, radius: float,
                    step: float) -> np.ndarray:
-    """Depth (m below the surface) of the phreatic surface above each ``x`` (m): the topmost point of
-    the vertical at x where the pressure head ``h - y`` of the P2 field ``head`` on ``mesh`` (the
-    ground's :class:`~solver.geometry.mesh.BodyMesh`) is ≥ 0, linear between samples ``step`` m
-    apart; the excavation (``radius`` about ``center``) is dry. NaN where the vertical is dry to the
-    model's bottom. The samples are located in the straight-sided triangles and keep clear of the
-    curved excavation edges."""
-    z = np.linspace(0.0, height, max(2, int(np.ceil(height / step)) + 1))
-    out = np.full(np.size(x), np.nan)
-    for i, xc in enumerate(np.asarray(x, dtype=float)):
-        psi = _column_pressure_head(mesh, head, xc, z)
-        psi[np.hypot(xc - center[0], -z - center[1]) < radius + 0.5 * step] = -np.inf
-        wet = np.flatnonzero(psi >= 0.0)
-        if wet.size == 0:
-            continue
-        k = wet[0]
-        if k == 0 or not np.isfinite(psi[k - 1]):
-            out[i] = z[k]
-        else:  # between the last dry sample and the first wet one
-            out[i] = z[k - 1] + (z[k] - z[k - 1]) * (-psi[k - 1]) / (psi[k] - psi[k - 1])
-    return out
+    """Depth (m below the surface) of the phreatic surface above each ``x`` (m) of the P2 field
+    ``head`` on ``mesh``: :meth:`PhreaticSampler.depth` of :func:`phreatic_sampler` (a model's
+    cases share one sampler)."""
+    return phreatic_sampler(mesh, x, height=height, center=center, radius=radius, step=step).depth(head)
 
 
-def _column_pressure_head(mesh, head: np.ndarray, xc: float, z: np.ndarray) -> np.ndarray:
-    """Pressure head ``h - y`` of the P2 field at the points ``(xc, -z)`` (-inf outside every triangle)."""
+def _column_samples(mesh, xc: float, z: np.ndarray):
+    """Where the points ``(xc, -z)`` lie in the P2 mesh: whether each is inside a triangle (K,), the
+    six nodes (6, K) and P2 shape values (6, K) of the first triangle holding it."""
     p, t = mesh.p, mesh.t
     xv = p[0, t[:3]]  # (3, E)
     near = np.flatnonzero((xv.min(axis=0) <= xc + 1e-12) & (xv.max(axis=0) >= xc - 1e-12))
@@ -340,8 +378,7 @@ def _column_pressure_head(mesh, head: np.ndarray, xc: float, z: np.ndarray) -> n
     k = np.arange(z.size)
     a, b, c = l0[e, k], l1[e, k], l2[e, k]
     shape = np.stack([a * (2 * a - 1), b * (2 * b - 1), c * (2 * c - 1), 4 * a * b, 4 * b * c, 4 * a * c])
-    values = np.sum(shape * head[t[:, near[e]]], axis=0) + z
-    return np.where(found, values, -np.inf)
+    return found, t[:, near[e]], shape
 
 
 def seepage_load(vector_basis, scalar_basis, delta_p: np.ndarray) -> np.ndarray:

@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import logging
 import time
+import weakref
 from datetime import datetime, timezone
 
 import numpy as np
@@ -27,7 +28,7 @@ import xarray as xr
 from ..fe.assembly import SUBTRIANGLES, stress_at
 from ..ground.loads import in_situ_stress, moduli
 from ..ground.strata import moved_lines, strata
-from ..ground.water import hydrostatic, phreatic_depth
+from ..ground.water import hydrostatic, phreatic_sampler
 from .variables import JOINT_UTILIZATION, JOINT_VARIABLES, SCALARS
 from .settlement import TROUGH_WIDTH_FACTOR, design_trough, gaussian_trough, ground_loss, surface_warnings
 from ..lining.checks import crack_width, shear_utilization
@@ -43,6 +44,17 @@ log = logging.getLogger(__name__)
 
 #: Largest displacement, as a fraction of the excavation radius, inside the small-displacement model.
 SMALL_DISPLACEMENT_LIMIT = 0.02
+#: What the results of a model's cases share and build once (:func:`_of_model`), gone with the model.
+_BUILT: "weakref.WeakKeyDictionary[TunnelModel, dict]" = weakref.WeakKeyDictionary()
+
+
+def _of_model(model: TunnelModel, key: tuple, build):
+    """``build()`` for ``model`` and ``key`` (the geometry it depends on beyond the model), once."""
+    built = _BUILT.setdefault(model, {})
+    if key not in built:
+        built[key] = build()
+    return built[key]
+
 
 def _var(dims, data, units, long_name, **attrs):
     return xr.Variable(dims, data, {"units": units, "long_name": long_name, **attrs})
@@ -81,7 +93,8 @@ def _ground_state(model: TunnelModel, sol: Solution) -> dict:
         if spec.drained:  # the seepage's P2 field (clipped: its interpolant may dip below 0 near the wall)
             from skfem import Basis, ElementTriP2
 
-            scalar = Basis(basis.mesh, ElementTriP2(), quadrature=basis.quadrature)
+            scalar = _of_model(model, ("scalar P2 at the points",),
+                               lambda: Basis(basis.mesh, ElementTriP2(), quadrature=basis.quadrature))
             pore = np.maximum(np.asarray(scalar.interpolate(sol.pore)), 0.0)
         else:  # hydrostatic, exact at the points
             pore = hydrostatic(y, spec.water.table, spec.water.unit_weight)
@@ -344,15 +357,18 @@ def _surface_variables(model: TunnelModel, sol: Solution) -> tuple[dict, dict, d
 
 def phreatic_surface(model: TunnelModel, sol: Solution, x: np.ndarray) -> np.ndarray:
     """Depth (m) of the phreatic surface above each surface ``x``: the table (hydrostatic), the
-    drained seepage's (:func:`solver.ground.water.phreatic_depth`), NaN in dry ground."""
+    drained seepage's (:func:`solver.ground.water.phreatic_sampler`, once per model), NaN in dry ground."""
     spec = sol.spec
     if spec.water.table is None:
         return np.full(x.size, np.nan)
     if sol.water_head is None:
         return np.full(x.size, float(spec.water.table))
     g = spec.geometry
-    return phreatic_depth(model.mesh.ground, sol.water_head, x, height=g.height, center=model.mesh.center,
-                          radius=g.hole_radius, step=0.5 * spec.mesh.interface_size)
+    step = 0.5 * spec.mesh.interface_size
+    sampler = _of_model(model, ("phreatic", np.asarray(x, float).tobytes(), g.height, g.hole_radius, step),
+                        lambda: phreatic_sampler(model.mesh.ground, x, height=g.height, center=model.mesh.center,
+                                                 radius=g.hole_radius, step=step))
+    return sampler.depth(sol.water_head)
 
 
 def _contact_scalars(model: TunnelModel, sol: Solution) -> dict:

@@ -97,3 +97,22 @@ def test_without_drawdown_the_inflow_is_the_confined_closed_form():
     assert seep.iterations == 2  # nothing dries: k_r is 1 everywhere from the first solve
     assert np.all(seep.head - model.mesh.ground.p[1] >= -1e-9)
     assert seep.outflow == pytest.approx(seep.inflow, rel=1e-9)
+
+
+def test_the_phreatic_sampler_finds_a_sloping_water_surface_exactly(drained):
+    """A head field linear in x and y (P2 holds it exactly) has its phreatic surface, ψ = h - y = 0,
+    on the straight line z = a + b x; the sampler, built once from the mesh, finds it at every vertical
+    clear of the excavation to round-off (linear between samples is exact for ψ linear in z), for any
+    such field; and a field wet to the surface gives depth 0, one dry to the bottom NaN."""
+    spec, model, _ = drained
+    mesh, g = model.mesh.ground, spec.geometry
+    x = np.linspace(0.0, 0.5 * g.width, 23)
+    x = x[np.abs(x - model.mesh.center[0]) > g.hole_radius + 1.0]  # verticals clear of the hole
+    sampler = water.phreatic_sampler(mesh, x, height=g.height, center=model.mesh.center, radius=g.hole_radius,
+                                     step=0.5 * spec.mesh.interface_size)
+    px, py = mesh.p
+    for a, b in ((2.0, 0.1), (7.5, -0.05), (0.3, 0.0)):
+        head = -a - b * px  # ψ = h - y vanishes at y = -a - b x
+        np.testing.assert_allclose(sampler.depth(head), a + b * x, rtol=0, atol=1e-9)
+    assert np.all(sampler.depth(np.full(px.size, 1.0)) == 0.0)          # ψ > 0 at the surface
+    assert np.all(np.isnan(sampler.depth(py - 1.0)))                     # ψ = -1 everywhere: dry
