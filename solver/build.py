@@ -137,8 +137,7 @@ class BuiltModel:
         self.timings = {"mesh": t1 - t0, "assembly": t2 - t1, "factorization": 0.0}
         self.factorize(rows_of_model(spec.interface.model))
         self._units: dict[str, np.ndarray] = {}
-        self._point_bases: dict = {}
-        self._gradients: dict = {}
+        self._built: dict = {}
         self._releases: "OrderedDict[str, tuple]" = OrderedDict()
         self._seepage: "OrderedDict[tuple, water.SeepageModel]" = OrderedDict()
         self._lock = threading.Lock()
@@ -208,28 +207,28 @@ class BuiltModel:
         self.timings["factorization"] = 0.0
         self.timings.pop("flexibility", None)
 
+    def built(self, key: tuple, build):
+        """``build()`` once for this model under ``key``: what its cases share beyond the factorizations
+        (point bases, gradient operators, the results' samplers)."""
+        if key not in self._built:
+            self._built[key] = build()
+        return self._built[key]
+
     def point_basis(self, body: str) -> "Basis":
         """``'ground'`` or ``'lining'`` basis at the sub-triangle centroids (built on first use)."""
-        if body not in self._point_bases:
-            self._point_bases[body] = point_basis(getattr(self, body).body)
-        return self._point_bases[body]
+        return self.built(("point basis", body), lambda: point_basis(getattr(self, body).body))
 
     def point_gradient(self, body: str):
         """``'ground'`` or ``'lining'``: the gradient at the sub-triangle centroids on the full DOF vector
         (:func:`~solver.fe.assembly.nodal_gradient_operator`: every case's stored stresses; built once)."""
-        key = ("nodal", body)
-        if key not in self._gradients:
-            self._gradients[key] = nodal_gradient_operator(self.point_basis(body))
-        return self._gradients[key]
+        return self.built(("nodal gradient", body), lambda: nodal_gradient_operator(self.point_basis(body)))
 
     def gradient_operator(self, where: str):
         """The ground's displacement gradient, as an operator on its unknowns, at its quadrature
         points (``'gauss'``) or at the sub-triangle centroids (``'points'``); built on first use."""
-        if where not in self._gradients:
-            body = self.ground.body
-            basis = body.basis if where == "gauss" else self.point_basis("ground")
-            self._gradients[where] = gradient_operator(body, basis)
-        return self._gradients[where]
+        body = self.ground.body
+        return self.built(("gradient", where), lambda: gradient_operator(
+            body, body.basis if where == "gauss" else self.point_basis("ground")))
 
     def factorize(self, rows: Rows) -> None:
         """Both bodies' factorizations serving ``rows`` (built once; timed)."""

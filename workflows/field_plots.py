@@ -69,18 +69,14 @@ def zone_border(ds: xr.Dataset, tri: np.ndarray, name: str = "plastic") -> np.nd
     return np.column_stack([border // n, border % n])
 
 
-def _yielded_outline(ax, ds: xr.Dataset, tri: np.ndarray, x: np.ndarray, y: np.ndarray, name: str = "plastic",
-                     color: str = "magenta", label: str = "yielded zone", style: str = "-",
-                     border: np.ndarray | None = None) -> bool:
-    """Outline the zone of the face flag ``name`` (:func:`zone_border`, or the ``border`` found
-    already); True if drawn."""
-    border = zone_border(ds, tri, name) if border is None else border
+def _yielded_outline(ax, border: np.ndarray | None, x: np.ndarray, y: np.ndarray, *, color: str = "magenta",
+                     label: str = "yielded zone", style: str = "-") -> None:
+    """Draw a yielded zone's outline (:func:`zone_border`; nothing where it is None) at nodes ``x``, ``y``."""
     if border is None:
-        return False
+        return
     segs = np.stack([np.column_stack([x[border[:, 0]], y[border[:, 0]]]),
                      np.column_stack([x[border[:, 1]], y[border[:, 1]]])], axis=1)
     ax.add_collection(LineCollection(segs, colors=color, linewidths=1.2, linestyles=style, label=label))
-    return True
 
 
 def _lining(ax, ds: xr.Dataset, tri: np.ndarray, x: np.ndarray, y: np.ndarray) -> None:
@@ -90,12 +86,11 @@ def _lining(ax, ds: xr.Dataset, tri: np.ndarray, x: np.ndarray, y: np.ndarray) -
 
 
 def _panel(fig, ax, ds, tri, near, values, *, label: str, cmap: str, faces: bool, symmetric: bool = False,
-           drawn: np.ndarray, borders=(None, None)) -> None:
+           drawn: np.ndarray, borders: tuple) -> None:
     """One field on the ground near the tunnel (``near``: the ground faces in view, which set
     the colour range; ``drawn``: the ground faces that can show in the view, :func:`_in_view`;
     ``borders``: the two yielded zones' outlines, :func:`zone_border`)."""
     x, y = ds["node_x"].values, ds["node_y"].values
-    ground = drawn
     shown = values[near] if faces else values[np.unique(tri[near])]
     lo, hi = (float(np.min(shown)), float(np.max(shown))) if shown.size else (0.0, 1.0)
     if symmetric:
@@ -105,18 +100,15 @@ def _panel(fig, ax, ds, tri, near, values, *, label: str, cmap: str, faces: bool
         hi = lo + (abs(lo) or 1.0) * 1e-6
     levels = np.linspace(lo, hi, 13)
     if faces:
-        art = ax.tripcolor(Triangulation(x, y, tri[ground]), facecolors=values[ground], cmap=cmap,
+        art = ax.tripcolor(Triangulation(x, y, tri[drawn]), facecolors=values[drawn], cmap=cmap,
                            vmin=lo, vmax=hi, shading="flat", rasterized=True)
     else:
-        art = ax.tricontourf(Triangulation(x, y, tri[ground]), values, levels=levels, cmap=cmap, extend="both")
+        art = ax.tricontourf(Triangulation(x, y, tri[drawn]), values, levels=levels, cmap=cmap, extend="both")
         art.set_rasterized(True)
     _lining(ax, ds, tri, x, y)
     joint_plots.draw_on_mesh(ax, ds)
-    if borders[0] is not None:
-        _yielded_outline(ax, ds, tri, x, y, border=borders[0])
-    if borders[1] is not None:
-        _yielded_outline(ax, ds, tri, x, y, "stage1_plastic", "darkorange", "yielded before the lining", "--",
-                         border=borders[1])
+    _yielded_outline(ax, borders[0], x, y)
+    _yielded_outline(ax, borders[1], x, y, color="darkorange", label="yielded before the lining", style="--")
     _ground_lines(ax, ds)
     _window(ax, ds)
     bar = fig.colorbar(art, ax=ax, shrink=0.85)
@@ -252,7 +244,7 @@ def plot_deformed_mesh(ds: xr.Dataset, *, scale: float | None = None, stage: str
         _deformed_lining(ax, ds, tri[body == 1], xd, yd, ring, scale, (ux, uy))
     ix, iy = ds["interface_x"].values, ds["interface_y"].values
     ax.plot(ix, iy, color="k", lw=1.0, ls="--", label="excavation boundary (undeformed)")
-    _yielded_outline(ax, ds, tri, xd, yd)
+    _yielded_outline(ax, zone_border(ds, tri), xd, yd)
     _ground_lines(ax, ds)
     ax.set_xlim(0.0, view)
     ax.set_ylim(cy - view, cy + view)

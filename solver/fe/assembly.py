@@ -350,8 +350,8 @@ def _gradient_entries(basis: Basis):
 def nodal_gradient_operator(basis: Basis) -> sp.csr_matrix:
     """The displacement gradient at the points of ``basis`` as a sparse operator on the full DOF
     vector (:meth:`Body.full` of the nodal displacements): ``(G @ x).reshape(2, 2, E, P)`` is
-    scikit-fem's ``basis.interpolate(x).grad``, a tenth of its cost once built (a built model's
-    stored stresses, :func:`stress_at`)."""
+    scikit-fem's ``basis.interpolate(x).grad`` at a tenth of its cost once built (a model's stored
+    stresses, :func:`stress_at`)."""
     rows, cols, vals = _gradient_entries(basis)
     E, P = basis.dx.shape
     return sp.csr_matrix((vals.ravel(), (rows.ravel(), cols.ravel())), shape=(4 * E * P, basis.N))
@@ -388,19 +388,15 @@ def gradient_operator(body: Body, basis: Basis) -> sp.csr_matrix:
     return sp.csr_matrix((vals, (rows, cols)), shape=(4 * basis.dx.size, body.free.size))
 
 
-def stress_at(body: Body, young: float, poisson: float, u_nodes: np.ndarray,
-              basis: Basis | None = None, gradient: sp.csr_matrix | None = None) -> np.ndarray:
-    """Stress (4, E, P) in Pa (xx, yy, xy, zz; tension positive) at the points of ``basis``
-    (:func:`point_basis`, the sub-triangle centroids by default), through ``gradient`` (its
-    :func:`nodal_gradient_operator`) if given.
+def stress_at(body: Body, young, poisson, u_nodes: np.ndarray, points: tuple[int, int],
+              gradient: sp.csr_matrix) -> np.ndarray:
+    """Stress (4, E, P) in Pa (xx, yy, xy, zz; tension positive) at the ``points`` (E, P) of a
+    :func:`point_basis`, through its :func:`nodal_gradient_operator` ``gradient``.
 
     ``u_nodes`` is the nodal displacement (2, N); plane strain gives
     σ_zz = λ (ε_xx + ε_yy).
     """
-    basis = point_basis(body) if basis is None else basis
-    x = body.full(u_nodes)
-    grad = (basis.interpolate(x).grad if gradient is None  # (2, 2, E, P): du_i/dx_j
-            else (gradient @ x).reshape((2, 2) + basis.dx.shape))
+    grad = (gradient @ body.full(u_nodes)).reshape((2, 2) + tuple(points))  # du_i/dx_j
     return _hooke(grad, young, poisson)
 
 

@@ -351,14 +351,6 @@ def phreatic_sampler(mesh, x: np.ndarray, *, height: float, center, radius: floa
     return PhreaticSampler(z, A, able)
 
 
-def phreatic_depth(mesh, head: np.ndarray, x: np.ndarray, *, height: float, center, radius: float,
-                   step: float) -> np.ndarray:
-    """Depth (m below the surface) of the phreatic surface above each ``x`` (m) of the P2 field
-    ``head`` on ``mesh``: :meth:`PhreaticSampler.depth` of :func:`phreatic_sampler` (a model's
-    cases share one sampler)."""
-    return phreatic_sampler(mesh, x, height=height, center=center, radius=radius, step=step).depth(head)
-
-
 def _column_samples(mesh, xc: float, z: np.ndarray):
     """Where the points ``(xc, -z)`` lie in the P2 mesh: whether each is inside a triangle (K,), the
     six nodes (6, K) and P2 shape values (6, K) of the first triangle holding it."""

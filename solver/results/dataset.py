@@ -19,7 +19,6 @@ from __future__ import annotations
 import json
 import logging
 import time
-import weakref
 from datetime import datetime, timezone
 
 import numpy as np
@@ -44,17 +43,6 @@ log = logging.getLogger(__name__)
 
 #: Largest displacement, as a fraction of the excavation radius, inside the small-displacement model.
 SMALL_DISPLACEMENT_LIMIT = 0.02
-#: What the results of a model's cases share and build once (:func:`_of_model`), gone with the model.
-_BUILT: "weakref.WeakKeyDictionary[TunnelModel, dict]" = weakref.WeakKeyDictionary()
-
-
-def _of_model(model: TunnelModel, key: tuple, build):
-    """``build()`` for ``model`` and ``key`` (the geometry it depends on beyond the model), once."""
-    built = _BUILT.setdefault(model, {})
-    if key not in built:
-        built[key] = build()
-    return built[key]
-
 
 def _var(dims, data, units, long_name, **attrs):
     return xr.Variable(dims, data, {"units": units, "long_name": long_name, **attrs})
@@ -68,7 +56,7 @@ def _faces(t: np.ndarray) -> np.ndarray:
 def _lining_stress(model: TunnelModel, spec, u_nodes: np.ndarray) -> np.ndarray:
     """(4, 4E) stress in the lining at the sub-triangle centroids."""
     basis = model.point_basis("lining")
-    return stress_at(model.lining.body, spec.lining.young, spec.lining.poisson, u_nodes, basis,
+    return stress_at(model.lining.body, spec.lining.young, spec.lining.poisson, u_nodes, basis.dx.shape,
                      model.point_gradient("lining")).reshape(4, -1)
 
 
@@ -78,12 +66,12 @@ def _ground_state(model: TunnelModel, sol: Solution) -> dict:
     ``wished-in-place``) and the ``pore`` pressure after stage 2 (Pa, compression positive)."""
     spec = sol.spec
     basis = model.point_basis("ground")
-    y = np.asarray(basis.global_coordinates())[1]
+    y = model.built(("point y", "ground"), lambda: np.asarray(basis.global_coordinates())[1])  # (E, 4)
     young, poisson = moduli(strata(spec), model.band, y)  # the case's moduli
     if sol.plastic is not None:  # the return-mapped history at these points, not Hooke's law
         effective = sol.plastic["stress"].reshape((4,) + y.shape)
     else:
-        effective = stress_at(model.ground.body, young, poisson, sol.u_ground, basis,
+        effective = stress_at(model.ground.body, young, poisson, sol.u_ground, y.shape,
                               model.point_gradient("ground"))  # (4, E, 4)
     if spec.excavation.method == "deconfinement" and sol.plastic is None:
         effective = effective + in_situ_stress(spec, strata(spec), model.band, y)["effective"]
@@ -93,8 +81,8 @@ def _ground_state(model: TunnelModel, sol: Solution) -> dict:
         if spec.drained:  # the seepage's P2 field (clipped: its interpolant may dip below 0 near the wall)
             from skfem import Basis, ElementTriP2
 
-            scalar = _of_model(model, ("scalar P2 at the points",),
-                               lambda: Basis(basis.mesh, ElementTriP2(), quadrature=basis.quadrature))
+            scalar = model.built(("scalar P2 basis", "ground"),
+                                 lambda: Basis(basis.mesh, ElementTriP2(), quadrature=basis.quadrature))
             pore = np.maximum(np.asarray(scalar.interpolate(sol.pore)), 0.0)
         else:  # hydrostatic, exact at the points
             pore = hydrostatic(y, spec.water.table, spec.water.unit_weight)
@@ -365,9 +353,9 @@ def phreatic_surface(model: TunnelModel, sol: Solution, x: np.ndarray) -> np.nda
         return np.full(x.size, float(spec.water.table))
     g = spec.geometry
     step = 0.5 * spec.mesh.interface_size
-    sampler = _of_model(model, ("phreatic", np.asarray(x, float).tobytes(), g.height, g.hole_radius, step),
-                        lambda: phreatic_sampler(model.mesh.ground, x, height=g.height, center=model.mesh.center,
-                                                 radius=g.hole_radius, step=step))
+    sampler = model.built(("phreatic", np.asarray(x, float).tobytes(), g.height, g.hole_radius, step),
+                          lambda: phreatic_sampler(model.mesh.ground, x, height=g.height, center=model.mesh.center,
+                                                   radius=g.hole_radius, step=step))
     return sampler.depth(sol.water_head)
 
 
