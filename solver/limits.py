@@ -4,8 +4,8 @@ the reason, like any case that does not converge.
 
 ``with time_limit(seconds): ...`` sets the limit for the code run inside (per thread and
 task: a :mod:`contextvars` variable); :func:`check_time` raises once it has passed. The
-default, :data:`CASE_TIME_LIMIT` seconds, is ``TUNNEL_CONTACT_CASE_TIME_LIMIT`` (600: the
-finest mesh the sizing cap allows solves in about a minute on one core).
+default, :func:`case_time_limit` seconds, is ``TUNNEL_CONTACT_CASE_TIME_LIMIT`` (600: the
+finest mesh the sizing cap allows solves in about a minute on one core), read when a case starts.
 """
 from __future__ import annotations
 
@@ -18,7 +18,13 @@ from dataclasses import dataclass
 
 from .errors import SolverError
 
-CASE_TIME_LIMIT = float(os.environ.get("TUNNEL_CONTACT_CASE_TIME_LIMIT", "600") or 600)
+
+def case_time_limit() -> float:
+    """``TUNNEL_CONTACT_CASE_TIME_LIMIT`` seconds (600 unset), read at each call: a dask worker
+    forked from a process that imported the solver earlier has its own environment by then."""
+    return float(os.environ.get("TUNNEL_CONTACT_CASE_TIME_LIMIT", "600") or 600)
+
+
 #: Seconds between two calls of a block's ``stop`` callable (it may look at a file).
 STOP_POLL = 0.5
 
@@ -44,10 +50,10 @@ class CaseCancelled(SolverError):
 
 @contextmanager
 def time_limit(seconds: float | None = None, stop: Callable[[], bool] | None = None):
-    """Run the block under a limit of ``seconds`` (default :data:`CASE_TIME_LIMIT`); ``stop``,
+    """Run the block under a limit of ``seconds`` (default :func:`case_time_limit`); ``stop``,
     if given, is asked every :data:`STOP_POLL` seconds whether to give the case up (a
     cancellation), which :func:`check_time` then raises as :class:`CaseCancelled`."""
-    seconds = CASE_TIME_LIMIT if seconds is None else float(seconds)
+    seconds = case_time_limit() if seconds is None else float(seconds)
     now = time.monotonic()
     token = _LIMIT.set(_Limit(now + seconds, seconds, stop, now + STOP_POLL))
     try:

@@ -43,7 +43,9 @@ _SHARED: "OrderedDict[str, TunnelModel]" = OrderedDict()
 _SHARED_LOCK = threading.Lock()
 #: Models a process keeps for reuse (a worker running a sweep over one geometry needs one);
 #: ``TUNNEL_CONTACT_SHARED_MODELS=0`` turns reuse off (every case built from nothing).
-SHARED_MODELS = int(os.environ.get("TUNNEL_CONTACT_SHARED_MODELS", "2"))
+def shared_models() -> int:
+    """``TUNNEL_CONTACT_SHARED_MODELS`` (2 unset), read at each call (a forked worker's own)."""
+    return int(os.environ.get("TUNNEL_CONTACT_SHARED_MODELS", "2"))
 
 
 def shared_model(spec: CaseSpec) -> TunnelModel:
@@ -52,11 +54,12 @@ def shared_model(spec: CaseSpec) -> TunnelModel:
     Cases of a sweep that share geometry, mesh, boundaries and materials (loads, K0,
     deconfinement, interface, solver and design varying) then pay mesh, assembly and
     factorization once per worker process. Least recently used models are dropped
-    beyond :data:`SHARED_MODELS`. Solving on a shared model gives the same result as on
+    beyond :func:`shared_models`. Solving on a shared model gives the same result as on
     a fresh one: what a model builds on first use (unit load vectors, the factorization and
     flexibility an interface model needs, stress bases) depends on the model alone.
     """
-    if SHARED_MODELS <= 0:
+    keep = shared_models()
+    if keep <= 0:
         return TunnelModel(spec)
     key = model_key(spec)
     with _SHARED_LOCK:
@@ -65,6 +68,6 @@ def shared_model(spec: CaseSpec) -> TunnelModel:
             return _SHARED[key]
         model = TunnelModel(spec)
         _SHARED[key] = model
-        while len(_SHARED) > SHARED_MODELS:
+        while len(_SHARED) > keep:
             _SHARED.popitem(last=False)
         return model

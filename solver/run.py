@@ -28,7 +28,7 @@ def run_case(spec: CaseSpec, *, model: TunnelModel | None = None,
     :func:`~solver.model.model_key` (mesh, stiffness and factorizations are then not rebuilt);
     the result is the same as without it. With ``solver.mesh_check`` the case is also solved on a
     mesh refined once (:mod:`solver.results.mesh_check`) and the changes are reported. The solve stops with a :class:`SolverError` past
-    ``time_limit_seconds`` (default :data:`solver.limits.CASE_TIME_LIMIT`), and with
+    ``time_limit_seconds`` (default :func:`solver.limits.case_time_limit`), and with
     :class:`solver.limits.CaseCancelled` once ``stop()`` (asked twice a second) is true.
     """
     t0 = time.perf_counter()

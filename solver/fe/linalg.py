@@ -40,22 +40,25 @@ from threadpoolctl import ThreadpoolController
 from ..errors import SolverError
 
 
-#: BLAS threads the solver allows itself (``TUNNEL_CONTACT_BLAS_THREADS``, default 1). Its
-#: dense work is small (condensed interface blocks of a few hundred rows); OpenBLAS's
-#: threads spinning against the supernodal factorization and each other made a plain
-#: process's case take 2.6-6.2 s instead of 0.45 s now and then (issue 24).
-BLAS_THREADS = max(1, int(os.environ.get("TUNNEL_CONTACT_BLAS_THREADS", "1") or 1))
+def blas_thread_count() -> int:
+    """BLAS threads the solver allows itself: ``TUNNEL_CONTACT_BLAS_THREADS`` (1 unset), read at
+    each call (a forked worker's own). Its dense work is small (condensed interface blocks of a
+    few hundred rows); OpenBLAS's threads spinning against the supernodal factorization and each
+    other made a plain process's case take 2.6-6.2 s instead of 0.45 s now and then (issue 24)."""
+    return max(1, int(os.environ.get("TUNNEL_CONTACT_BLAS_THREADS", "1") or 1))
+
+
 _CONTROLLER: ThreadpoolController | None = None
 
 
 def blas_threads():
     """Context limiting every loaded BLAS (numpy's, scipy's, CHOLMOD's OpenBLAS) to
-    :data:`BLAS_THREADS` threads, whatever process the solver runs in (CLI, notebook,
+    ``blas_thread_count()`` threads, whatever process the solver runs in (CLI, notebook,
     worker); about 40 µs to enter (the libraries are looked up once, on first use)."""
     global _CONTROLLER
     if _CONTROLLER is None:
         _CONTROLLER = ThreadpoolController()
-    return _CONTROLLER.limit(limits=BLAS_THREADS, user_api="blas")
+    return _CONTROLLER.limit(limits=blas_thread_count(), user_api="blas")
 
 
 class FactorizationError(SolverError):

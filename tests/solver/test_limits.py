@@ -41,7 +41,7 @@ def test_uzawa_checks_the_clock_while_it_iterates(monkeypatch):
 
 
 def test_a_case_over_its_limit_is_stored_as_failed_with_the_reason(tmp_path, monkeypatch):
-    monkeypatch.setattr(limits, "CASE_TIME_LIMIT", 1e-9)
+    monkeypatch.setenv("TUNNEL_CONTACT_CASE_TIME_LIMIT", "1e-9")
     spec = CaseSpec.model_validate(COARSE)
     store = ResultStore(tmp_path)
     with pytest.raises(SolverError):

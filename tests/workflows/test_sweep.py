@@ -134,15 +134,6 @@ def test_task_function(tmp_path):
     assert as_store(tmp_path).read_error(failing.case_id)["error"] == result["error"]
 
 
-@pytest.fixture(scope="module")
-def client():
-    from distributed import Client, LocalCluster
-
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
-            Client(cluster) as c:
-        yield c
-
-
 def test_run_sweep_on_two_worker_processes(tmp_path, client):
     thicknesses = [0.2, 0.25, 0.3, 0.35, 0.3]
     study = sweep({"lining.thickness": thicknesses,

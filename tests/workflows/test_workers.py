@@ -190,3 +190,29 @@ def test_free_heap_kept_by_the_workers_settings_goes_back_after_a_case(tmp_path)
     assert out["kept"] > 250 * 2**20  # freed, yet kept by the allocator
     assert out["before"] - out["after"] > 250 * 2**20  # and returned
     assert out["again"] < out["kept"]
+
+
+def imported_at_start() -> dict[str, bool]:
+    """Which of the preloaded modules the worker process has (no task has run on it)."""
+    from workflows.workers import WORKER_PRELOAD
+
+    return {name: name in sys.modules for name in WORKER_PRELOAD}
+
+
+def environ_value() -> str | None:
+    return os.environ.get("TUNNEL_CONTACT_TEST_PROBE")
+
+
+def test_embedded_workers_start_with_the_solver_imported_and_this_process_environment(monkeypatch):
+    """An embedded cluster's workers are forked from a server that imported the solver once
+    (a spawned worker has none of it before its first task), and still see this process's
+    environment as it is when the cluster starts, not as it was when the server started."""
+    from workflows.workers import WORKER_PRELOAD
+
+    seen = []
+    for value in ("first", "second"):
+        monkeypatch.setenv("TUNNEL_CONTACT_TEST_PROBE", value)
+        with local_client(2) as client:
+            seen.append((list(client.run(imported_at_start).values()), set(client.run(environ_value).values())))
+    everything = {name: True for name in WORKER_PRELOAD}
+    assert seen == [([everything] * 2, {"first"}), ([everything] * 2, {"second"})]
