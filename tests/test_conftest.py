@@ -42,3 +42,13 @@ def test_a_module_with_a_module_fixture_runs_on_one_process(tmp_path):
     free = {w for kind, w in lines if kind == "free"}
     assert len([1 for kind, _ in lines if kind == "shared"]) == 8 and len(shared) == 1, lines
     assert free == {"gw0", "gw1"}, lines  # the others are spread over both
+
+
+def test_the_serial_part_finds_every_serial_test_by_its_file():
+    """``make test``'s serial part imports only the files that define a :data:`SERIAL_TESTS` name
+    (``pytest_ignore_collect``): each name must still be defined, in one file, as ``def name(``."""
+    from conftest import SERIAL_TESTS
+
+    files = [p for p in Path(__file__).parent.rglob("test_*.py")]
+    homes = {name: [p for p in files if f"def {name}(" in p.read_text(encoding="utf-8")] for name in SERIAL_TESTS}
+    assert {name: len(found) for name, found in homes.items()} == dict.fromkeys(SERIAL_TESTS, 1)
