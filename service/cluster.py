@@ -34,16 +34,18 @@ async def cluster_connection(settings: Settings) -> AsyncIterator[Callable[[], A
         yield connect
         return
 
+    # the settings held for the cluster's life: a worker its nanny starts again (after a crash or a
+    # kill) is forked from the same preloaded server as the first ones, not spawned and imported anew
     with worker_config():
         cluster = await LocalCluster(n_workers=settings.local_workers, processes=True,
                                      threads_per_worker=1, dashboard_address=None, asynchronous=True)
-    logger.info("embedded dask cluster at %s with %d workers",
-                cluster.scheduler_address, len(cluster.workers))
+        logger.info("embedded dask cluster at %s with %d workers",
+                    cluster.scheduler_address, len(cluster.workers))
 
-    async def connect() -> Client:
-        return await Client(cluster, asynchronous=True)
+        async def connect() -> Client:
+            return await Client(cluster, asynchronous=True)
 
-    try:
-        yield connect
-    finally:
-        await cluster.close()
+        try:
+            yield connect
+        finally:
+            await cluster.close()

@@ -216,3 +216,40 @@ def test_embedded_workers_start_with_the_solver_imported_and_this_process_enviro
             seen.append((list(client.run(imported_at_start).values()), set(client.run(environ_value).values())))
     everything = {name: True for name in WORKER_PRELOAD}
     assert seen == [([everything] * 2, {"first"}), ([everything] * 2, {"second"})]
+
+
+def test_the_service_restarts_a_killed_embedded_worker_from_the_preloaded_server(tmp_path):
+    """The service's embedded cluster holds :func:`worker_config` for its life: a worker killed
+    (SIGKILL) is started again by its nanny as a fork of the preloaded server (a spawned one would
+    have none of the solver's modules before its first task)."""
+    import asyncio
+    import signal
+
+    from service.cluster import cluster_connection
+    from service.settings import Settings
+    from workflows.workers import WORKER_PRELOAD
+
+    async def kill_one_and_probe() -> tuple[int, int, dict]:
+        async with cluster_connection(Settings(results=tmp_path, local_workers=1)) as connect:
+            client = await connect()
+            try:
+                (before,) = (await client.run(os.getpid)).values()
+                os.kill(before, signal.SIGKILL)
+                after = before
+                for _ in range(300):  # the nanny notices and starts another (up to 30 s)
+                    await asyncio.sleep(0.1)
+                    try:
+                        pids = list((await client.run(os.getpid)).values())
+                    except Exception:  # the dead worker is still listed for a moment
+                        continue
+                    if pids and pids[0] != before:
+                        after = pids[0]
+                        break
+                (seen,) = (await client.run(imported_at_start)).values()
+                return before, after, seen
+            finally:
+                await client.close()
+
+    before, after, seen = asyncio.run(kill_one_and_probe())
+    assert after != before
+    assert seen == {name: True for name in WORKER_PRELOAD}
