@@ -41,10 +41,12 @@ class TunnelModel(BuiltModel):
 
 _SHARED: "OrderedDict[str, TunnelModel]" = OrderedDict()
 _SHARED_LOCK = threading.Lock()
-#: Models a process keeps for reuse (a worker running a sweep over one geometry needs one);
-#: ``TUNNEL_CONTACT_SHARED_MODELS=0`` turns reuse off (every case built from nothing).
+
+
 def shared_models() -> int:
-    """``TUNNEL_CONTACT_SHARED_MODELS`` (2 unset), read at each call (a forked worker's own)."""
+    """Models a process keeps for reuse (a worker running a sweep over one geometry needs one):
+    ``TUNNEL_CONTACT_SHARED_MODELS`` (2 unset; 0 turns reuse off, every case built from nothing),
+    read at each call (a forked worker's own)."""
     return int(os.environ.get("TUNNEL_CONTACT_SHARED_MODELS", "2"))
 
 

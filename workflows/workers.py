@@ -29,13 +29,19 @@ and the process holding the scheduler and the nannies 0.55-0.75 s (``python -m b
 solve. :data:`CLUSTER_CONFIG` ticks every 0.2 s, turns the profiler off (no dashboard shows
 it here) and reads the system every 2 s and the memory every 0.5 s (a case's memory is
 bounded before it starts, by the element cap): 0.06 s per worker and 0.15-0.18 s.
+
+Start. dask starts a worker process by ``spawn``: a fresh interpreter that imports the solver and
+the workflows again, 2-3 s of CPU each. An embedded LocalCluster made inside :func:`worker_config`
+forks its workers from one server process per parent that imported :data:`WORKER_PRELOAD` once
+(``forkserver``), and a worker its nanny restarts too; the nanny hands on the parent's environment
+as it is when the cluster starts. The ``dask worker`` commands keep dask's own start (one worker a
+command: a server would import as much as the worker it saves).
 """
 from __future__ import annotations
 
+import os
 from contextlib import contextmanager
 from typing import Iterator
-
-import os
 
 import dask
 
