@@ -39,6 +39,7 @@ command: a server would import as much as the worker it saves).
 """
 from __future__ import annotations
 
+import multiprocessing
 import os
 from contextlib import contextmanager
 from typing import Iterator
@@ -65,6 +66,9 @@ _PRE_SPAWN = "distributed.nanny.pre-spawn-environ"
 #: server process that imported them once (``forkserver``) instead of starting a fresh
 #: interpreter that imports them again (``spawn``, dask's default: 2-3 s of CPU a worker).
 WORKER_PRELOAD: tuple[str, ...] = ("distributed", "workflows.tasks", "solver.run", "gmsh", "pymetis")
+#: How an embedded cluster's nannies start workers: ``forkserver`` where the platform has it (Linux,
+#: macOS), dask's own ``spawn`` elsewhere (Windows).
+START_METHOD = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
 
 #: Free heap bytes a process keeps between cases before :func:`release_memory` returns them.
 KEEP_FREE = 64 * 2**20
@@ -123,12 +127,15 @@ def worker_config() -> Iterator[None]:
     # and a nanny leaves its own there (a plain LocalCluster's MALLOC_TRIM_THRESHOLD_=65536); the
     # fork server, started once, would keep such a value for every later worker: ours go first
     os.environ.update({name: str(value) for name, value in WORKER_ENVIRON.items()})
-    with dask.config.set({**CLUSTER_CONFIG, "distributed.worker.multiprocessing-method": "forkserver",
-                          # a forked worker starts with its fork server's environment: its nanny hands
-                          # on this process's as it is now (a variable removed since stays set there)
-                          "distributed.nanny.environ": dict(os.environ),
+    fork = {} if START_METHOD != "forkserver" else {
+        "distributed.worker.multiprocessing-method": START_METHOD,
+        # a forked worker starts with its fork server's environment: its nanny hands on this
+        # process's as it is now (a variable removed since stays set there)
+        "distributed.nanny.environ": dict(os.environ)}
+    with dask.config.set({**CLUSTER_CONFIG, **fork,
                           **{f"{_PRE_SPAWN}.{name}": value for name, value in WORKER_ENVIRON.items()}}):
-        _preload_forkserver()
+        if fork:
+            _preload_forkserver()
         yield
 
 
@@ -136,8 +143,6 @@ def _preload_forkserver() -> None:
     """Have this process's fork server (started with its first worker, kept for its life)
     import :data:`WORKER_PRELOAD`. dask names its own list on its first use of the context;
     ours replaces it (a superset in effect: the solver imports numpy, pandas, dask and the rest)."""
-    import multiprocessing
-
     from distributed.utils import get_mp_context
 
     get_mp_context()

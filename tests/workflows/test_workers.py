@@ -253,3 +253,18 @@ def test_the_service_restarts_a_killed_embedded_worker_from_the_preloaded_server
     before, after, seen = asyncio.run(kill_one_and_probe())
     assert after != before
     assert seen == {name: True for name in WORKER_PRELOAD}
+
+
+def test_without_a_fork_server_the_workers_are_spawned_as_dask_does(monkeypatch):
+    """Where the platform has no ``forkserver`` (Windows), :func:`worker_config` leaves dask's own
+    start method and environment hand-over alone; with one, it asks for the fork server."""
+    from workflows import workers
+
+    with workers.worker_config():
+        assert dask.config.get("distributed.worker.multiprocessing-method") == "forkserver"
+        assert dask.config.get("distributed.nanny.environ")["PATH"] == os.environ["PATH"]
+    monkeypatch.setattr(workers, "START_METHOD", "spawn")
+    with workers.worker_config():
+        assert dask.config.get("distributed.worker.multiprocessing-method") == "spawn"
+        assert dask.config.get("distributed.nanny.environ") == {}
+        assert dask.config.get("distributed.admin.tick.interval") == CLUSTER_CONFIG["distributed.admin.tick.interval"]
