@@ -18,7 +18,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "results, serve the REST API.")
     parser.add_argument("-v", "--verbose", action="count", default=0,
                         help="more log output (-v info, -vv debug)")
-    from solver.run import SOFTWARE_VERSION
+    from solver.version import SOFTWARE_VERSION
 
     parser.add_argument("--version", action="version", version=f"tunnel-contact {SOFTWARE_VERSION}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")

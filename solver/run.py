@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from importlib.metadata import PackageNotFoundError, version
 
 import numpy as np
 import xarray as xr
@@ -13,11 +12,7 @@ from .results.mesh_check import add_mesh_check, mesh_changes, refined
 from .limits import time_limit
 from .model import TunnelModel
 from .spec import CaseSpec
-
-try:
-    SOFTWARE_VERSION = version("tunnel-contact")
-except PackageNotFoundError:  # pragma: no cover - source tree without install
-    SOFTWARE_VERSION = "0+unknown"
+from .version import SOFTWARE_VERSION
 
 
 def run_case(spec: CaseSpec, *, model: TunnelModel | None = None,
