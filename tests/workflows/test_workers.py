@@ -18,7 +18,7 @@ from distributed import Client
 
 from service.process import running_cluster
 from workflows.sweep import local_client
-from workflows.workers import CLUSTER_CONFIG, WORKER_ENVIRON, cluster_process_env, worker_process_env
+from workflows.workers import CLUSTER_CONFIG, WORKER_ENVIRON, WORKER_PRELOAD, cluster_process_env, worker_process_env
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -207,8 +207,6 @@ def test_embedded_workers_start_with_the_solver_imported_and_this_process_enviro
     """An embedded cluster's workers are forked from a server that imported the solver once
     (a spawned worker has none of it before its first task), and still see this process's
     environment as it is when the cluster starts, not as it was when the server started."""
-    from workflows.workers import WORKER_PRELOAD
-
     seen = []
     for value in ("first", "second"):
         monkeypatch.setenv("TUNNEL_CONTACT_TEST_PROBE", value)
@@ -227,7 +225,6 @@ def test_the_service_restarts_a_killed_embedded_worker_from_the_preloaded_server
 
     from service.cluster import cluster_connection
     from service.settings import Settings
-    from workflows.workers import WORKER_PRELOAD
 
     async def kill_one_and_probe() -> tuple[int, int, dict]:
         async with cluster_connection(Settings(results=tmp_path, local_workers=1)) as connect:
