@@ -6,17 +6,12 @@ frictionless, Coulomb or bonded interfaces, EN 1992-1-1 section check. Pure nume
 no network.
 """
 from .errors import NoAdmissibleBoltError, NotConvergedError, SolverError
+from .lazy import lazy_exports
 from .spec import CaseSpec
 
 __all__ = ["CaseSpec", "run_case", "SolverError", "NotConvergedError", "NoAdmissibleBoltError"]
 
 
-def __getattr__(name: str):
-    """``run_case`` imported on first use (PEP 562): a process that only reads or validates cases
-    (the command line's ``--help``, ``--version``, a bad argument) does not import the finite elements."""
-    if name == "run_case":
-        from .run import run_case
-
-        globals()["run_case"] = run_case
-        return run_case
-    raise AttributeError(f"module 'solver' has no attribute {name!r}")
+#: ``run_case`` imported on first use (PEP 562): a process that only reads or validates cases (the
+#: command line's ``--help``, ``--version``, a bad argument) does not import the finite elements.
+__getattr__, __dir__ = lazy_exports(__name__, {"run_case": ".run"})

@@ -7,7 +7,7 @@ taking ``root`` accepts a store or the path of its folder. The studies of SPEC Â
 """
 from __future__ import annotations
 
-from .lazy import lazy_exports
+from solver.lazy import lazy_exports
 
 #: Where each name of the package lives: imported on first use (PEP 562), so that a process
 #: needing one module (a worker's case, the CLI's ``show``) does not import every study's

@@ -21,6 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..fe.linalg import Cholesky, _SYS_L, _SYS_LT, nested_dissection
 
@@ -187,8 +188,6 @@ class SeepageModel:
 
     def matrix(self, kr: np.ndarray):
         """The conductivity matrix (CSR, all nodes) with relative permeability ``kr`` (E, Q)."""
-        import scipy.sparse as sp
-
         w = self._conductivity[:, None] * kr
         data = np.matmul(w[:, None, :], self._local)[:, 0, :].T  # (36, E): entry (i, j) of each element
         q, n = self._pattern, self.y.size
@@ -260,8 +259,6 @@ class _Pattern:
     held node's row and column are zeroed but kept, its diagonal set to 1)."""
 
     def __init__(self, rows: np.ndarray, cols: np.ndarray, n: int, unknown: np.ndarray):
-        import scipy.sparse as sp
-
         keys, self.position = np.unique(rows.astype(np.int64) * n + cols, return_inverse=True)
         r, c = keys // n, keys % n
         self.indices = c.astype(np.int32)
@@ -308,7 +305,7 @@ class PhreaticSampler:
     (:meth:`depth`)."""
 
     z: np.ndarray
-    A: "sp.csr_matrix"
+    A: sp.csr_matrix
     open: np.ndarray
 
     def depth(self, head: np.ndarray) -> np.ndarray:
@@ -333,8 +330,6 @@ def phreatic_sampler(mesh, x: np.ndarray, *, height: float, center, radius: floa
     (:class:`~solver.geometry.mesh.BodyMesh`), samples ``step`` m apart down to ``height``; the
     excavation (``radius`` about ``center``) is dry. The samples are located in the straight-sided
     triangles and keep clear of the curved excavation edges."""
-    import scipy.sparse as sp
-
     z = np.linspace(0.0, height, max(2, int(np.ceil(height / step)) + 1))
     x = np.asarray(x, dtype=float)
     rows, cols, vals = [], [], []

@@ -351,11 +351,10 @@ def phreatic_surface(model: TunnelModel, sol: Solution, x: np.ndarray) -> np.nda
         return np.full(x.size, np.nan)
     if sol.water_head is None:
         return np.full(x.size, float(spec.water.table))
-    g = spec.geometry
-    step = 0.5 * spec.mesh.interface_size
-    sampler = model.built(("phreatic", np.asarray(x, float).tobytes(), g.height, g.hole_radius, step),
+    g = spec.geometry  # the model's (height, radius and mesh size are part of its key): x alone varies
+    sampler = model.built(("phreatic", np.asarray(x, float).tobytes()),
                           lambda: phreatic_sampler(model.mesh.ground, x, height=g.height, center=model.mesh.center,
-                                                   radius=g.hole_radius, step=step))
+                                                   radius=g.hole_radius, step=0.5 * spec.mesh.interface_size))
     return sampler.depth(sol.water_head)
 
 

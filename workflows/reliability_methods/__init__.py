@@ -9,7 +9,7 @@
 """
 from __future__ import annotations
 
-from workflows.lazy import lazy_exports
+from solver.lazy import lazy_exports
 
 from .form import form  # (eager: the submodule of the same name would shadow a lazy one)
 

@@ -1,6 +1,7 @@
 """A package's names imported on first use (PEP 562): ``__getattr__`` and ``__dir__`` for its
-``__init__``, so that a process needing one module (a worker's case, the command line's
-``show``) does not import every study's libraries (scikit-learn, SALib, scipy.stats) at start."""
+``__init__``, so that a process needing one module does not import the rest at start (``solver``:
+the command line's parser needs no finite elements; ``workflows``: a worker's case or the command
+line's ``show`` needs no study's libraries, scikit-learn, SALib, scipy.stats)."""
 from __future__ import annotations
 
 import importlib
