@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import logging
 import os
+import random
 import signal
 import socket
 import subprocess
@@ -23,8 +24,36 @@ from workflows.workers import cluster_process_env, worker_process_env
 logger = logging.getLogger(__name__)
 
 
+#: Where :func:`free_port` looks: below the kernel's ephemeral range (see :func:`ephemeral_ports`).
+FIXED_PORTS = range(20000, 32768)
+
+
+def ephemeral_ports() -> range:
+    """The ports the kernel hands out for port 0 and outgoing connections (Linux; 32768-60999 elsewhere)."""
+    try:
+        low, high = map(int, Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split()[:2])
+        return range(low, high + 1)
+    except (OSError, ValueError):
+        return range(32768, 61000)
+
+
 def free_port() -> int:
-    """A TCP port on 127.0.0.1 that nothing listens on right now."""
+    """A TCP port on 127.0.0.1 that nothing listens on right now, chosen outside the ephemeral range.
+
+    A port the kernel picked for port 0 is free when this returns, but another process binding
+    port 0 (a dask worker's HTTP pages, a client's outgoing connection) may get it before the
+    caller's server binds it. Ports drawn at random below the ephemeral range are never handed
+    out that way; if that range is empty here, fall back to the kernel's pick.
+    """
+    ephemeral = ephemeral_ports()
+    candidates = [p for p in FIXED_PORTS if p not in ephemeral]
+    for port in random.sample(candidates, min(64, len(candidates))):
+        with socket.socket() as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+            return port
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
@@ -82,9 +111,12 @@ def wait_healthy(url: str, *, timeout: float = 60.0, workers: int = 1,
             raise RuntimeError(f"service exited with code {process.returncode} before it was healthy")
         try:
             response = httpx.get(f"{url}/health", timeout=2.0)
-            last = f"{response.status_code} {response.text}"
-            if response.status_code == 200 and response.json()["workers"] >= workers:
-                return response.json()
+            last = f"{response.status_code} {response.text[:200]}"
+            body = response.json() if response.status_code == 200 else {}
+            if isinstance(body, dict) and body.get("workers", -1) >= workers:
+                return body
+        except ValueError:  # not our service's JSON: something else holds the port
+            pass
         except httpx.HTTPError as exc:
             last = str(exc)
         time.sleep(0.2)
