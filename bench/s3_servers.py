@@ -21,6 +21,8 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
+from service.process import FIXED_PORTS, free_port
+
 #: The servers :func:`s3_endpoint` starts, the default first where its program is installed.
 SERVERS = ("seaweedfs", "moto")
 
@@ -36,13 +38,12 @@ def default_server() -> str:
 
 
 def _free_ports(n: int) -> list[int]:
-    """``n`` loopback ports free now, each with port + 10000 free too (gRPC's beside HTTP's)."""
+    """``n`` loopback ports free now, each with port + 10000 free too (gRPC's beside HTTP's), both
+    below the kernel's ephemeral range (see :func:`service.process.free_port`)."""
     ports: list[int] = []
     while len(ports) < n:
-        with socket.socket() as probe:
-            probe.bind(("127.0.0.1", 0))
-            port = probe.getsockname()[1]
-        if port > 55000 or port in ports or port + 10000 in ports:
+        port = free_port(range(FIXED_PORTS.start, FIXED_PORTS.stop - 10000))
+        if port in ports or port + 10000 in ports:
             continue
         try:
             with socket.socket() as probe:

@@ -37,7 +37,7 @@ def ephemeral_ports() -> range:
         return range(32768, 61000)
 
 
-def free_port() -> int:
+def free_port(ports: range = FIXED_PORTS) -> int:
     """A TCP port on 127.0.0.1 that nothing listens on right now, chosen outside the ephemeral range.
 
     A port the kernel picked for port 0 is free when this returns, but another process binding
@@ -46,7 +46,7 @@ def free_port() -> int:
     out that way; if that range is empty here, fall back to the kernel's pick.
     """
     ephemeral = ephemeral_ports()
-    candidates = [p for p in FIXED_PORTS if p not in ephemeral]
+    candidates = [p for p in ports if p not in ephemeral]
     for port in random.sample(candidates, min(64, len(candidates))):
         with socket.socket() as s:
             try:

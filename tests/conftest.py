@@ -107,13 +107,12 @@ def s3():
     the environment a client needs (``AWS_ENDPOINT_URL``, made-up keys); a test sets it with
     ``monkeypatch`` (or hands it to the processes it starts) and makes its own bucket."""
     import logging
-    import socket
 
     from moto.server import ThreadedMotoServer
 
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
+    from service.process import free_port
+
+    port = free_port()
     logging.getLogger("werkzeug").setLevel(logging.WARNING)  # a line per request otherwise
     server = ThreadedMotoServer(ip_address="127.0.0.1", port=port, verbose=False)
     server.start()
