@@ -141,7 +141,7 @@ def test_api_started_before_the_scheduler_catches_up(tmp_path):
     address = f"tcp://127.0.0.1:{port}"
     api = Api(address, tmp_path / "results", tmp_path / "api.log")
     api.process = start(api_command(port=api.port, results=api.results, scheduler=address), log=api.log,
-                        env={"TUNNEL_CONTACT_ACCESS_LOG": "1"})
+                        env={"TUNNEL_CONTACT_ACCESS_LOG": "1", "TUNNEL_CONTACT_RECONCILE_INTERVAL": "1"})
     try:
         health = wait_until(lambda: _answer(api, "/health"), timeout=60, what="the API to answer")
         assert health.status_code == 503 and health.json()["scheduler_reachable"] is False

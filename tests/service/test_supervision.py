@@ -66,7 +66,9 @@ def test_worker_and_scheduler_deaths(tmp_path):
     try:
         wait_until(lambda: len(listening(processes[0].pid)) >= 2, what="the scheduler to listen (tcp, http)")
         assert {host for host, _ in listening(processes[0].pid)} == {"127.0.0.1"}  # its HTTP pages too
-        with running_service(tmp_path / "results", scheduler=address, log=tmp_path / "api.log") as url:
+        # reconnection tried every second (5 s by default): the scheduler's return is seen sooner
+        with running_service(tmp_path / "results", scheduler=address, log=tmp_path / "api.log",
+                             env={"TUNNEL_CONTACT_RECONCILE_INTERVAL": "1"}) as url:
             repeated_worker_kill_fails_the_case_cleanly_and_retry_recomputes_it(url, address)
             for process in processes:  # the scheduler dies; a `dask worker` then exits (code 0)
                 stop(process, sig=signal.SIGKILL)
