@@ -87,11 +87,11 @@ def test_the_figures_are_numbered_and_captioned(pages):
 def test_a_titled_report_is_cached_apart_and_the_cli_takes_the_title(tmp_path):
     case_id = ResultStore(tmp_path / "results").run_and_store(CaseSpec.model_validate(COARSE))
     plain = render_report(tmp_path / "results", case_id)
-    titled = render_report(tmp_path / "results", case_id, title={"job": "J-1"})
-    assert plain != titled and plain.name == "report.pdf"
-    assert "J-1" in _pages(titled.read_bytes())[0] and "J-1" not in _pages(plain.read_bytes())[0]
     out = tmp_path / "r.pdf"
-    assert report_command(case_id, str(tmp_path / "results"), output=str(out),
-                          title={"project": "Tunnel X", "checker": "C. D."}) == 0
-    first = _pages(out.read_bytes())[0]
-    assert "Tunnel X" in first and "C. D." in first
+    title = {"project": "Tunnel X", "checker": "C. D."}
+    assert report_command(case_id, str(tmp_path / "results"), output=str(out), title=title) == 0
+    titled = render_report(tmp_path / "results", case_id, title=title)  # the command's, from the cache
+    assert plain != titled and plain.name == "report.pdf" and titled.read_bytes() == out.read_bytes()
+    assert render_report(tmp_path / "results", case_id) == plain and plain.exists()  # not overwritten
+    first, untitled = _pages(out.read_bytes())[0], _pages(plain.read_bytes())[0]
+    assert "Tunnel X" in first and "C. D." in first and "Tunnel X" not in untitled
