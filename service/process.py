@@ -47,7 +47,8 @@ def free_port(ports: range = FIXED_PORTS) -> int:
     """
     ephemeral = ephemeral_ports()
     candidates = [p for p in ports if p not in ephemeral]
-    for port in random.sample(candidates, min(64, len(candidates))):
+    # from the system's randomness: forked processes share the random module's state
+    for port in random.SystemRandom().sample(candidates, min(64, len(candidates))):
         with socket.socket() as s:
             try:
                 s.bind(("127.0.0.1", port))
