@@ -29,7 +29,8 @@ FIXED_PORTS = range(20000, 32768)
 
 
 def ephemeral_ports() -> range:
-    """The ports the kernel hands out for port 0 and outgoing connections (Linux; 32768-60999 elsewhere)."""
+    """The ports the kernel hands out for port 0 and outgoing connections: read on Linux, else Linux's
+    default 32768-60999 (other systems use 49152-65535: :data:`FIXED_PORTS` lies below both)."""
     try:
         low, high = map(int, Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split()[:2])
         return range(low, high + 1)
