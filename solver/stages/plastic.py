@@ -1,7 +1,7 @@
 """Yielding ground through the construction stages (SPEC §1.5): the staged, incremental solve.
 
 Method: the constant-stiffness ("initial stress") iteration on the model's factorized elastic
-stiffness, accelerated by Anderson mixing (:class:`_Anderson`). With ``ε_p`` the plastic
+stiffness, accelerated by Anderson mixing (:class:`~solver.stages.mixing.Anderson`). With ``ε_p`` the plastic
 strain, the ground's equilibrium ``∫Bᵀ(σ - σ0′) = f`` reads ``K u = f + p(u)`` with the
 plastic load ``p = ∫Bᵀ(σ0′ + D ε(u) - σ(u))``, non-zero only where the ground yields. Each
 iteration solves the *elastic* problem with the load ``f + p``: one forward and one backward
@@ -52,6 +52,7 @@ from ..limits import check_time
 from ..results.post import mean_convergence
 from .contact import contact_tractions
 from .loads import stage_loads
+from .mixing import Anderson
 from .recovery import finish
 from .state import Forward, StageLoads
 
@@ -209,45 +210,6 @@ def first_yield(points: _Points, u_unit: np.ndarray, limit: float) -> float:
     return low
 
 
-class _Anderson:
-    """Anderson acceleration (type II, depth ``m``) of a fixed-point iteration ``x ← G(x)``:
-    the next iterate mixes the last ``m`` iterates so that their residuals ``G(x) - x``
-    combine to the least one. The constant-stiffness iteration converges linearly, slowly
-    when much of the ground yields; mixing turns it into a secant (multisecant) method at the
-    cost of a small least-squares problem per iteration."""
-
-    def __init__(self, m: int = 8):
-        self.m, self.count = m, 0
-        self.last = None  # the last G(x), residual and companion
-        self.dG = self.dR = self.dB = None  # (m, n) their differences, the newest at row (count - 1) % m
-
-    def step(self, x: np.ndarray, gx: np.ndarray, companion: np.ndarray | None = None):
-        """The next iterate from ``x`` and ``G(x)``; with a ``companion`` (``K G(x)``: the load ``G``
-        solved for) also the same mix of companions: ``K`` times the next iterate, without a product."""
-        r = gx - x
-        last, self.last = self.last, (gx, r, companion)
-        if last is None or self.m == 0:
-            return gx if companion is None else (gx, companion)
-        if self.dR is None:
-            self.dG, self.dR = np.empty((self.m, r.size)), np.empty((self.m, r.size))
-            if companion is not None:
-                self.dB = np.empty((self.m, companion.size))
-        row = self.count % self.m
-        np.subtract(gx, last[0], out=self.dG[row])
-        np.subtract(r, last[1], out=self.dR[row])
-        if companion is not None:
-            np.subtract(companion, last[2], out=self.dB[row])
-        self.count += 1
-        k = min(self.count, self.m)
-        dR, dG = self.dR[:k], self.dG[:k]
-        # the least-squares mix from its normal equations (k ≤ m unknowns; lstsq: the least-norm
-        # solution if the differences are dependent)
-        gamma = np.linalg.lstsq(dR @ dR.T, dR @ r, rcond=None)[0]
-        if companion is None:
-            return gx - gamma @ dG
-        return gx - gamma @ dG, companion - gamma @ self.dB[:k]
-
-
 class _Stalled(Exception):
     """The iteration of one (sub-)increment stopped short of equilibrium: its last
     out-of-balance force and the iterations it took."""
@@ -268,8 +230,13 @@ def _fixed_point(G, x0: np.ndarray, K, atol: float, patience: int | None = STAGN
 
     ``load(p)``, if given, is the load ``G`` solved for (``K G(x) = load(p)`` with ``p`` the
     plastic load at ``x``): then ``K x`` is carried along Anderson's mix of those loads (one
-    product with ``K`` at the start, none after), and the force is ``‖load(p) - K x‖``."""
-    acc = _Anderson(DEPTH)
+    product with ``K`` at the start, none after), the force is ``‖load(p) - K x‖``, and the mix
+    makes the least combination of these out-of-balance forces, not of the displacement changes
+    ``G(x) - x = K⁻¹(load(p) - K x)``: as right-preconditioned GMRES minimizes the true residual, the
+    mix then minimizes what the stop test measures (stage 1's iterations: issue 36's c 10 kPa,
+    ψ 0 case 430 → 215, issue 25's weak ground 940 → 709; docs/performance.md). Stage 2's contact
+    solve keeps the displacement changes, which measured no worse."""
+    acc = Anderson(DEPTH)
     x, force = x0, float("inf")
     mark, since = float("inf"), 0
     Kx = None if load is None else K @ x0
@@ -277,7 +244,8 @@ def _fixed_point(G, x0: np.ndarray, K, atol: float, patience: int | None = STAGN
         check_time("plastic iteration", count)
         gx, p, state = G(x)
         b = None if load is None else load(p)
-        force = float(np.linalg.norm(K @ (gx - x) if b is None else b - Kx))
+        out_of_balance = K @ (gx - x) if b is None else b - Kx
+        force = float(np.linalg.norm(out_of_balance))
         if force <= atol:
             return x, p, state, count
         if not np.isfinite(force):
@@ -291,7 +259,7 @@ def _fixed_point(G, x0: np.ndarray, K, atol: float, patience: int | None = STAGN
         if b is None:
             x = acc.step(x, gx)
         else:
-            x, Kx = acc.step(x, gx, b)
+            x, Kx = acc.step(x, gx, b, out_of_balance)
     raise _Stalled(force, atol, count)
 
 
@@ -319,6 +287,11 @@ def _follow(solve, commit, x: np.ndarray, x_prev: np.ndarray, h_prev: float, sta
         h = (end - start) * size / units
         frac = end if pos + size == units else start + (end - start) * (pos + size) / units
         left = MAX_STEP_ITERATIONS - iterations
+        if left <= 0:  # the last sub-increment converged on the increment's last iteration allowed
+            raise NotConvergedError(
+                f"solver.load_steps: the yielding ground did not reach equilibrium in {where}: its "
+                f"{MAX_STEP_ITERATIONS} iterations ran out {pos}/{units} of the way through it, in sub-increments "
+                f"down to 1/{units // size} of it")
         try:
             new, p, state, its = solve(frac, x + (h / h_prev) * (x - x_prev),
                                        STAGNATION if size > 1 else None, left)
