@@ -234,8 +234,9 @@ def _fixed_point(G, x0: np.ndarray, K, atol: float, patience: int | None = STAGN
     makes the least combination of these out-of-balance forces, not of the displacement changes
     ``G(x) - x = K⁻¹(load(p) - K x)``: as right-preconditioned GMRES minimizes the true residual, the
     mix then minimizes what the stop test measures (stage 1's iterations: issue 36's c 10 kPa,
-    ψ 0 case 430 → 215, issue 25's weak ground 940 → 709; docs/performance.md). Stage 2's contact
-    solve keeps the displacement changes, which measured no worse."""
+    ψ 0 case 430 → 215, issue 25's weak ground 940 → 709; docs/performance.md). Without ``load``
+    (stage 2, a contact solve in every ``G``) the mix keeps the displacement changes: its forces
+    measured no better there."""
     acc = Anderson(DEPTH)
     x, force = x0, float("inf")
     mark, since = float("inf"), 0
