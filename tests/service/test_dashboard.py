@@ -40,13 +40,19 @@ SMALL = {"geometry": {"depth": 10.0, "width": 20.0, "height": 25.0},
 
 
 @pytest.fixture(scope="module")
-def service(tmp_path_factory):
-    """One dask worker (so cases queue behind each other), the API on a free port."""
+def cluster(tmp_path_factory):
+    """A dask scheduler with one worker (so cases queue behind each other); yields its address."""
+    with running_cluster(1, logs=tmp_path_factory.mktemp("cluster-logs")) as scheduler:
+        yield scheduler
+
+
+@pytest.fixture(scope="module")
+def service(cluster, tmp_path_factory):
+    """The API on a free port, on :func:`cluster`."""
     logs = tmp_path_factory.mktemp("logs")
     results = tmp_path_factory.mktemp("results")
-    with running_cluster(1, logs=logs) as scheduler:
-        with running_service(results, scheduler=scheduler, log=logs / "api.log") as url:
-            yield url, results
+    with running_service(results, scheduler=cluster, log=logs / "api.log") as url:
+        yield url, results
 
 
 @pytest.fixture(scope="module")
@@ -306,13 +312,17 @@ def test_a_bad_field_is_shown_beside_the_input_and_nothing_is_stored(service, br
     assert after == before
 
 
-def test_cancel_keeps_queued_cases_from_running_and_they_can_be_submitted_again(service, browser, tmp_path):
+def test_cancel_keeps_queued_cases_from_running_and_they_can_be_submitted_again(service, cluster, browser, tmp_path,
+                                                                               request):
+    from distributed import Client
+
     url, results = service
-    # keep the only worker busy with a long case, so the sweep's cases stay queued
-    long_case = {"mesh": {"interface_size": 0.06, "far_size": 4.0}, "geometry": {"gap": 0.003}}
-    busy = httpx.post(f"{url}/cases", json=long_case).json()["id"]
-    wait_until(lambda: httpx.get(f"{url}/cases/{busy}").json()["status"] == "running", timeout=30,
-               what="the long case to run")
+    # keep the only worker busy with a task of our own, so the sweep's cases stay queued (a case
+    # chosen to be long ran in 0.45 s on a fast host: done before the service's poll saw it running)
+    dask = Client(cluster, timeout=30)
+    request.addfinalizer(dask.close)
+    hold = dask.submit(time.sleep, 5.0, pure=False)
+    wait_until(lambda: any(dask.processing().values()), timeout=30, what="the worker to take the holding task")
     sweep = {"name": "to-cancel", "base": SMALL, "vary": {"ground.young": [3e7, 4e7, 6e7]}}
     accepted = httpx.post(f"{url}/sweeps", json=sweep).json()
     sweep_id, ids = accepted["id"], accepted["case_ids"]
@@ -333,8 +343,7 @@ def test_cancel_keeps_queued_cases_from_running_and_they_can_be_submitted_again(
     screenshot(browser, tmp_path / "sweep-cancelled.png")
 
     # the worker frees up and runs nothing of the cancelled sweep
-    wait_until(lambda: httpx.get(f"{url}/cases/{busy}").json()["status"] == "done", timeout=60,
-               what="the long case to finish")
+    hold.result(timeout=60)
     time.sleep(2.0)  # several scheduler polls: a cancelled task that was still queued would have run
     assert httpx.get(f"{url}/sweeps/{sweep_id}").json()["counts"]["cancelled"] == 3
     assert not any(as_store(results).case_path(c).exists() for c in ids)
