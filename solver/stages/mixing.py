@@ -8,9 +8,10 @@ import numpy as np
 class Anderson:
     """Anderson acceleration (type II, depth ``m``) of a fixed-point iteration ``x ← G(x)``:
     the next iterate mixes the last ``m`` iterates so that their residuals (``G(x) - x``, or
-    what the caller measures instead: :meth:`step`) combine to the least one. The constant-stiffness iteration converges linearly, slowly
-    when much of the ground yields; mixing turns it into a secant (multisecant) method at the
-    cost of a small least-squares problem per iteration."""
+    what the caller measures instead: :meth:`step`) combine to the least one. The
+    constant-stiffness iteration converges linearly, slowly when much of the ground yields;
+    mixing turns it into a secant (multisecant) method at the cost of a small least-squares
+    problem per iteration."""
 
     def __init__(self, m: int = 8):
         self.m, self.count = m, 0
