@@ -67,6 +67,7 @@ PARAMETER_ATTRS: dict[str, tuple[str | None, str]] = {
     "solver.inner": (None, "inner contact solver"),
     "solver.tolerance": ("1", "relative KKT tolerance"),
     "solver.max_iterations": ("1", "inner iteration cap per bolt"),
+    "solver.plastic_tolerance": ("1", "yielding ground's out-of-balance force over the increment's load"),
     "solver.bolt": ("degree", "bolt position theta"),
     "design.concrete_strength": ("Pa", "concrete characteristic strength fck"),
     "design.steel_strength": ("Pa", "reinforcement characteristic yield strength fyk"),

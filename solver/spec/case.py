@@ -21,7 +21,8 @@ def _round3_defaults() -> dict[str, dict]:
     defaults = {
         "ground": {k: Strength.model_fields[k].default for k in Strength.model_fields} | {"layers": []},
         "lining": {"joints": Joints().model_dump(mode="json")},
-        "solver": {"load_steps": SolverSettings.model_fields["load_steps"].default, "mesh_check": False},
+        "solver": {k: SolverSettings.model_fields[k].default for k in ("load_steps", "plastic_tolerance")}
+        | {"mesh_check": False},
         "water": Water().model_dump(mode="json"),
         # fourth round (SPEC §9.4, §9.5): the section's shape, the face distance and its profile
         "geometry": {"section": Section().model_dump(mode="json")},
@@ -150,7 +151,8 @@ class CaseSpec(_Frozen):
             ground = ground.model_copy(update={"permeability": k, "layers": tuple(
                 layer.model_copy(update={"permeability": k}) for layer in ground.layers)})
         if not self.plastic:
-            solver = solver.model_copy(update={"load_steps": SolverSettings.model_fields["load_steps"].default})
+            solver = solver.model_copy(update={k: SolverSettings.model_fields[k].default
+                                               for k in ("load_steps", "plastic_tolerance")})
         a = lining.joints.contact_height
         if a is not None and abs(a - self.geometry.thickness) <= 1e-12 * self.geometry.thickness:
             lining = lining.model_copy(update={"joints": lining.joints.model_copy(update={"contact_height": None})})

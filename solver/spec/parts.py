@@ -315,6 +315,9 @@ class SolverSettings(_Frozen):
     max_iterations: int = Field(100_000, ge=1, le=10_000_000, description="inner iteration cap per bolt")
     load_steps: int = Field(
         10, ge=1, le=1000, description="increments per construction stage (Mohr-Coulomb ground)")
+    plastic_tolerance: float = Field(
+        1e-2, ge=1e-6, le=0.1,
+        description="yielding ground's stop test: out-of-balance force over the load increment's (1e-6 to 0.1)")
     bolt: Union[Literal["auto"], float] = Field(
         "auto", description="'auto' (bolt-point search) or a bolt position theta in degrees [0, 180]")
     mesh_check: bool = Field(

@@ -27,6 +27,8 @@ def fields(response) -> list[str]:
     ({"loads": {"gravity": 0.5}}, "loads.gravity"),           # below 1 m/s²: no physics
     ({"geometry": {"gap": 5e-324}}, "geometry.gap"),
     ({"solver": {"tolerance": 1e-16}}, "solver.tolerance"),   # finer than double precision resolves
+    ({"solver": {"plastic_tolerance": 1e-7}}, "solver.plastic_tolerance"),  # finer than it is honoured
+    ({"solver": {"plastic_tolerance": 0.5}}, "solver.plastic_tolerance"),   # no equilibrium at all
     ({"ground": {"layers": [{"thickness": 5e-324}]}}, "ground.layers.0.thickness"),
 ])
 def test_values_no_physics_has_are_refused_naming_the_field(client, body, field):

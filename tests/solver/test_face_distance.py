@@ -130,3 +130,20 @@ def test_a_built_model_solves_the_full_release_once():
     alone = run_case(far)
     assert float(shared["deconfinement"]) == float(alone["deconfinement"])
     assert float(shared["max_abs_moment"]) == float(alone["max_abs_moment"])
+
+
+@pytest.mark.slow
+def test_the_readme_face_distance_row_reproduces():
+    """README "The face's distance": the example sweep's 1.5 m row (u*, λd, N, M, λ, yielded area) and
+    R* = 1.20 R at full release, to their printed digits (the table had gone stale: R* was 1.35 R)."""
+    from pathlib import Path
+
+    example = json.loads((Path(__file__).parents[2] / "examples" / "face-distance-sweep.json").read_text())
+    ds = run_case(CaseSpec.model_validate(example["base"]))  # its face distance: 1.5 m
+    installation = json.loads(ds.attrs["installation"])
+    assert round(installation["plastic_radius_ratio"], 2) == 1.20
+    assert round(1e3 * installation["full_release_convergence_m"], 1) == 29.9
+    assert (round(float(ds["ldp_ratio"]), 3), round(float(ds["deconfinement"]), 3)) == (0.636, 0.767)
+    assert (round(float(ds["max_thrust"]) / 1e3), round(float(ds["max_abs_moment"]) / 1e3, 1),
+            round(float(ds["max_contact_pressure"]) / 1e3)) == (223, 12.8, 94)
+    assert float(ds["plastic_area"]) == pytest.approx(1.58, rel=0.03)  # the points at yield: the stop test's reach

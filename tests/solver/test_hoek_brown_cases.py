@@ -22,12 +22,15 @@ ROCK = {"model": "hoek-brown", "ucs": 2.0e6, "gsi": 35.0, "mi": 10.0, "dilatancy
 
 
 def _hole(**ground) -> dict:
-    """A deep hole under isotropic P0 (weightless ground, K0 = 1), unloaded to zero in stage 1."""
+    """A deep hole under isotropic P0 (weightless ground, K0 = 1), unloaded to zero in stage 1, in five
+    increments at half the default stop test (``solver.plastic_tolerance`` 5e-3): released in full, the
+    rock's wide, soft plastic zone makes the wall convergence sensitive to the out-of-balance force left
+    (1.8 % from the closed form here; 4.6 % at the default 1e-2 in five increments, 1.7 % in ten)."""
     return {"geometry": {"depth": 40.0, "width": 60.0, "height": 80.0},
             "ground": {"density": 0.0, "young": E, "poisson": NU, **ROCK, **ground},
             "loads": {"surface_load": P0, "lateral_ratio": 1.0}, "excavation": {"deconfinement": 1.0},
             "lining": {"density": 1.0}, "mesh": {"interface_size": 0.1, "far_size": 6.0},
-            "solver": {"load_steps": 5}}
+            "solver": {"load_steps": 5, "plastic_tolerance": 5e-3}}
 
 
 @pytest.fixture(scope="module")

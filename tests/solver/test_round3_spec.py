@@ -31,6 +31,7 @@ def test_cases_without_round3_fields_keep_their_ids(text, case_id):
     {"water": {"unit_weight": 10000.0, "lining": "drained"}},      # dry ground ignores the water's fields
     {"ground": {"permeability": 1e-4}},                            # only a drained lining seeps
     {"solver": {"load_steps": 40}},                                # an elastic case has one step
+    {"solver": {"plastic_tolerance": 1e-5}},                       # ... and no plastic iteration
     {"lining": {"joints": {"count": 0, "offset": 30.0}}},          # a monolithic ring has no joints
     {"water": {"table": None}},
 ])
