@@ -13,9 +13,11 @@ installed, as ``make venv`` does; moto's emulator otherwise). Two figures:
   read by a process with an empty cache: ``first`` (every entry pending: fetched concurrently,
   merged, the index rewritten and uploaded), ``fresh`` (another empty cache, the index up to date:
   one index object fetched) and ``warm`` (the same process again: only listings);
-- sweep throughput: ``--sweep`` coarse cases solved by a local dask cluster of two single-threaded
-  workers into a local folder and into the bucket, alternately, twice each (best of two); the
-  ratio is the bucket's cases per minute over the folder's.
+- sweep throughput: ``--sweep`` cases (coarse mesh, or ``--mesh default``: the product's default
+  mesh) solved by a local dask cluster of two single-threaded workers into a local folder and into
+  the bucket, alternately, twice each (best of two); the ratio is the bucket's cases per minute over
+  the folder's. On one machine the store's server and the requests share the workers' cores: the
+  smaller the case, the larger their share.
 """
 from __future__ import annotations
 
@@ -154,11 +156,12 @@ def sweep_seconds(client, root, specs) -> float:
     return time.perf_counter() - start
 
 
-def measure_throughput(cases: int, workdir: Path) -> dict:
+def measure_throughput(cases: int, workdir: Path, mesh: str = "coarse") -> dict:
     from solver import CaseSpec
     from workflows.sweep import local_client
 
-    specs = [CaseSpec.model_validate({**COARSE, "ground": {"young": 1.5e7 + 1e6 * i}}) for i in range(cases)]
+    base = COARSE if mesh == "coarse" else {}
+    specs = [CaseSpec.model_validate({**base, "ground": {"young": 1.5e7 + 1e6 * i}}) for i in range(cases)]
     timings: dict[str, list[float]] = {"local": [], "s3": []}
     os.environ["TUNNEL_CONTACT_CACHE"] = str(workdir / "workers")  # the workers' cache (they inherit it)
     with local_client(2) as client:
@@ -176,7 +179,7 @@ def measure_throughput(cases: int, workdir: Path) -> dict:
                 print(f"{kind}: {timings[kind][-1]:.1f} s", file=sys.stderr, flush=True)
     os.environ.pop("TUNNEL_CONTACT_CACHE", None)
     local, s3 = min(timings["local"]), min(timings["s3"])
-    return {"cases": cases, "local_seconds": timings["local"], "s3_seconds": timings["s3"],
+    return {"cases": cases, "mesh": mesh, "local_seconds": timings["local"], "s3_seconds": timings["s3"],
             "local_cases_per_minute": 60 * cases / local, "s3_cases_per_minute": 60 * cases / s3,
             "ratio": local / s3}
 
@@ -185,6 +188,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", type=int, default=1000, help="cases in the bucket for open_results")
     parser.add_argument("--sweep", type=int, default=40, help="cases of the throughput sweep (0: skip)")
+    parser.add_argument("--mesh", choices=("coarse", "default"), default="coarse",
+                        help="the throughput sweep's mesh (default: coarse, the store's share largest)")
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--local", action="store_true", help="open_results over a local folder only")
     parser.add_argument("--server", choices=SERVERS, default=None,
@@ -199,7 +204,7 @@ def main(argv: list[str] | None = None) -> int:
         out |= {"open_results": measure_open_results(args.cases, Path(folder))} if args.cases else {}
         print(json.dumps(out), file=sys.stderr, flush=True)  # partial figures, as they come
         if args.sweep:
-            out["throughput"] = measure_throughput(args.sweep, Path(folder))
+            out["throughput"] = measure_throughput(args.sweep, Path(folder), args.mesh)
     if args.json:
         json.dump(out, sys.stdout, indent=1)
         print()
@@ -211,7 +216,7 @@ def main(argv: list[str] | None = None) -> int:
               f"warm {o['warm_seconds']:.2f} s; publishing them took {o['fill_seconds']:.1f} s")
     if "throughput" in out:  # also without the open_results figures (--cases 0)
         t = out["throughput"]
-        print(f"sweep of {t['cases']} coarse cases (S3 server: {out['server']}) on two workers: "
+        print(f"sweep of {t['cases']} {t['mesh']}-mesh cases (S3 server: {out['server']}) on two workers: "
               f"folder {t['local_cases_per_minute']:.0f}, bucket {t['s3_cases_per_minute']:.0f} cases/min: "
               f"{100 * t['ratio']:.0f} %")
     return 0

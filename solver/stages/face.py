@@ -109,6 +109,7 @@ def _full_release(model, spec: CaseSpec, rows):
         return release_unsupported(model, spec, rows, 1.0)
     except NotConvergedError as exc:
         raise NotConvergedError(
-            f"excavation.face_distance: the unsupported ground collapses before the full release that the "
-            f"longitudinal displacement profile is scaled by (u_max, R*); give excavation.deconfinement "
-            f"instead, or a stronger ground ({exc})") from None
+            f"excavation.face_distance: the full release of the unsupported ground, which the longitudinal "
+            f"displacement profile is scaled by (u_max, R*), did not reach equilibrium; give "
+            f"excavation.deconfinement instead (or, where the ground is collapsing, a stronger ground; "
+            f"where the iteration stalled, a coarser solver.plastic_tolerance): {exc}") from None

@@ -147,3 +147,22 @@ def test_the_readme_face_distance_row_reproduces():
     assert (round(float(ds["max_thrust"]) / 1e3), round(float(ds["max_abs_moment"]) / 1e3, 1),
             round(float(ds["max_contact_pressure"]) / 1e3)) == (223, 12.8, 94)
     assert float(ds["plastic_area"]) == pytest.approx(1.58, rel=0.03)  # the points at yield: the stop test's reach
+
+
+def test_a_full_release_that_does_not_converge_is_not_called_a_collapse(monkeypatch):
+    """The full release can fail by a collapse of the ground or by a stalled iteration (the stage-1
+    message says which, with what the ground held): the face distance's error names the field and
+    both ways out, and does not assert a collapse (it did, for a stall at 1.03 times the tolerance)."""
+    import solver.stages.face as face
+    from solver.errors import NotConvergedError
+
+    def stalls(*args, **kwargs):
+        raise NotConvergedError("solver.load_steps: the yielding ground did not reach equilibrium in stage 1, "
+                                "increment 10 of 10 (out-of-balance force 72.3 N/m > 70.4 ...)")
+
+    monkeypatch.setattr(face, "release_unsupported", stalls)
+    with pytest.raises(NotConvergedError) as info:
+        face._full_release(None, CaseSpec(), None)
+    text = str(info.value)
+    assert text.startswith("excavation.face_distance: the full release") and "did not reach equilibrium" in text
+    assert "collapses" not in text and "solver.plastic_tolerance" in text and "72.3 N/m > 70.4" in text
