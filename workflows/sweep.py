@@ -291,11 +291,11 @@ def run_sweep(sweep: Sweep | dict[str, Any], root: StoreLike, client=None, *, pr
               retry_failed: bool = True) -> list[str]:
     """Solve every case of ``sweep`` on dask and store the results; return the case ids.
 
-    The cases go to the scheduler through :func:`workflows.tasks.submit_cases` (one
-    task per case under :func:`workflows.tasks.task_key`, the key the service uses
-    too). Cases already stored are skipped without submitting anything (unless
-    ``force``), except a stored file that cannot be read, which is computed again; a
-    failing case records its error file and does not stop the others.
+    The cases go to the scheduler through :func:`workflows.tasks.run_cases` (cheap cases
+    several to a task, each stored as its own file and reported on its own). Cases
+    already stored are skipped without submitting anything (unless ``force``), except a
+    stored file that cannot be read, which is computed again; a failing case records its
+    error file and does not stop the others.
 
     Parameters
     ----------
@@ -309,10 +309,9 @@ def run_sweep(sweep: Sweep | dict[str, Any], root: StoreLike, client=None, *, pr
         default); False leaves them failed (the command line's default, as for ``run``).
     on_result : called with each case's summary dict as it completes.
     """
-    from distributed import as_completed
     from tqdm import tqdm
 
-    from .tasks import outcome, submit_cases
+    from .tasks import run_cases
 
     store = as_store(root)
     sweep = Sweep.model_validate(sweep)
@@ -329,11 +328,9 @@ def run_sweep(sweep: Sweep | dict[str, Any], root: StoreLike, client=None, *, pr
         return ids
     store = store if store.url else ResultStore(os.path.abspath(store.root))
     with _client_or_local(client) as c:
-        submitted = submit_cases(c, todo, store, force=force)  # a task computes an unreadable file again
         bar = tqdm(total=len(todo), desc=f"sweep {sweep.name}", unit="case") if progress else None
-        try:
-            for future in as_completed(submitted):
-                result = outcome(future, submitted[future])
+        try:  # a task computes an unreadable file again
+            for result in run_cases(c, todo, store, force=force):
                 logger.info("case %s %s", result["case_id"], result["status"])
                 if on_result is not None:
                     on_result(result)

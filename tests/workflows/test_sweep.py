@@ -8,9 +8,9 @@ import pytest
 from pydantic import ValidationError
 
 from solver import CaseSpec
-from workflows import MAX_SWEEP_CASES, Sweep, SweepError, expand_sweep, open_case, open_results, run_sweep
+from workflows import MAX_SWEEP_CASES, Sweep, SweepError, expand_sweep, open_case, open_results, run_sweep, tasks
 from workflows.result_store import as_store
-from workflows.tasks import solve_and_store
+from workflows.tasks import solve_and_store, solve_and_store_each
 
 COARSE = {"mesh": {"interface_size": 0.25, "far_size": 8.0}}
 
@@ -178,6 +178,72 @@ def test_run_sweep_skips_everything_stored(tmp_path, client):
     second = []
     assert run_sweep(study, tmp_path, client=client, on_result=second.append) == ids
     assert second == []
+
+
+def test_each_case_of_a_batch_fails_alone(tmp_path):
+    good = CaseSpec.model_validate(COARSE)
+    failing = CaseSpec.model_validate({**COARSE, "solver": {"inner": "uzawa", "max_iterations": 1}})
+    results = solve_and_store_each([good.named_json(), '{"mesh": 1}', failing.named_json()],
+                                   [good.case_id, "0123456789abcdef", failing.case_id], str(tmp_path))
+    assert [r["case_id"] for r in results] == [good.case_id, "0123456789abcdef", failing.case_id]
+    assert [r["status"] for r in results] == ["done", "failed", "failed"]
+    assert "ValidationError" in results[1]["error"] and "did not converge" in results[2]["error"]
+    assert as_store(tmp_path).case_ids() == [good.case_id]
+    assert as_store(tmp_path).read_error(failing.case_id)["error"] == results[2]["error"]
+
+
+def _batch_sweep(n: int, failing: int | None = None) -> Sweep:
+    """``n`` coarse cases (lining thickness varied), case ``failing`` one that does not converge."""
+    bad = [i == failing for i in range(n)]
+    return sweep({"lining.thickness": [round(0.2 + 0.005 * i, 4) for i in range(n)],
+                  "solver.inner": ["uzawa" if b else "active-set" for b in bad],
+                  "solver.max_iterations": [1 if b else 100_000 for b in bad]}, mode="zip")
+
+
+def test_cheap_cases_go_several_to_a_task(tmp_path, client, monkeypatch):
+    from distributed import get_task_stream
+
+    monkeypatch.setattr(tasks, "BATCH_SECONDS", 60.0)  # batches by the sweep's size alone
+    study = _batch_sweep(24, failing=5)  # the first four cases one a task (no timing yet), then several
+    results = []
+    with get_task_stream(client) as stream:
+        ids = run_sweep(study, tmp_path, client=client, on_result=results.append)
+    keys = [t["key"] for t in stream.data]
+    assert len(keys) < len(ids) and any(k.startswith(tasks.BATCH_KEY_PREFIX) for k in keys)
+    by_id = {r["case_id"]: r for r in results}
+    assert sorted(by_id) == sorted(ids) and len(results) == 24  # each case reported once
+    failed = ids[5]
+    assert by_id[failed]["status"] == "failed" and "did not converge" in by_id[failed]["error"]
+    assert as_store(tmp_path).error_path(failed).exists()
+    assert all(by_id[c]["status"] == "done" and by_id[c]["computed"] for c in ids if c != failed)
+    assert as_store(tmp_path).case_ids() == sorted(c for c in ids if c != failed)
+    assert open_results(tmp_path).sizes["case"] == 23
+
+
+def test_a_batch_whose_task_raises_is_tried_one_case_a_task(tmp_path, client, monkeypatch):
+    import operator
+
+    from distributed import get_task_stream
+
+    monkeypatch.setattr(tasks, "BATCH_SECONDS", 60.0)
+    submit = client.submit
+
+    def dying(fn, *args, **kwargs):  # a batch's task raises, as when its worker dies
+        if fn is tasks.solve_and_store_each:
+            return submit(operator.truediv, 1, 0, key=kwargs["key"], pure=False)
+        return submit(fn, *args, **kwargs)
+
+    monkeypatch.setattr(client, "submit", dying)
+    study = _batch_sweep(20)
+    results = []
+    with get_task_stream(client) as stream:
+        ids = run_sweep(study, tmp_path, client=client, on_result=results.append)
+    keys = {t["key"] for t in stream.data}
+    assert any(k.startswith(tasks.BATCH_KEY_PREFIX) for k in keys)
+    assert {tasks.task_key(c) for c in ids} <= keys  # in the end every case in a task of its own
+    assert sorted(r["case_id"] for r in results) == sorted(ids)
+    assert {r["status"] for r in results} == {"done"}
+    assert as_store(tmp_path).case_ids() == sorted(ids)
 
 
 def test_examples_are_valid():

@@ -41,9 +41,7 @@ class StoreRunner:
         self.output = output
 
     def __call__(self, specs: Sequence) -> list[dict]:
-        from distributed import as_completed
-
-        from ..tasks import outcome, submit_cases
+        from ..tasks import run_cases
 
         out, todo, stored = [], [], []
         for spec in specs:
@@ -64,9 +62,7 @@ class StoreRunner:
                 for case_id, value in zip(values["case_id"].values, values.values):
                     out.append({"case_id": str(case_id), "status": "done", "summary": {self.output: float(value)}})
         if todo:
-            submitted = submit_cases(self.client, todo, self.store)
-            for future in as_completed(submitted):
-                out.append(outcome(future, submitted[future]))
+            out.extend(run_cases(self.client, todo, self.store))
         return out
 
 
