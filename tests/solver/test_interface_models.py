@@ -169,3 +169,24 @@ def test_cycle_guard_reaches_the_same_solution(cycles, default_model, monkeypatc
     J, _ = fp.jumps(guarded.t, guarded.bolt)
     assert friction.coulomb_kkt(fp, guarded.t, J, guarded.bolt) <= 0.5e-8
     np.testing.assert_allclose(guarded.t, direct.t, rtol=0, atol=1e-7 * np.max(np.abs(direct.t)))
+
+
+def test_the_readme_interface_reading_reproduces(default_model):
+    """README, the three interface models' reading: from μ ≈ 0.6 the shear the bond needs (at most
+    0.49 λ, at θ ≈ 47°) is inside Coulomb's cone everywhere, so Coulomb equals the bond; and Einstein
+    & Schwartz's cos 2θ moment amplitude for the default case (centreline radius 2.65 m) is 132 kN·m/m."""
+    from solver.analytic import einstein_schwartz_slip_excavation
+
+    coulomb = run_case(CaseSpec.model_validate({"interface": {"model": "coulomb", "friction": 0.6}}),
+                       model=default_model)
+    bonded = run_case(CaseSpec.model_validate({"interface": {"model": "bonded"}}), model=default_model)
+    lam, shear = coulomb["contact_pressure"].values, np.abs(coulomb["shear_traction"].values)
+    carrying = lam > 1e3
+    ratio = shear[carrying] / lam[carrying]
+    assert round(float(ratio.max()), 2) == 0.49 and abs(coulomb["theta"].values[carrying][ratio.argmax()] - 47) < 2
+    assert not coulomb["slipping"].values.any()
+    for name in ("max_thrust", "max_abs_moment", "max_contact_pressure"):
+        assert float(coulomb[name]) == pytest.approx(float(bonded[name]), rel=1e-6), name
+    sigma_v = 100e3 + 2000 * 9.81 * 15  # the surface load and the overburden at the axis
+    M2, _, _ = einstein_schwartz_slip_excavation(0.7 * sigma_v, 0.5, 5e7, 0.3, 3e10, 0.2, 2.65, 0.3)
+    assert round(abs(M2) / 1e3) == 132  # the amplitude (its sign: inner fibre in tension at the crown)

@@ -184,3 +184,26 @@ def test_layer_lines_and_a_drained_table_through_a_horseshoe():
     assert abs(N[0] + N[-1] + fx.sum()) < 1e-9 * N[0]
     assert abs(fy.sum() - float(ds["lining_weight"])) < 1e-9 * np.abs(fy).sum()
     assert float(ds["phreatic_drawdown"]) > 0.0
+
+
+@pytest.mark.slow
+def test_the_readme_horseshoe_example_reproduces():
+    """README "Sections beyond the circle": `examples/horseshoe.json` to its printed digits: the found
+    installation (R* 1.31, u* 0.47, λd 0.56), the thrust's range, the crown and invert rows, the side
+    arc's peak moment (+31.1 at θ ≈ 117°) and the invert arc's least (−18.9 at θ ≈ 148°), η 0.43."""
+    import json
+    from pathlib import Path
+
+    example = json.loads((Path(__file__).parents[2] / "examples" / "horseshoe.json").read_text())
+    ds = run_case(CaseSpec.model_validate(example))
+    found = json.loads(ds.attrs["installation"])
+    assert (round(found["plastic_radius_ratio"], 2), round(float(ds["ldp_ratio"]), 2),
+            round(float(ds["deconfinement"]), 2)) == (1.31, 0.47, 0.56)
+    theta, N, M = ds["theta"].values, ds["thrust"].values / 1e3, ds["moment"].values / 1e3
+    assert (round(N.min()), round(N.max())) == (944, 1013)
+    crown, invert = int(np.argmin(np.abs(theta))), int(np.argmin(np.abs(theta - 180.0)))
+    assert (round(N[crown]), round(M[crown], 1), round(N[invert]), round(M[invert], 1)) == (944, -6.1, 1013, -12.8)
+    peak, least = int(np.argmax(M)), int(np.argmin(M))
+    assert round(M[peak], 1) == 31.1 and abs(theta[peak] - 117.0) < 2.0
+    assert round(M[least], 1) == -18.9 and abs(theta[least] - 148.0) < 2.0
+    assert round(float(ds["max_utilization"]), 2) == 0.43
