@@ -165,6 +165,11 @@ class Remote:
         self._remember(path, info)
         return True
 
+    def forget(self, path: Path) -> None:
+        """Take the cached copy of ``path`` for stale (its recorded ETag dropped): the next
+        :meth:`fetch` downloads the object again."""
+        self._sidecar(path).unlink(missing_ok=True)
+
     def read(self, path: Path) -> Optional[bytes]:
         try:
             return self.fs.cat_file(self.key(path))

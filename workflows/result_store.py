@@ -185,7 +185,9 @@ class ResultStore(StoreFiles):
                 with netcdf_lock:
                     write_netcdf(stored, tmp, netcdf_encoding(ds))
 
-        write_atomically(target, write, checksum=True)
+        # on object storage the object is the durable copy: the cached one is not fsynced (a damaged
+        # copy is fetched again, :meth:`verified_copy`)
+        write_atomically(target, write, checksum=True, durable=not self.url)
         key = file_key(target.stat())
         if self.url:  # the object, checksum first; its key is the object's version
             key = object_key(self.remote.publish(target))

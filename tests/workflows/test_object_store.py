@@ -116,3 +116,18 @@ def test_uploads_are_not_hashed_for_their_signature_unless_configured():
     assert storage_options("s3", {"TUNNEL_CONTACT_STORAGE_OPTIONS": own}) == {
         "config_kwargs": {"retries": {"max_attempts": 9}}}
     assert storage_options("gcs", {}) == {}
+
+
+def test_a_damaged_cached_copy_is_fetched_again(bucket, monkeypatch, tmp_path):
+    """The cached copy of a case a worker wrote into a bucket store is not fsynced (the object is the
+    durable copy): where it is damaged (a crash before its bytes reached the disk), the reader fetches
+    the object again instead of refusing a good case."""
+    writer = store_in(bucket, tmp_path / "worker", monkeypatch)
+    case_id = writer.run_and_store(SPECS[0])
+    good = writer.open_case(case_id)
+    path = writer.case_path(case_id)
+    data = bytearray(path.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    path.write_bytes(bytes(data))
+    xr.testing.assert_identical(writer.open_case(case_id), good)
+    assert path.read_bytes() != bytes(data)  # the copy replaced by the object's bytes
