@@ -10,6 +10,7 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 import xarray as xr
 
@@ -145,7 +146,10 @@ def test_a_damaged_case_file_is_unreadable_and_recomputed(tmp_path, solved):
     assert computed
     back = store.open_case(case_id)  # the recomputed file passes its checksum and holds the answer
     for name in ("displacement_x", "displacement_y", "stress_xx", "contact_pressure", "thrust"):
-        xr.testing.assert_equal(back[name], solved[name])
+        # to round-off: a solve again need not repeat every last bit (a model shared with the process's
+        # other cases, or OpenBLAS's threads, order the sums otherwise; seen once under the parallel suite)
+        scale = float(np.abs(solved[name]).max())
+        xr.testing.assert_allclose(back[name], solved[name], rtol=0, atol=1e-10 * scale)
     store.remove_case(case_id)
     assert not checksum_path(path).exists()
 
