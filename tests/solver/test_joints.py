@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from solver import CaseSpec
+from solver import CaseSpec, run_case
 from solver.contact.bolt import solve_contact
 from solver.lining.design import interaction_envelope, joint_utilization
 from solver.contact.floating import EQUALITY, UNILATERAL, DriftError, FloatingProblem, kkt, solve_floating
@@ -229,3 +229,28 @@ def test_segments_work_with_yielding_ground_and_water(case):
     assert seg.water_uplift == pytest.approx(mono.water_uplift, rel=1e-7, abs=1e-9)
     if "ground" in case:
         assert seg.plastic["iterations"] > 0 and seg.plastic["at_yield"].any()
+
+
+@pytest.mark.slow
+def test_the_readme_segmental_example_reproduces():
+    """README "Segmental linings": `examples/segmental.json`'s joint table (N, M, e/(a/2), opening,
+    rotation, EN 1992 at the joint) to its printed digits, the ring's largest moment, the crown's
+    settlement, η away from the joints, and the stress block x = γF N / fcd,pl of 4.5–5.1 cm."""
+    import json
+    from pathlib import Path
+
+    from solver.lining.design import fcd
+
+    example = json.loads((Path(__file__).parents[2] / "examples" / "segmental.json").read_text())
+    ds = run_case(CaseSpec.model_validate(example))
+    table = [(539, -39.7, 0.98, 0.70, -5.2, 1.41), (579, 40.2, 0.93, 0.20, 1.7, 1.37),
+             (599, 42.4, 0.94, 0.29, 2.4, 1.42), (577, -42.5, 0.98, 0.78, -5.8, 1.45)]
+    for k, row in enumerate(table):
+        got = (round(float(ds["joint_thrust"][k]) / 1e3), round(float(ds["joint_moment"][k]) / 1e3, 1),
+               round(float(ds["joint_eccentricity"][k]), 2), round(1e3 * float(ds["joint_opening"][k]), 2),
+               round(1e3 * float(ds["joint_rotation"][k]), 1), round(float(ds["joint_utilization"][k]), 2))
+        assert got == row, (k, got)
+    assert round(float(ds["max_abs_moment"]) / 1e3, 1) == 97.8 and round(1e3 * float(ds["crown_settlement"]), 1) == 5.0
+    assert round(float(ds["max_utilization"]), 2) == 0.48
+    x = 1.35 * ds["joint_thrust"].values / fcd(30e6, plain=True)
+    assert (round(100 * x.min(), 1), round(100 * x.max(), 1)) == (4.5, 5.1)
