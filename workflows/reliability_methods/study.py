@@ -23,6 +23,9 @@ MIN_BUDGET = 10
 #: Most random variables of one study.
 MAX_VARIABLES = 20
 METHODS = ("form", "subset", "ak-mcs")
+#: The plastic stop test (``solver.plastic_tolerance``) of FORM's cases on yielding ground, unless the
+#: base gives one: at the default 0.01 the finite differences did not converge (a Mohr–Coulomb study).
+FORM_PLASTIC_TOLERANCE = 2e-3
 
 
 class ReliabilityStudy(BaseModel):
@@ -92,7 +95,14 @@ class ReliabilityStudy(BaseModel):
         data = json.loads(json.dumps(self.base))
         for path, value in values.items():
             set_parameter(data, canonical_path(path), float(value))
-        return CaseSpec.model_validate(data)
+        spec = CaseSpec.model_validate(data)
+        solver = data.get("solver") if isinstance(data.get("solver"), dict) else {}
+        if self.method == "form" and spec.plastic and "plastic_tolerance" not in solver:
+            # FORM's forward differences need the output's digits: the plastic solve tighter than
+            # its default (which leaves them to the iteration; docs/reliability.md)
+            data["solver"] = {**solver, "plastic_tolerance": FORM_PLASTIC_TOLERANCE}
+            spec = CaseSpec.model_validate(data)
+        return spec
 
     @property
     def study_id(self) -> str:
