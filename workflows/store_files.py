@@ -345,20 +345,18 @@ class StoreFiles(ObjectCopies):
             If the file no longer matches its checksum.
         """
         path = self.case_path(case_id)
-        if self.url and not self.remote.fetch(path):
-            raise FileNotFoundError(errno.ENOENT, "case is not stored", f"{self.url}/cases/{path.name}")
-        try:
-            verify(path, without_checksum=content_sound)  # no checksum file: the digest inside it
-        except DamagedFile:
-            if not self.url:
-                raise
-            # the cached copy (written without fsync: the object is the durable one) may be what is
-            # damaged: fetched again, verified again; a damaged object still fails
-            self.remote.forget(path)
-            if not self.remote.fetch(path):
-                raise FileNotFoundError(errno.ENOENT, "case is not stored", f"{self.url}/cases/{path.name}") from None
-            verify(path, without_checksum=content_sound)
-        return path
+        for again in (False, True):
+            if self.url and not self.remote.fetch(path):
+                raise FileNotFoundError(errno.ENOENT, "case is not stored", f"{self.url}/cases/{path.name}")
+            try:
+                verify(path, without_checksum=content_sound)  # no checksum file: the digest inside it
+                return path
+            except DamagedFile:
+                if not self.url or again:
+                    raise
+                # the cached copy (not fsynced: the object is the durable one) may be what is damaged:
+                # fetched again and verified again (a damaged object still fails)
+                self.remote.forget(path)
 
     def open_case(self, case_id: str) -> xr.Dataset:
         """Read the stored result of ``case_id`` fully into memory (the file is closed).

@@ -120,7 +120,8 @@ class Sweep(BaseModel):
 
 #: Fourth-round fields of a case (SPEC §9) left out of a sweep's id while at their defaults, so every
 #: earlier sweep keeps its id (as :class:`solver.spec.CaseSpec` keeps its cases').
-_ROUND4_PATHS = (("solver", "mesh_check"), ("solver", "plastic_tolerance"), ("geometry", "section"), ("excavation", "face_distance"),
+_ROUND4_PATHS = (("solver", "mesh_check"), ("solver", "plastic_tolerance"), ("geometry", "section"),
+                 ("excavation", "face_distance"),
                  ("excavation", "ldp"), ("design", "crack_width_limit"), ("design", "bar_diameter"),
                  ("settlement", None), ("name", None),
                  *(("ground", f) for f in HOEK_BROWN_DEFAULTS))

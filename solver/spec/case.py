@@ -17,12 +17,15 @@ from .parts import (Boundaries, Design, Excavation, Geometry, Interface, Joints,
                     Settlement, SolverSettings, Water)
 
 
+#: The solver's fields only a case whose ground yields uses (an elastic case has them at their defaults).
+PLASTIC_SOLVER_FIELDS = ("load_steps", "plastic_tolerance")
+
+
 def _round3_defaults() -> dict[str, dict]:
     defaults = {
         "ground": {k: Strength.model_fields[k].default for k in Strength.model_fields} | {"layers": []},
         "lining": {"joints": Joints().model_dump(mode="json")},
-        "solver": {k: SolverSettings.model_fields[k].default for k in ("load_steps", "plastic_tolerance")}
-        | {"mesh_check": False},
+        "solver": {k: SolverSettings.model_fields[k].default for k in PLASTIC_SOLVER_FIELDS} | {"mesh_check": False},
         "water": Water().model_dump(mode="json"),
         # fourth round (SPEC §9.4, §9.5): the section's shape, the face distance and its profile
         "geometry": {"section": Section().model_dump(mode="json")},
@@ -151,8 +154,8 @@ class CaseSpec(_Frozen):
             ground = ground.model_copy(update={"permeability": k, "layers": tuple(
                 layer.model_copy(update={"permeability": k}) for layer in ground.layers)})
         if not self.plastic:
-            solver = solver.model_copy(update={k: SolverSettings.model_fields[k].default
-                                               for k in ("load_steps", "plastic_tolerance")})
+            defaults = {k: SolverSettings.model_fields[k].default for k in PLASTIC_SOLVER_FIELDS}
+            solver = solver.model_copy(update=defaults)
         a = lining.joints.contact_height
         if a is not None and abs(a - self.geometry.thickness) <= 1e-12 * self.geometry.thickness:
             lining = lining.model_copy(update={"joints": lining.joints.model_copy(update={"contact_height": None})})
