@@ -14,7 +14,7 @@ from __future__ import annotations
 import re
 from typing import Any, Callable, Iterable, Sequence
 
-__all__ = ["SolverError", "NotConvergedError", "NoAdmissibleBoltError", "field_errors",
+__all__ = ["SolverError", "NotConvergedError", "GroundCollapseError", "NoAdmissibleBoltError", "field_errors",
            "field_path", "format_errors", "did_you_mean"]
 
 
@@ -29,6 +29,11 @@ _REQUEST_PARTS = frozenset({"body", "query", "path", "header", "cookie"})
 
 class NotConvergedError(SolverError):
     """The inner solver did not reach the tolerance within ``max_iterations``."""
+
+
+class GroundCollapseError(NotConvergedError):
+    """The unsupported ground cannot stand at the asked deconfinement: past its limit load the load
+    it holds falls as it deforms (SPEC §9.1: a result, named with what the ground held)."""
 
 
 class NoAdmissibleBoltError(SolverError):

@@ -108,7 +108,7 @@ def _full_release(model, spec: CaseSpec, rows):
     try:
         return release_unsupported(model, spec, rows, 1.0)
     except NotConvergedError as exc:
-        raise NotConvergedError(
+        raise type(exc)(
             f"excavation.face_distance: the full release of the unsupported ground, which the longitudinal "
             f"displacement profile is scaled by (u_max, R*), did not reach equilibrium; give "
             f"excavation.deconfinement instead (or, where the ground is collapsing, a stronger ground; "

@@ -14,16 +14,17 @@ geometry. The stop test is the equilibrium residual: the out-of-balance force
 where larger); the plastic consistency holds at every point by the return
 mapping (:mod:`solver.ground.mohr_coulomb`, :mod:`solver.ground.hoek_brown`).
 
-Where an increment stalls (:data:`STAGNATION`) it is split in halves, down to 1/64 of it,
-and the sub-increments grow again as they converge (:func:`_follow`; the automatic step
-control of commercial codes). Why: with flow far from associated (ψ = 0 against φ = 25°) a
-thin plastic zone can sit beyond the loss of stability of non-associated perfect plasticity.
-The consistent tangent stiffness then has a few eigenvalues of slightly negative real part
-(``K⁻¹J`` down to -0.013 in the stalling case of issue 25), carried by shear-band modes
-of the plastic zone: the iteration's map has a dozen eigenvalues at or just above 1, more than
-Anderson mixing can cancel, and a Newton step on that tangent (measured) moves a hundredth of
-the displacement along those modes, far outside where its linearization holds (hundreds of
-points change state). Shorter increments keep the iterates where the mixing still works.
+Where a load step stalls (:data:`STAGNATION`) it is halved, and the steps grow again as they
+converge (:func:`_advance`; the automatic step control of commercial codes). Where a stage-1 step
+of 1/8 of its increment still stalls, the path has a local limit point: with flow far from
+associated (ψ = 0 against φ = 25°) a shear band forming in the unsupported ground makes the load it
+holds dip by a few per cent of an increment and rise again (a snap-through). Load control cannot
+pass it; arc-length steps (Riks) follow the path through, the load solved from the arc's plane at
+each iterate (``G`` is affine in the load, so the arc costs nothing per iteration). A path whose
+load falls by more than half an increment below its peak has passed the ground's limit load: the
+unsupported ground collapses, and the error says so with what it held. The consistent tangent is not
+used: along these shear-band modes its Newton step leaves the region where its linearization holds
+(issue 25's measurements, docs/performance.md).
 
 Stages (SPEC §1.1): stage 1 releases λd of the excavation load in ``solver.load_steps``
 equal increments on the unsupported ground (those below the first yield, :func:`first_yield`,
@@ -42,7 +43,7 @@ import logging
 
 import numpy as np
 
-from ..errors import NotConvergedError
+from ..errors import GroundCollapseError, NotConvergedError
 from ..ground.loads import in_situ_stress, moduli
 from ..ground.laws import PointLaws
 from ..ground.mohr_coulomb import equivalent
@@ -60,17 +61,20 @@ log = logging.getLogger(__name__)
 #: The least distance from the yield surface (relative) at which a point is reported at yield:
 #: a tenth of ``solver.plastic_tolerance`` if coarser (the iteration leaves yielding points a hair inside).
 FLAG_TOLERANCE = 1e-3
-#: Iterations allowed per load increment: its sub-increments and their stalled attempts together.
-MAX_STEP_ITERATIONS = 1000
+#: Iterations allowed per load increment: its steps (arc-length ones too) and their stalled attempts together.
+MAX_STEP_ITERATIONS = 2500
 #: An iteration has stalled when its least out-of-balance force has not fallen by a tenth in
-#: this many iterations: the increment is then split (:func:`_follow`); the smallest
-#: sub-increments have what is left of :data:`MAX_STEP_ITERATIONS`.
+#: this many iterations: the step is then halved, or followed by arc-length (:func:`_advance`); the
+#: smallest steps have what is left of :data:`MAX_STEP_ITERATIONS`.
 STAGNATION = 20
-#: A sub-increment that converged in at most this many iterations is followed by one twice as
-#: long (else by one as long).
+#: A step that converged in at most this many iterations is followed by one twice as long (else by
+#: one as long; an arc-length step by one 1.6 times as long, or 0.6 times after a slow one).
 GROW_BELOW = 15
-#: A stalled increment is halved at most this many times (sub-increments of 1/64 of it).
+#: A stalled stage-2 step is halved at most this many times (steps of 1/64 of the increment); the
+#: arc-length steps likewise, from the first.
 MAX_SPLITS = 6
+#: A stage-1 step of 1/2^ARC_SPLITS of its increment that stalls is followed by arc-length steps.
+ARC_SPLITS = 3
 #: Anderson mixing depth.
 DEPTH = 8
 
@@ -259,60 +263,92 @@ def _fixed_point(G, x0: np.ndarray, K, atol: float, patience: int | None = STAGN
     raise _Stalled(force, atol, count)
 
 
-def _follow(solve, commit, x: np.ndarray, x_prev: np.ndarray, h_prev: float, start: float, end: float, where: str,
-            size: int = 2**MAX_SPLITS):
-    """Take the load from the fraction ``start`` to ``end`` (one increment): in one step, or,
-    where the iteration stalls, in sub-increments halved until they converge (down to
-    1/2^:data:`MAX_SPLITS` of the increment) and doubled again after each quick success
-    (:data:`GROW_BELOW`).
+def _advance(solve, commit, x: np.ndarray, x_prev: np.ndarray, lam: float, lam_prev: float, end: float,
+             increment: float, h: float, where: str, arc_length: bool = True):
+    """Take a stage's load from ``lam`` to ``end`` (one increment, of ``increment``) along the
+    equilibrium path: in load-controlled steps of ``h``, halved where the iteration stalls and
+    doubled after a quick success (:data:`GROW_BELOW`); where a step of 1/2^:data:`ARC_SPLITS` of the
+    increment still stalls (stage 1, ``arc_length``), by arc-length steps (Riks' plane normal to the
+    last step; the load follows from the plane) until the end is within a step's reach.
 
-    ``solve(frac, guess, patience, limit)`` is :func:`_fixed_point` at the load fraction ``frac``
-    (the smallest sub-increments without a ``patience``; all within the increment's
-    :data:`MAX_STEP_ITERATIONS`); ``commit`` stores a converged state.
-    Each step starts from the last one's displacement change, scaled to its length (``x -
-    x_prev`` over ``h_prev``); the first tries ``size`` (in 1/2^MAX_SPLITS of the increment:
-    where the last increment left off). Returns the displacement, the plastic load, the
-    iterations spent (failed attempts included), the last step's start and length and the
-    size the next increment tries first; raises :class:`NotConvergedError` with the reason
-    when even the smallest sub-increment stalls, or the increment's iterations run out."""
-    units = 2**MAX_SPLITS  # positions within the increment, in its smallest sub-increments
-    pos, iterations = 0, 0
-    p = None
-    while pos < units:
-        size = min(size, units - pos)
-        h = (end - start) * size / units
-        frac = end if pos + size == units else start + (end - start) * (pos + size) / units
-        left = MAX_STEP_ITERATIONS - iterations
-        if left <= 0:  # the last sub-increment converged on the increment's last iteration allowed
+    Why the arc: with flow far from associated, the discrete path of the unsupported ground has
+    local limit points (snap-throughs): where a shear band forms, the released load the ground holds
+    dips by a few per cent of an increment and rises again. Issue 36's sample: each increment that
+    stalled in load control down to 1/64 of it was one. Load control cannot pass them; the arc-length
+    steps follow the path through. A path whose load falls below its peak by more than half an
+    increment has passed the ground's limit load: the ground collapses, and the error says what it
+    held (:class:`~solver.errors.GroundCollapseError`). Without ``arc_length`` (stage 2: the contact
+    makes the load's share of each iterate nonlinear) the halving goes on to 1/2^:data:`MAX_SPLITS`.
+    The smallest steps (load control there, arc-length steps 1/2^MAX_SPLITS of the first) run
+    without the stall test, on what is left of :data:`MAX_STEP_ITERATIONS`.
+
+    ``solve(guess, limit, patience, frac=…)`` is the equilibrium iteration (:func:`_fixed_point`,
+    plus the load reached) at the load ``frac``; for stage 1 also ``solve(…, arc=(x_s, n, ds))``.
+    ``commit`` stores a converged state. Each step starts from the last one's displacement change,
+    scaled to its load. Returns the displacement, the plastic load, the iterations spent (stalled
+    attempts included), the last step's start and load and the step the next increment tries first."""
+    used, p, arc = 0, None, None  # arc: the arc-length step once load control has stalled
+    peak, least = lam, 0.0  # least: the arc step below which an attempt runs without a stall test
+    smallest = increment / 2**(ARC_SPLITS if arc_length else MAX_SPLITS)
+    while lam < end:
+        left = MAX_STEP_ITERATIONS - used
+        if left <= 0:
             raise NotConvergedError(
                 f"solver.load_steps: the yielding ground did not reach equilibrium in {where}: its "
-                f"{MAX_STEP_ITERATIONS} iterations ran out {pos}/{units} of the way through it, in sub-increments "
-                f"down to 1/{units // size} of it")
+                f"{MAX_STEP_ITERATIONS} iterations ran out at {lam:.4g} of {end:.4g} of the load, in steps down "
+                f"to {min(h, end - lam) / increment:.2g} of the increment{'' if arc is None else ' (arc-length)'} "
+                "(a stronger ground, or a coarser solver.plastic_tolerance)")
+        step = x - x_prev
+        length = float(np.linalg.norm(step))
+        if arc is not None and lam > lam_prev and lam + (lam - lam_prev) / length * arc >= end:
+            arc, h = None, end - lam  # the end within the arc's reach: load control to it
         try:
-            new, p, state, its = solve(frac, x + (h / h_prev) * (x - x_prev),
-                                       STAGNATION if size > 1 else None, left)
+            if arc is None:
+                target = end if lam + h >= end - 1e-9 * increment else lam + h
+                guess = x + ((target - lam) / (lam - lam_prev)) * step if lam > lam_prev else x
+                patience = None if not arc_length and h <= smallest * (1 + 1e-9) else STAGNATION
+                new, p_new, state, its, lam_new = solve(guess, left, patience, frac=target)
+            else:
+                n = step / length
+                new, p_new, state, its, lam_new = solve(x + arc * n, left, STAGNATION if arc > least else None,
+                                                        arc=(x, n, arc))
         except _Stalled as stall:
-            iterations += stall.iterations
-            if size == 1 or iterations >= MAX_STEP_ITERATIONS:
+            used += stall.iterations
+            if arc is None and h > smallest * (1 + 1e-9):
+                h /= 2
+            elif arc is None and arc_length and lam > lam_prev:
+                arc = length * min(1.0, h / (lam - lam_prev))
+                least = arc / 2**MAX_SPLITS
+            elif arc is not None and arc > least:
+                arc *= 0.5
+            else:
                 raise NotConvergedError(
                     f"solver.load_steps: the yielding ground did not reach equilibrium in {where} (out-of-balance "
-                    f"force {stall.force:.3g} N/m > {stall.atol:.3g} after {iterations} iterations, in "
-                    f"sub-increments down to 1/{units // size} of it): far above the tolerance the ground is "
-                    "collapsing (raise its strength or the support: a lower excavation.deconfinement); just above "
-                    "it the iteration has stalled where points cross the yield surface, as where flow without "
-                    "dilatancy localizes in shear bands (a dilatancy closer to the friction angle, or a coarser "
-                    "solver.plastic_tolerance)"
-                ) from None
-            size //= 2
-            log.debug("%s: stalled at %.3g N/m > %.3g after %d iterations; sub-increments of %d/%d", where,
-                      stall.force, stall.atol, stall.iterations, size, units)
+                    f"force {stall.force:.3g} N/m > {stall.atol:.3g} after {used} iterations, at {lam:.4g} of "
+                    f"{end:.4g} of the load, in steps down to 1/{round(increment / h)} of the increment"
+                    f"{'' if arc is None else ' and arc-length steps down to 1/64 of the first'}): a coarser "
+                    "solver.plastic_tolerance, or a dilatancy closer to the friction angle") from None
+            log.debug("%s: stalled at %.3g N/m > %.3g after %d iterations; %s", where, stall.force, stall.atol,
+                      stall.iterations, f"steps of {h / increment:.3g} of the increment" if arc is None
+                      else f"arc-length steps of {arc:.3g}")
             continue
-        iterations += its
+        used += its
+        if lam_new > end:  # the arc went past the increment's end: a shorter one
+            arc *= 0.5 * (end - lam) / (lam_new - lam)
+            continue
         commit(*state)
-        x_prev, x, h_prev = x, new, h
-        pos += size
-        size *= 2 if its <= GROW_BELOW else 1
-    return x, p, iterations, x_prev, h_prev, min(size, units)
+        x_prev, lam_prev, x, lam, p = x, lam, new, float(lam_new), p_new
+        peak = max(peak, lam)
+        if peak - lam > 0.5 * increment:
+            raise GroundCollapseError(
+                f"excavation.deconfinement: the unsupported ground collapses in {where}: the load it holds "
+                f"peaks at λ {peak:.4g} and falls to {lam:.4g} as it deforms further (a stronger ground, or "
+                "support placed earlier: a lower excavation.deconfinement)")
+        if arc is not None:
+            arc *= 1.6 if its <= GROW_BELOW else (1.0 if its <= 2 * STAGNATION else 0.6)
+        elif its <= GROW_BELOW:
+            h *= 2
+    return x, p, used, x_prev, lam_prev, min(h, increment)
 
 
 def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "_Points", stress_of, commit):
@@ -335,31 +371,45 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "
             commit(*stress_of(u1))
             reached = mean_convergence(body.expand(u1), iface)  # linear in the load up to here
             curve.extend((ld * k / steps, reached * k / elastic) for k in range(1, elastic + 1))
-        u1_prev, h_prev = u1 - ld / steps * u_r, ld / steps
+        u1_prev = u1 - ld / steps * u_r
 
         atol = tol * ld / steps * float(np.linalg.norm(release))  # of the increment's load (SPEC §9.1)
 
-        def solve1(frac, guess, patience, limit):
-            base = frac * y_r
+        unit = mean_convergence(body.expand(u_r), iface)  # the elastic ground's, of the whole release
+
+        def solve1(guess, limit, patience, frac=None, arc=None):
+            """Equilibrium at the load ``frac`` (load control) or, with ``arc`` = (x_s, n, ds), on the
+            plane ``n·(x - x_s) = ds`` at the load that plane asks of each iterate (arc-length: the
+            load is affine in it, ``G(x) = K⁺p(x) + λ(x) u_r``). Returns the :func:`_fixed_point`
+            answer and its load."""
+            box = {}
 
             def G(x):
                 state = stress_of(x)
                 p = _plastic_load(gauss, state[-1])
-                return ground.backward(base + ground.forward(p, rows), rows), p, state
+                g0 = ground.backward(ground.forward(p, rows), rows)
+                if arc is None:
+                    box["lam"] = frac
+                else:
+                    x_s, n, ds = arc
+                    box["lam"] = (ds - n @ (g0 - x_s)) / (n @ u_r)
+                return g0 + box["lam"] * u_r, p, state
 
             # the load G solves for: K K⁺ f = f where no DOF is pinned (the ground's boundary holds it)
-            load = None if ground.pinned else (lambda p: frac * release + p)
-            return _fixed_point(G, guess, K, atol, patience, limit, load)
+            load = None if ground.pinned else (lambda p: box["lam"] * release + p)
+            return _fixed_point(G, guess, K, atol, patience, limit, load) + (box["lam"],)
 
-        size = 2**MAX_SPLITS
+        lam, lam_prev, h = ld * elastic / steps, ld * (elastic - 1) / steps, ld / steps
         for k in range(elastic + 1, steps + 1):
+            where = f"stage 1, increment {k} of {steps}"
             try:
-                u1, p1, its, u1_prev, h_prev, size = _follow(solve1, commit, u1, u1_prev, h_prev, ld * (k - 1) / steps,
-                                                             ld * k / steps, f"stage 1, increment {k} of {steps}", size)
+                u1, p1, its, u1_prev, lam_prev, h = _advance(solve1, commit, u1, u1_prev, lam, lam_prev,
+                                                             ld * k / steps, ld / steps, h, where)
             except NotConvergedError as err:
-                raise NotConvergedError(f"{err}. {held(curve, mean_convergence(body.expand(u_r), iface))}") from None
+                raise type(err)(f"{err}. {held(curve, unit)}") from None
+            lam = ld * k / steps
             iterations += its
-            curve.append((ld * k / steps, mean_convergence(body.expand(u1), iface)))
+            curve.append((lam, mean_convergence(body.expand(u1), iface)))
     return u1, p1, iterations, curve
 
 
@@ -428,7 +478,6 @@ def solve_staged(model, spec, rows, t0: float):
     y_l = lining.forward(full.lining, rows)
     F2_full = model.mode_loads(full.lining)
     u2 = u2_prev = np.zeros(body.n)
-    h_prev = 1.0 / steps
     p = p1
 
     def stage_of(p, a):
@@ -444,21 +493,22 @@ def solve_staged(model, spec, rows, t0: float):
     first = ld * float(np.linalg.norm(loads.release)) if loads.release is not None else 0.0
     atol = tol * max(own, first) / steps
 
-    def solve2(a, guess, patience, limit):
+    def solve2(guess, limit, patience, frac):
 
         def G(x):
             state = stress_of(u1 + x)
             p = _plastic_load(gauss, state[-1])
-            _, stage, d = stage_of(p, a)
-            _, t = contact_tractions(model, spec, d, a * F2_full)
+            _, stage, d = stage_of(p, frac)
+            _, t = contact_tractions(model, spec, d, frac * F2_full)
             return ground.backward(stage.ground, rows, model.w * t), p, state
 
-        return _fixed_point(G, guess, K, atol, patience, limit)
+        return _fixed_point(G, guess, K, atol, patience, limit) + (frac,)
 
-    size = 2**MAX_SPLITS
+    a, a_prev, h = 0.0, -1.0 / steps, 1.0 / steps
     for k in range(1, steps + 1):
-        u2, p, its, u2_prev, h_prev, size = _follow(solve2, commit, u2, u2_prev, h_prev, (k - 1) / steps, k / steps,
-                                                    f"stage 2, increment {k} of {steps}", size)
+        u2, p, its, u2_prev, a_prev, h = _advance(solve2, commit, u2, u2_prev, a, a_prev, k / steps, 1.0 / steps, h,
+                                                  f"stage 2, increment {k} of {steps}", arc_length=False)
+        a = k / steps
         iterations += its
     # the whole contact stage (both bodies, the checks) of the last increment's converged iterate
     sol = finish(model, spec, rows, *stage_of(p, 1.0), F2_full, t0, u1=u1)

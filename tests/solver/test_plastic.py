@@ -176,17 +176,56 @@ def test_a_case_that_does_not_converge_fails_with_the_reason(monkeypatch):
         run_case(CaseSpec.model_validate(_hole(0.0)))
 
 
-def test_iterations_that_run_out_on_a_converged_sub_increment_fail_with_the_reason():
-    """A sub-increment that converges on the increment's last allowed iteration leaves none for
-    the rest of the increment: the case fails saying so (before: an UnboundLocalError from an
-    iteration loop given no iterations, found by the yielding-ground sample)."""
-    def solve(frac, guess, patience, limit):
-        return guess, np.zeros(2), (), limit  # converged, on every iteration left
+def test_iterations_that_run_out_on_a_converged_step_fail_with_the_reason():
+    """A step that converges on the increment's last allowed iteration leaves none for the rest of
+    the increment: the case fails saying so (before: an UnboundLocalError from an iteration loop
+    given no iterations, found by the yielding-ground sample)."""
+    def solve(guess, limit, patience, frac=None, arc=None):
+        return guess, np.zeros(2), (), limit, frac  # converged, on every iteration left
 
-    with pytest.raises(NotConvergedError, match=r"^solver\.load_steps: .*stage 1, increment 3 of 10: its 1000 "
-                                                r"iterations ran out 32/64 of the way through it"):
-        plastic._follow(solve, lambda *state: None, np.zeros(2), np.zeros(2), 1.0, 0.2, 0.3,
-                        "stage 1, increment 3 of 10", size=32)
+    with pytest.raises(NotConvergedError, match=r"^solver\.load_steps: .*stage 1, increment 3 of 10: its 2500 "
+                                                r"iterations ran out at 0\.25 of 0\.3 of the load"):
+        plastic._advance(solve, lambda *state: None, np.ones(2), np.zeros(2), 0.2, 0.1, 0.3, 0.1, 0.05,
+                         "stage 1, increment 3 of 10")
+
+
+def _path(peak: float, fall: float):
+    """A scripted equilibrium path for :func:`plastic._advance`: load control stalls everywhere;
+    arc-length steps reach the loads of a path rising to ``peak`` and then falling by ``fall`` a step."""
+    loads = iter([peak - 0.01, peak] + [peak - fall * (k + 1) for k in range(50)])
+
+    def solve(guess, limit, patience, frac=None, arc=None):
+        if arc is None:
+            raise plastic._Stalled(2.0, 1.0, 20)
+        return guess, np.zeros(2), (), 5, next(loads)
+
+    return solve
+
+
+def test_a_path_past_its_limit_load_is_a_collapse_saying_what_the_ground_held():
+    """Stage 1's arc-length steps follow the path; where its load falls by more than half an
+    increment below its peak, the unsupported ground collapses (SPEC §9.1), and the error says the
+    largest load it held; a dip of less than that is a snap-through the path goes on from."""
+    from solver.errors import GroundCollapseError
+
+    with pytest.raises(GroundCollapseError, match=r"^excavation\.deconfinement: the unsupported ground collapses in "
+                                                  r"stage 1, increment 3 of 10: the load it holds peaks at λ 0\.27 "):
+        plastic._advance(_path(0.27, 0.02), lambda *state: None, np.ones(2), np.zeros(2), 0.2, 0.1, 0.3, 0.1, 0.1,
+                         "stage 1, increment 3 of 10")
+    # a dip of 0.02 (a fifth of the increment), then the end reached by load control
+    path = [0.25, 0.27, 0.25, 0.26, 0.28, 0.29]
+    taken = []
+
+    def solve(guess, limit, patience, frac=None, arc=None):
+        if arc is None and len(taken) < len(path):
+            raise plastic._Stalled(2.0, 1.0, 20)
+        if arc is not None:
+            taken.append(path[len(taken)] if len(taken) < len(path) else 0.295)
+        return guess + 1.0, np.zeros(2), (), 5, (frac if arc is None else taken[-1])
+
+    x, _, used, _, lam_prev, _ = plastic._advance(solve, lambda *state: None, np.ones(2), np.zeros(2), 0.2, 0.1, 0.3,
+                                                  0.1, 0.1, "stage 1, increment 3 of 10")
+    assert taken[:6] == path and lam_prev < 0.3  # through the dip, the last step load-controlled to 0.3
 
 
 @pytest.mark.slow
@@ -375,7 +414,7 @@ def test_a_stalling_increment_is_split_and_the_answer_holds_equilibrium_and_cons
     model = TunnelModel(spec)
     with caplog.at_level(logging.DEBUG, logger="solver.stages.plastic"):
         sol = model.solve(spec)
-    assert any("sub-increments of" in r.getMessage() for r in caplog.records)
+    assert any("arc-length steps of" in r.getMessage() for r in caplog.records)
     gauss = held[0]
     s, w = gauss.sigma - gauss.sigma0, gauss.weights
     internal = gauss.G.T @ np.stack([s[0] * w, s[2] * w, s[2] * w, s[1] * w]).ravel()
