@@ -289,6 +289,7 @@ def _advance(solve, commit, x: np.ndarray, x_prev: np.ndarray, lam: float, lam_p
     attempts included), the last step's start and load and the step the next increment tries first."""
     used, p, arc = 0, None, None  # arc: the arc-length step once load control has stalled
     peak, least = lam, 0.0  # least: the arc step below which an attempt runs without a stall test
+    parked, tried = None, None  # the arc step set aside while load control tries the end; where it failed
     smallest = increment / 2**(ARC_SPLITS if arc_length else MAX_SPLITS)
     while lam < end:
         left = MAX_STEP_ITERATIONS - used
@@ -300,8 +301,8 @@ def _advance(solve, commit, x: np.ndarray, x_prev: np.ndarray, lam: float, lam_p
                 "(a stronger ground, or a coarser solver.plastic_tolerance)")
         step = x - x_prev
         length = float(np.linalg.norm(step))
-        if arc is not None and lam > lam_prev and lam + (lam - lam_prev) / length * arc >= end:
-            arc, h = None, end - lam  # the end within the arc's reach: load control to it
+        if arc is not None and lam != tried and lam > lam_prev and lam + (lam - lam_prev) / length * arc >= end:
+            arc, parked, h = None, arc, end - lam  # the end within the arc's reach: load control to it
         try:
             if arc is None:
                 target = end if lam + h >= end - 1e-9 * increment else lam + h
@@ -314,7 +315,9 @@ def _advance(solve, commit, x: np.ndarray, x_prev: np.ndarray, lam: float, lam_p
                                                         arc=(x, n, arc))
         except _Stalled as stall:
             used += stall.iterations
-            if arc is None and h > smallest * (1 + 1e-9):
+            if arc is None and parked is not None:  # load control to the end stalled: on along the arc
+                arc, parked, tried = 0.5 * parked, None, lam
+            elif arc is None and h > smallest * (1 + 1e-9):
                 h /= 2
             elif arc is None and arc_length and lam > lam_prev:
                 arc = length * min(1.0, h / (lam - lam_prev))
@@ -336,6 +339,13 @@ def _advance(solve, commit, x: np.ndarray, x_prev: np.ndarray, lam: float, lam_p
         if lam_new > end:  # the arc went past the increment's end: a shorter one
             arc *= 0.5 * (end - lam) / (lam_new - lam)
             continue
+        if arc is not None and lam_new < lam and p is not None and np.array_equal(p_new, p):
+            # no point flows: the arc has turned back down the elastic unloading line, not along the path
+            raise NotConvergedError(
+                f"solver.load_steps: the yielding ground did not reach equilibrium in {where}: past a limit point "
+                f"at λ {peak:.4g} (of {end:.4g}) the arc-length path turned back into elastic unloading after "
+                f"{used} iterations (a coarser solver.plastic_tolerance, more solver.load_steps, or a dilatancy "
+                "closer to the friction angle)")
         commit(*state)
         x_prev, lam_prev, x, lam, p = x, lam, new, float(lam_new), p_new
         peak = max(peak, lam)

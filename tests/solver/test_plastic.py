@@ -197,7 +197,8 @@ def _path(peak: float, fall: float):
     def solve(guess, limit, patience, frac=None, arc=None):
         if arc is None:
             raise plastic._Stalled(2.0, 1.0, 20)
-        return guess, np.zeros(2), (), 5, next(loads)
+        lam = next(loads)
+        return guess, np.full(2, lam), (), 5, lam  # the ground flowing at every step
 
     return solve
 
@@ -221,11 +222,23 @@ def test_a_path_past_its_limit_load_is_a_collapse_saying_what_the_ground_held():
             raise plastic._Stalled(2.0, 1.0, 20)
         if arc is not None:
             taken.append(path[len(taken)] if len(taken) < len(path) else 0.295)
-        return guess + 1.0, np.zeros(2), (), 5, (frac if arc is None else taken[-1])
+        lam = frac if arc is None else taken[-1]
+        return guess + 1.0, np.full(2, lam), (), 5, lam
 
     x, _, used, _, lam_prev, _ = plastic._advance(solve, lambda *state: None, np.ones(2), np.zeros(2), 0.2, 0.1, 0.3,
                                                   0.1, 0.1, "stage 1, increment 3 of 10")
     assert taken[:6] == path and lam_prev < 0.3  # through the dip, the last step load-controlled to 0.3
+    # an arc step down the elastic unloading line (no point flows: the plastic load unchanged) is no path
+    steps = iter([0.21, 0.205])
+
+    def unloading(guess, limit, patience, frac=None, arc=None):
+        if arc is None:
+            raise plastic._Stalled(2.0, 1.0, 20)
+        return guess + 1.0, np.ones(2), (), 2, next(steps)
+
+    with pytest.raises(NotConvergedError, match=r"past a limit point at λ 0\.21 .*turned back into elastic unloading"):
+        plastic._advance(unloading, lambda *state: None, np.ones(2), np.zeros(2), 0.2, 0.1, 0.3, 0.1, 0.1,
+                         "stage 1, increment 3 of 10")
 
 
 @pytest.mark.slow
@@ -431,3 +444,16 @@ def test_a_stalling_increment_is_split_and_the_answer_holds_equilibrium_and_cons
         level = np.maximum(np.abs(ordered).max(axis=0), 1.5e4)  # the return mapping's stress scale
         assert f.max() <= 1e-9 * level.max()
         assert flags.sum() > 100 and np.all(f[flags] >= -1e-3 * level[flags])
+
+
+@pytest.mark.slow
+def test_issue_36s_weak_ground_reproducer_converges():
+    """Issue 36's reproducer (c′ 1.83 kPa, φ′ 24.7°, ψ 1.6°, K0 0.49, λd 0.53 at the default mesh) stalled
+    in stage 1 under load control, split down to 1/64 of an increment: its path has snap-throughs,
+    which the arc-length steps pass. It converges, with a wide yielded zone that stage 2 keeps."""
+    ds = run_case(CaseSpec.model_validate({
+        "ground": {"young": 1.47e8, "model": "mohr-coulomb", "cohesion": 1830, "friction_angle": 24.7,
+                   "dilatancy": 1.6}, "loads": {"lateral_ratio": 0.49}, "excavation": {"deconfinement": 0.53}}))
+    assert int(ds["converged"]) == 1
+    assert float(ds["stage1_plastic_area"]) > 50.0 and float(ds["plastic_area"]) > 50.0
+    assert 0.01 < float(ds["ground_crown_settlement"]) < 0.03  # 18.1 mm
