@@ -14,8 +14,8 @@ geometry. The stop test is the equilibrium residual: the out-of-balance force
 where larger); the plastic consistency holds at every point by the return
 mapping (:mod:`solver.ground.mohr_coulomb`, :mod:`solver.ground.hoek_brown`).
 
-Where a load step stalls (:data:`STAGNATION`) it is halved, and the steps grow again as they
-converge (:func:`_advance`; the automatic step control of commercial codes). Where a stage-1 step
+Where a load step stalls (:data:`~solver.stages.path.STAGNATION`) it is halved, and the steps grow again as they
+converge (:func:`~solver.stages.path.advance`; the automatic step control of commercial codes). Where a stage-1 step
 of 1/8 of its increment still stalls, the path has a local limit point: with flow far from
 associated (ψ = 0 against φ = 25°) a shear band forming in the unsupported ground makes the load it
 holds dip by a few per cent of an increment and rise again (a snap-through). Load control cannot
@@ -43,16 +43,15 @@ import logging
 
 import numpy as np
 
-from ..errors import GroundCollapseError, NotConvergedError
+from ..errors import NotConvergedError
 from ..ground.loads import in_situ_stress, moduli
 from ..ground.laws import PointLaws
 from ..ground.mohr_coulomb import equivalent
 from ..ground.strata import strata
-from ..limits import check_time
 from ..results.post import mean_convergence
 from .contact import contact_tractions
 from .loads import stage_loads
-from .mixing import Anderson
+from .path import advance, fixed_point
 from .recovery import finish
 from .state import Forward, StageLoads
 
@@ -61,22 +60,6 @@ log = logging.getLogger(__name__)
 #: The least distance from the yield surface (relative) at which a point is reported at yield:
 #: a tenth of ``solver.plastic_tolerance`` if coarser (the iteration leaves yielding points a hair inside).
 FLAG_TOLERANCE = 1e-3
-#: Iterations allowed per load increment: its steps (arc-length ones too) and their stalled attempts together.
-MAX_STEP_ITERATIONS = 2500
-#: An iteration has stalled when its least out-of-balance force has not fallen by a tenth in
-#: this many iterations: the step is then halved, or followed by arc-length (:func:`_advance`); the
-#: smallest steps have what is left of :data:`MAX_STEP_ITERATIONS`.
-STAGNATION = 20
-#: A step that converged in at most this many iterations is followed by one twice as long (else by
-#: one as long; an arc-length step by one 1.6 times as long, or 0.6 times after a slow one).
-GROW_BELOW = 15
-#: A stalled stage-2 step is halved at most this many times (steps of 1/64 of the increment); the
-#: arc-length steps likewise, from the first.
-MAX_SPLITS = 6
-#: A stage-1 step of 1/2^ARC_SPLITS of its increment that stalls is followed by arc-length steps.
-ARC_SPLITS = 3
-#: Anderson mixing depth.
-DEPTH = 8
 
 
 class _Points:
@@ -209,158 +192,6 @@ def first_yield(points: _Points, u_unit: np.ndarray, limit: float) -> float:
     return low
 
 
-class _Stalled(Exception):
-    """The iteration of one (sub-)increment stopped short of equilibrium: its last
-    out-of-balance force and the iterations it took."""
-
-    def __init__(self, force: float, atol: float, iterations: int):
-        super().__init__(force, atol, iterations)
-        self.force, self.atol, self.iterations = force, atol, iterations
-
-
-def _fixed_point(G, x0: np.ndarray, K, atol: float, patience: int | None = STAGNATION,
-                 limit: int = MAX_STEP_ITERATIONS, load=None):
-    """Solve ``x = G(x)`` by constant-stiffness iterations with Anderson mixing, until the
-    out-of-balance force ``‖K (G(x) - x)‖`` of an iterate ``x`` is at most ``atol``. ``G``
-    returns the new iterate, the plastic load and the yield state at ``x``; the answer is that
-    iterate with its plastic load, yield state (the state the stop test measured) and the
-    iterations taken. Raises :class:`_Stalled` when the least force so far has not fallen by a
-    tenth in ``patience`` iterations (if given), is not finite, or after ``limit`` iterations.
-
-    ``load(p)``, if given, is the load ``G`` solved for (``K G(x) = load(p)`` with ``p`` the
-    plastic load at ``x``): then ``K x`` is carried along Anderson's mix of those loads (one
-    product with ``K`` at the start, none after), the force is ``‖load(p) - K x‖``, and the mix
-    makes the least combination of these out-of-balance forces, not of the displacement changes
-    ``G(x) - x = K⁻¹(load(p) - K x)``: as right-preconditioned GMRES minimizes the true residual, the
-    mix then minimizes what the stop test measures (stage 1's iterations: issue 36's c 10 kPa,
-    ψ 0 case 430 → 215, issue 25's weak ground 940 → 709; docs/performance.md). Without ``load``
-    (stage 2, a contact solve in every ``G``) the mix keeps the displacement changes: its forces
-    measured no better there."""
-    acc = Anderson(DEPTH)
-    x, force = x0, float("inf")
-    mark, since = float("inf"), 0
-    Kx = None if load is None else K @ x0
-    for count in range(1, limit + 1):
-        check_time("plastic iteration", count)
-        gx, p, state = G(x)
-        b = None if load is None else load(p)
-        out_of_balance = K @ (gx - x) if b is None else b - Kx
-        force = float(np.linalg.norm(out_of_balance))
-        if force <= atol:
-            return x, p, state, count
-        if not np.isfinite(force):
-            break
-        if force < 0.9 * mark:
-            mark, since = force, 0
-        else:
-            since += 1
-            if patience is not None and since >= patience:
-                break
-        if b is None:
-            x = acc.step(x, gx)
-        else:
-            x, Kx = acc.step(x, gx, b, out_of_balance)
-    raise _Stalled(force, atol, count)
-
-
-def _advance(solve, commit, x: np.ndarray, x_prev: np.ndarray, lam: float, lam_prev: float, end: float,
-             increment: float, h: float, where: str, arc_length: bool = True):
-    """Take a stage's load from ``lam`` to ``end`` (one increment, of ``increment``) along the
-    equilibrium path: in load-controlled steps of ``h``, halved where the iteration stalls and
-    doubled after a quick success (:data:`GROW_BELOW`); where a step of 1/2^:data:`ARC_SPLITS` of the
-    increment still stalls (stage 1, ``arc_length``), by arc-length steps (Riks' plane normal to the
-    last step; the load follows from the plane) until the end is within a step's reach.
-
-    Why the arc: with flow far from associated, the discrete path of the unsupported ground has
-    local limit points (snap-throughs): where a shear band forms, the released load the ground holds
-    dips by a few per cent of an increment and rises again. Issue 36's sample: each increment that
-    stalled in load control down to 1/64 of it was one. Load control cannot pass them; the arc-length
-    steps follow the path through. A path whose load falls below its peak by more than half an
-    increment has passed the ground's limit load: the ground collapses, and the error says what it
-    held (:class:`~solver.errors.GroundCollapseError`). Without ``arc_length`` (stage 2: the contact
-    makes the load's share of each iterate nonlinear) the halving goes on to 1/2^:data:`MAX_SPLITS`.
-    The smallest steps (load control there, arc-length steps 1/2^MAX_SPLITS of the first) run
-    without the stall test, on what is left of :data:`MAX_STEP_ITERATIONS`.
-
-    ``solve(guess, limit, patience, frac=…)`` is the equilibrium iteration (:func:`_fixed_point`,
-    plus the load reached) at the load ``frac``; for stage 1 also ``solve(…, arc=(x_s, n, ds))``.
-    ``commit`` stores a converged state. Each step starts from the last one's displacement change,
-    scaled to its load. Returns the displacement, the plastic load, the iterations spent (stalled
-    attempts included), the last step's start and load and the step the next increment tries first."""
-    used, p, arc = 0, None, None  # arc: the arc-length step once load control has stalled
-    peak, least = lam, 0.0  # least: the arc step below which an attempt runs without a stall test
-    parked, tried = None, None  # the arc step set aside while load control tries the end; where it failed
-    smallest = increment / 2**(ARC_SPLITS if arc_length else MAX_SPLITS)
-    while lam < end:
-        left = MAX_STEP_ITERATIONS - used
-        if left <= 0:
-            raise NotConvergedError(
-                f"solver.load_steps: the yielding ground did not reach equilibrium in {where}: its "
-                f"{MAX_STEP_ITERATIONS} iterations ran out at {lam:.4g} of {end:.4g} of the load, in steps down "
-                f"to {min(h, end - lam) / increment:.2g} of the increment{'' if arc is None else ' (arc-length)'} "
-                "(a stronger ground, or a coarser solver.plastic_tolerance)")
-        step = x - x_prev
-        length = float(np.linalg.norm(step))
-        if arc is not None and lam != tried and lam > lam_prev and lam + (lam - lam_prev) / length * arc >= end:
-            arc, parked, h = None, arc, end - lam  # the end within the arc's reach: load control to it
-        try:
-            if arc is None:
-                target = end if lam + h >= end - 1e-9 * increment else lam + h
-                guess = x + ((target - lam) / (lam - lam_prev)) * step if lam > lam_prev else x
-                patience = None if not arc_length and h <= smallest * (1 + 1e-9) else STAGNATION
-                new, p_new, state, its, lam_new = solve(guess, left, patience, frac=target)
-            else:
-                n = step / length
-                new, p_new, state, its, lam_new = solve(x + arc * n, left, STAGNATION if arc > least else None,
-                                                        arc=(x, n, arc))
-        except _Stalled as stall:
-            used += stall.iterations
-            if arc is None and parked is not None:  # load control to the end stalled: on along the arc
-                arc, parked, tried = 0.5 * parked, None, lam
-            elif arc is None and h > smallest * (1 + 1e-9):
-                h /= 2
-            elif arc is None and arc_length and lam > lam_prev:
-                arc = length * min(1.0, h / (lam - lam_prev))
-                least = arc / 2**MAX_SPLITS
-            elif arc is not None and arc > least:
-                arc *= 0.5
-            else:
-                raise NotConvergedError(
-                    f"solver.load_steps: the yielding ground did not reach equilibrium in {where} (out-of-balance "
-                    f"force {stall.force:.3g} N/m > {stall.atol:.3g} after {used} iterations, at {lam:.4g} of "
-                    f"{end:.4g} of the load, in steps down to 1/{round(increment / h)} of the increment"
-                    f"{'' if arc is None else ' and arc-length steps down to 1/64 of the first'}): a coarser "
-                    "solver.plastic_tolerance, or a dilatancy closer to the friction angle") from None
-            log.debug("%s: stalled at %.3g N/m > %.3g after %d iterations; %s", where, stall.force, stall.atol,
-                      stall.iterations, f"steps of {h / increment:.3g} of the increment" if arc is None
-                      else f"arc-length steps of {arc:.3g}")
-            continue
-        used += its
-        if lam_new > end:  # the arc went past the increment's end: a shorter one
-            arc *= 0.5 * (end - lam) / (lam_new - lam)
-            continue
-        if arc is not None and lam_new < lam and p is not None and np.array_equal(p_new, p):
-            # no point flows: the arc has turned back down the elastic unloading line, not along the path
-            raise NotConvergedError(
-                f"solver.load_steps: the yielding ground did not reach equilibrium in {where}: past a limit point "
-                f"at λ {peak:.4g} (of {end:.4g}) the arc-length path turned back into elastic unloading after "
-                f"{used} iterations (a coarser solver.plastic_tolerance, more solver.load_steps, or a dilatancy "
-                "closer to the friction angle)")
-        commit(*state)
-        x_prev, lam_prev, x, lam, p = x, lam, new, float(lam_new), p_new
-        peak = max(peak, lam)
-        if peak - lam > 0.5 * increment:
-            raise GroundCollapseError(
-                f"excavation.deconfinement: the unsupported ground collapses in {where}: the load it holds "
-                f"peaks at λ {peak:.4g} and falls to {lam:.4g} as it deforms further (a stronger ground, or "
-                "support placed earlier: a lower excavation.deconfinement)")
-        if arc is not None:
-            arc *= 1.6 if its <= GROW_BELOW else (1.0 if its <= 2 * STAGNATION else 0.6)
-        elif its <= GROW_BELOW:
-            h *= 2
-    return x, p, used, x_prev, lam_prev, min(h, increment)
-
-
 def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "_Points", stress_of, commit):
     """Stage 1: λd r on the unsupported ground in ``steps`` equal increments; those the ground
     takes elastically in one solve (up to its first yield). Returns the free-DOF displacement,
@@ -390,7 +221,7 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "
         def solve1(guess, limit, patience, frac=None, arc=None):
             """Equilibrium at the load ``frac`` (load control) or, with ``arc`` = (x_s, n, ds), on the
             plane ``n·(x - x_s) = ds`` at the load that plane asks of each iterate (arc-length: the
-            load is affine in it, ``G(x) = K⁺p(x) + λ(x) u_r``). Returns the :func:`_fixed_point`
+            load is affine in it, ``G(x) = K⁺p(x) + λ(x) u_r``). Returns the :func:`~solver.stages.path.fixed_point`
             answer and its load."""
             box = {}
 
@@ -407,13 +238,13 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "
 
             # the load G solves for: K K⁺ f = f where no DOF is pinned (the ground's boundary holds it)
             load = None if ground.pinned else (lambda p: box["lam"] * release + p)
-            return _fixed_point(G, guess, K, atol, patience, limit, load) + (box["lam"],)
+            return fixed_point(G, guess, K, atol, patience, limit, load) + (box["lam"],)
 
         lam, lam_prev, h = ld * elastic / steps, ld * (elastic - 1) / steps, ld / steps
         for k in range(elastic + 1, steps + 1):
             where = f"stage 1, increment {k} of {steps}"
             try:
-                u1, p1, its, u1_prev, lam_prev, h = _advance(solve1, commit, u1, u1_prev, lam, lam_prev,
+                u1, p1, its, u1_prev, lam_prev, h = advance(solve1, commit, u1, u1_prev, lam, lam_prev,
                                                              ld * k / steps, ld / steps, h, where)
             except NotConvergedError as err:
                 raise type(err)(f"{err}. {held(curve, unit)}") from None
@@ -512,11 +343,11 @@ def solve_staged(model, spec, rows, t0: float):
             _, t = contact_tractions(model, spec, d, frac * F2_full)
             return ground.backward(stage.ground, rows, model.w * t), p, state
 
-        return _fixed_point(G, guess, K, atol, patience, limit) + (frac,)
+        return fixed_point(G, guess, K, atol, patience, limit) + (frac,)
 
     a, a_prev, h = 0.0, -1.0 / steps, 1.0 / steps
     for k in range(1, steps + 1):
-        u2, p, its, u2_prev, a_prev, h = _advance(solve2, commit, u2, u2_prev, a, a_prev, k / steps, 1.0 / steps, h,
+        u2, p, its, u2_prev, a_prev, h = advance(solve2, commit, u2, u2_prev, a, a_prev, k / steps, 1.0 / steps, h,
                                                   f"stage 2, increment {k} of {steps}", arc_length=False)
         a = k / steps
         iterations += its

@@ -8,6 +8,7 @@ import json
 import numpy as np
 import pytest
 
+import solver.stages.path as path
 import solver.stages.plastic as plastic
 from solver import CaseSpec
 from solver.analytic import salencon
@@ -171,7 +172,7 @@ def test_the_readme_mohr_coulomb_example_reproduces():
 
 
 def test_a_case_that_does_not_converge_fails_with_the_reason(monkeypatch):
-    monkeypatch.setattr(plastic, "MAX_STEP_ITERATIONS", 2)
+    monkeypatch.setattr(path, "MAX_STEP_ITERATIONS", 2)
     with pytest.raises(NotConvergedError, match=r"^solver\.load_steps: .*stage 1.*(held λd|first increment)"):
         run_case(CaseSpec.model_validate(_hole(0.0)))
 
@@ -185,18 +186,18 @@ def test_iterations_that_run_out_on_a_converged_step_fail_with_the_reason():
 
     with pytest.raises(NotConvergedError, match=r"^solver\.load_steps: .*stage 1, increment 3 of 10: its 2500 "
                                                 r"iterations ran out at 0\.25 of 0\.3 of the load"):
-        plastic._advance(solve, lambda *state: None, np.ones(2), np.zeros(2), 0.2, 0.1, 0.3, 0.1, 0.05,
+        path.advance(solve, lambda *state: None, np.ones(2), np.zeros(2), 0.2, 0.1, 0.3, 0.1, 0.05,
                          "stage 1, increment 3 of 10")
 
 
 def _path(peak: float, fall: float):
-    """A scripted equilibrium path for :func:`plastic._advance`: load control stalls everywhere;
+    """A scripted equilibrium path for :func:`path.advance`: load control stalls everywhere;
     arc-length steps reach the loads of a path rising to ``peak`` and then falling by ``fall`` a step."""
     loads = iter([peak - 0.01, peak] + [peak - fall * (k + 1) for k in range(50)])
 
     def solve(guess, limit, patience, frac=None, arc=None):
         if arc is None:
-            raise plastic._Stalled(2.0, 1.0, 20)
+            raise path.Stalled(2.0, 1.0, 20)
         lam = next(loads)
         return guess, np.full(2, lam), (), 5, lam  # the ground flowing at every step
 
@@ -211,33 +212,33 @@ def test_a_path_past_its_limit_load_is_a_collapse_saying_what_the_ground_held():
 
     with pytest.raises(GroundCollapseError, match=r"^excavation\.deconfinement: the unsupported ground collapses in "
                                                   r"stage 1, increment 3 of 10: the load it holds peaks at λ 0\.27 "):
-        plastic._advance(_path(0.27, 0.02), lambda *state: None, np.ones(2), np.zeros(2), 0.2, 0.1, 0.3, 0.1, 0.1,
+        path.advance(_path(0.27, 0.02), lambda *state: None, np.ones(2), np.zeros(2), 0.2, 0.1, 0.3, 0.1, 0.1,
                          "stage 1, increment 3 of 10")
     # a dip of 0.02 (a fifth of the increment), then the end reached by load control
-    path = [0.25, 0.27, 0.25, 0.26, 0.28, 0.29]
+    dips = [0.25, 0.27, 0.25, 0.26, 0.28, 0.29]
     taken = []
 
     def solve(guess, limit, patience, frac=None, arc=None):
-        if arc is None and len(taken) < len(path):
-            raise plastic._Stalled(2.0, 1.0, 20)
+        if arc is None and len(taken) < len(dips):
+            raise path.Stalled(2.0, 1.0, 20)
         if arc is not None:
-            taken.append(path[len(taken)] if len(taken) < len(path) else 0.295)
+            taken.append(dips[len(taken)] if len(taken) < len(dips) else 0.295)
         lam = frac if arc is None else taken[-1]
         return guess + 1.0, np.full(2, lam), (), 5, lam
 
-    x, _, used, _, lam_prev, _ = plastic._advance(solve, lambda *state: None, np.ones(2), np.zeros(2), 0.2, 0.1, 0.3,
+    x, _, used, _, lam_prev, _ = path.advance(solve, lambda *state: None, np.ones(2), np.zeros(2), 0.2, 0.1, 0.3,
                                                   0.1, 0.1, "stage 1, increment 3 of 10")
-    assert taken[:6] == path and lam_prev < 0.3  # through the dip, the last step load-controlled to 0.3
+    assert taken[:6] == dips and lam_prev < 0.3  # through the dip, the last step load-controlled to 0.3
     # an arc step down the elastic unloading line (no point flows: the plastic load unchanged) is no path
     steps = iter([0.21, 0.205])
 
     def unloading(guess, limit, patience, frac=None, arc=None):
         if arc is None:
-            raise plastic._Stalled(2.0, 1.0, 20)
+            raise path.Stalled(2.0, 1.0, 20)
         return guess + 1.0, np.ones(2), (), 2, next(steps)
 
     with pytest.raises(NotConvergedError, match=r"past a limit point at λ 0\.21 .*turned back into elastic unloading"):
-        plastic._advance(unloading, lambda *state: None, np.ones(2), np.zeros(2), 0.2, 0.1, 0.3, 0.1, 0.1,
+        path.advance(unloading, lambda *state: None, np.ones(2), np.zeros(2), 0.2, 0.1, 0.3, 0.1, 0.1,
                          "stage 1, increment 3 of 10")
 
 
@@ -254,13 +255,13 @@ def test_the_mix_minimizing_the_force_halves_the_iterations_of_issue_36s_default
 
 def _stop_tests(monkeypatch) -> list[float]:
     """The out-of-balance force each (sub-)increment's iteration is asked to reach, as it is asked."""
-    asked, real = [], plastic._fixed_point
+    asked, real = [], plastic.fixed_point
 
     def spy(G, x0, K, atol, *args, **kwargs):
         asked.append(atol)
         return real(G, x0, K, atol, *args, **kwargs)
 
-    monkeypatch.setattr(plastic, "_fixed_point", spy)
+    monkeypatch.setattr(plastic, "fixed_point", spy)
     return asked
 
 
@@ -425,9 +426,9 @@ def test_a_stalling_increment_is_split_and_the_answer_holds_equilibrium_and_cons
     monkeypatch.setattr(plastic, "_Points", Held)
     spec = CaseSpec.model_validate(WEAK)
     model = TunnelModel(spec)
-    with caplog.at_level(logging.DEBUG, logger="solver.stages.plastic"):
+    with caplog.at_level(logging.DEBUG, logger="solver.stages.path"):
         sol = model.solve(spec)
-    assert any("arc-length steps of" in r.getMessage() for r in caplog.records)
+    assert any("stalled at" in r.getMessage() for r in caplog.records)
     gauss = held[0]
     s, w = gauss.sigma - gauss.sigma0, gauss.weights
     internal = gauss.G.T @ np.stack([s[0] * w, s[2] * w, s[2] * w, s[1] * w]).ravel()
