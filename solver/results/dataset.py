@@ -389,6 +389,11 @@ def _warnings(model: TunnelModel, sol: Solution, u: np.ndarray, surface: tuple) 
         warnings.append(
             f"largest displacement {largest:.4g} m exceeds {SMALL_DISPLACEMENT_LIMIT:.0%} of the excavation "
             f"radius ({g.hole_radius:.4g} m): outside the small-displacement model")
+    retried = sol.plastic.get("retried") if sol.plastic is not None else None
+    if retried is not None:
+        warnings.append(f"solver.plastic_tolerance: the yielding ground did not converge at the asked "
+                        f"{spec.solver.plastic_tolerance:g} and was solved at {retried[0]:g}, a stricter stop test "
+                        f"(at {spec.solver.plastic_tolerance:g}: {retried[1]})")
     if not sol.admissible:
         where = f"bolt at theta={iface.theta[sol.bolt]:.2f} deg" if sol.bolt is not None else "the bolt set"
         warnings.append(f"{where} has a negative reaction: not a contact solution")

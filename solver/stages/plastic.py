@@ -43,7 +43,7 @@ import logging
 
 import numpy as np
 
-from ..errors import NotConvergedError
+from ..errors import GroundCollapseError, NotConvergedError
 from ..ground.loads import in_situ_stress, moduli
 from ..ground.laws import PointLaws
 from ..ground.mohr_coulomb import equivalent
@@ -57,6 +57,9 @@ from .state import Forward, StageLoads
 
 log = logging.getLogger(__name__)
 
+#: Where a case's plastic solve fails short of a collapse, it is solved once more at this fraction of
+#: ``solver.plastic_tolerance`` (:func:`tightened`).
+RETRY_TOLERANCE = 0.5
 #: The least distance from the yield surface (relative) at which a point is reported at yield:
 #: a tenth of ``solver.plastic_tolerance`` if coarser (the iteration leaves yielding points a hair inside).
 FLAG_TOLERANCE = 1e-3
@@ -274,31 +277,62 @@ def release_unsupported(model, spec, rows, fraction: float = 1.0):
     ``solver.load_steps`` increments (as :func:`solve_staged` begins). Returns the ground reaction
     curve [(released, convergence)] and the quadrature points' history (:class:`_Points`: where
     the ground yielded). Raises :class:`NotConvergedError` where the ground collapses."""
-    gauss = _Points(model, spec, "gauss")
     release = stage_loads(model, spec).release
-    tol = spec.solver.plastic_tolerance
 
-    def stress_of(u_free):
-        grad = gauss.gradient(u_free)
-        return (u_free, grad) + gauss.trial(grad)
+    def attempt(tol: float):
+        gauss = _Points(model, spec, "gauss")
 
-    def commit(u_free, grad, stress, dep, flags, tau):
-        gauss.commit(grad, stress, dep, flags, tau)
+        def stress_of(u_free):
+            grad = gauss.gradient(u_free)
+            return (u_free, grad) + gauss.trial(grad)
 
-    curve = _stage_one(model, rows, release, fraction, spec.solver.load_steps, tol, gauss, stress_of, commit)[3]
-    return curve, gauss
+        def commit(u_free, grad, stress, dep, flags, tau):
+            gauss.commit(grad, stress, dep, flags, tau)
+
+        curve = _stage_one(model, rows, release, fraction, spec.solver.load_steps, tol, gauss, stress_of, commit)[3]
+        return curve, gauss
+
+    return tightened(attempt, spec.solver.plastic_tolerance)[0]
+
+
+def tightened(attempt, tol: float):
+    """``attempt(tol)``, and where it fails short of a collapse, ``attempt`` once more at
+    :data:`RETRY_TOLERANCE` × ``tol``: the answer (a stricter stop test than asked, so also the asked
+    one's) and, if retried, the first attempt's reason; raises the second's with both.
+
+    Why: the path a loose stop test leaves (each increment's out-of-balance force up to the
+    tolerance) can meet a limit point in non-associated ground that the path of a tighter one
+    does not (docs/performance.md: issue 36's weak case 3 turns into elastic unloading past λ 0.157
+    at 0.01 and converges at 0.005)."""
+    try:
+        return attempt(tol), None
+    except GroundCollapseError:
+        raise
+    except NotConvergedError as first:
+        log.info("yielding ground at solver.plastic_tolerance %g: %s; again at %g", tol, first, RETRY_TOLERANCE * tol)
+        try:
+            return attempt(RETRY_TOLERANCE * tol), str(first)
+        except NotConvergedError as again:
+            raise type(again)(f"{again} (at solver.plastic_tolerance {RETRY_TOLERANCE * tol:g}; at {tol:g}: "
+                              f"{first})") from None
 
 
 def solve_staged(model, spec, rows, t0: float):
     """Solve a case whose ground can yield (see the module's docstring): a
-    :class:`~solver.model.Solution` with ``plastic`` results filled."""
+    :class:`~solver.model.Solution` with ``plastic`` results filled (:func:`tightened`: where the
+    stop test asked stalls, once more at a tighter one, which ``plastic["retried"]`` reports)."""
+    sol, first = tightened(lambda tol: _staged(model, spec, rows, t0, tol), spec.solver.plastic_tolerance)
+    sol.plastic["retried"] = None if first is None else (RETRY_TOLERANCE * spec.solver.plastic_tolerance, first)
+    return sol
+
+
+def _staged(model, spec, rows, t0: float, tol: float):
     ground, lining = model.ground, model.lining
     body = ground.body
     gauss = _Points(model, spec, "gauss")
     out = _Points(model, spec, "points")
     loads = stage_loads(model, spec)
     steps = spec.solver.load_steps
-    tol = spec.solver.plastic_tolerance
     ld = spec.excavation.deconfinement if loads.release is not None else 0.0
     K = ground.stiffness()
 

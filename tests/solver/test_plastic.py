@@ -458,3 +458,48 @@ def test_issue_36s_weak_ground_reproducer_converges():
     assert int(ds["converged"]) == 1
     assert float(ds["stage1_plastic_area"]) > 50.0 and float(ds["plastic_area"]) > 50.0
     assert 0.01 < float(ds["ground_crown_settlement"]) < 0.03  # 18.1 mm
+
+
+def test_a_stalled_case_is_solved_again_at_a_tighter_stop_test_and_says_so(monkeypatch):
+    """Where the plastic solve fails short of a collapse at the asked ``solver.plastic_tolerance``, it is
+    solved once more at half of it (a stricter stop test: the asked one holds too), and the result's
+    warnings say so with the first failure's reason; a collapse is not retried, and a second failure
+    carries both reasons."""
+    from solver.errors import GroundCollapseError
+
+    asked = []
+
+    def attempt(tol):
+        asked.append(tol)
+        if tol > 0.006:
+            raise NotConvergedError("solver.load_steps: stalled")
+        return "answer"
+
+    assert plastic.tightened(attempt, 0.01) == ("answer", "solver.load_steps: stalled") and asked == [0.01, 0.005]
+
+    def collapsing(tol):
+        asked.append(tol)
+        raise GroundCollapseError("excavation.deconfinement: collapses")
+
+    asked.clear()
+    with pytest.raises(GroundCollapseError):
+        plastic.tightened(collapsing, 0.01)
+    assert asked == [0.01]
+    with pytest.raises(NotConvergedError, match=r"^second \(at solver.plastic_tolerance 0.005; at 0.01: first\)$"):
+        plastic.tightened(lambda tol: (_ for _ in ()).throw(NotConvergedError("first" if tol > 0.006 else "second")),
+                          0.01)
+    # through a case: its first stage 1 fails, the result carries the second's answer and the warning
+    real = plastic._stage_one
+
+    def stalls_at_the_asked(model, rows, release, ld, steps, tol, *args):
+        if tol > 0.006:
+            raise NotConvergedError("solver.load_steps: stage 1 stalled (scripted)")
+        return real(model, rows, release, ld, steps, tol, *args)
+
+    monkeypatch.setattr(plastic, "_stage_one", stalls_at_the_asked)
+    ds = run_case(CaseSpec.model_validate({"ground": {"model": "mohr-coulomb", "cohesion": 3.0e4,
+                                                      "friction_angle": 28.0, "tensile_strength": 1.0e4}}))
+    warnings = json.loads(ds.attrs["warnings"]) if isinstance(ds.attrs["warnings"], str) else ds.attrs["warnings"]
+    assert any(w.startswith("solver.plastic_tolerance: the yielding ground did not converge at the asked 0.01 and "
+                            "was solved at 0.005") and "stage 1 stalled (scripted)" in w for w in warnings)
+    assert json.loads(ds.attrs["case_spec"])["solver"].get("plastic_tolerance", 0.01) == 0.01  # the case as asked
