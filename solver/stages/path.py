@@ -29,6 +29,9 @@ GROW_BELOW = 15
 MAX_SPLITS = 6
 #: A stage-1 step of 1/2^ARC_SPLITS of its increment that stalls is followed by arc-length steps.
 ARC_SPLITS = 3
+#: Along the arc, a doubling of the displacement that gains less than this share of an increment's load
+#: is a mechanism: the unsupported ground collapses (:func:`advance`).
+PLATEAU = 0.01
 #: Anderson mixing depth.
 DEPTH = 8
 
@@ -154,8 +157,10 @@ def advance(solve, commit, x: np.ndarray, x_prev: np.ndarray, lam: float, lam_pr
     dips by a few per cent of an increment and rises again. Issue 36's sample: the increments that
     stalled in load control down to 1/64 of them were such. Load control cannot pass them; the
     arc-length steps follow the path through. A path whose load falls below its peak by more than
-    half an increment while the ground flows has passed the ground's limit load: the ground
-    collapses, and the error says what it held (:class:`~solver.errors.GroundCollapseError`). An arc
+    half an increment while the ground flows has passed the ground's limit load, and one whose
+    displacement doubles for less than :data:`PLATEAU` of an increment's load has reached it (a
+    mechanism): the ground collapses, and the error says what it held
+    (:class:`~solver.errors.GroundCollapseError`). An arc
     step down the elastic unloading line (the load falling, no point flowing) is no path: refused.
     Without ``arc_length`` (stage 2: the contact makes the load's share of an iterate nonlinear) the
     halving goes on to 1/2^:data:`MAX_SPLITS`. The smallest steps run without the stall test, on what
@@ -167,7 +172,7 @@ def advance(solve, commit, x: np.ndarray, x_prev: np.ndarray, lam: float, lam_pr
     (stalled attempts included), the last step's start and load and the step the next increment
     tries first."""
     steps = _Steps(increment, h, arc_length)
-    used, p, peak = 0, None, lam
+    used, p, peak, ref = 0, None, lam, None
     while lam < end:
         left = MAX_STEP_ITERATIONS - used
         if left <= 0:
@@ -202,6 +207,8 @@ def advance(solve, commit, x: np.ndarray, x_prev: np.ndarray, lam: float, lam_pr
                 f"{used} iterations (a coarser solver.plastic_tolerance, more solver.load_steps, or a dilatancy "
                 "closer to the friction angle)")
         commit(*state)
+        if steps.arc is not None and ref is None:
+            ref = x, lam  # where the arc began: the displacement and load a plateau is measured from
         x_prev, lam_prev, x, lam, p = x, lam, new, float(lam_new), p_new
         peak = max(peak, lam)
         if peak - lam > 0.5 * increment:
@@ -209,5 +216,13 @@ def advance(solve, commit, x: np.ndarray, x_prev: np.ndarray, lam: float, lam_pr
                 f"excavation.deconfinement: the unsupported ground collapses in {where}: the load it holds "
                 f"peaks at λ {peak:.4g} and falls to {lam:.4g} as it deforms further (a stronger ground, or "
                 "support placed earlier: a lower excavation.deconfinement)")
+        if ref is not None and np.linalg.norm(x - ref[0]) >= np.linalg.norm(ref[0]):
+            if lam - ref[1] < PLATEAU * increment:
+                raise GroundCollapseError(
+                    f"excavation.deconfinement: the unsupported ground collapses in {where}: its ground reaction "
+                    f"levels out at λ {peak:.4g}, the displacement doubling for {lam - ref[1]:.2g} more of the load "
+                    f"(less than {PLATEAU:.0%} of an increment; a stronger ground, or support placed earlier: a "
+                    "lower excavation.deconfinement)")
+            ref = x, lam
         steps.converged(its)
     return x, p, used, x_prev, lam_prev, min(steps.h, increment)
