@@ -144,6 +144,26 @@ class _Steps:
                 else f"arc-length steps of {self.arc:.3g}")
 
 
+def _collapse(where: str, x: np.ndarray, lam: float, peak: float, ref, increment: float):
+    """Raise :class:`~solver.errors.GroundCollapseError` where the path has passed the ground's limit
+    load (its load ``lam`` more than half an increment below its ``peak``) or reached it (since ``ref``,
+    the displacement and load where the arc began or last doubled, the displacement has doubled for
+    less than :data:`PLATEAU` of an increment's load); else the reference for the next doubling."""
+    advice = "a stronger ground, or support placed earlier: a lower excavation.deconfinement"
+    if peak - lam > 0.5 * increment:
+        raise GroundCollapseError(
+            f"excavation.deconfinement: the unsupported ground collapses in {where}: the load it holds peaks at "
+            f"λ {peak:.4g} and falls to {lam:.4g} as it deforms further ({advice})")
+    if ref is None or np.linalg.norm(x - ref[0]) < np.linalg.norm(ref[0]):
+        return ref
+    if lam - ref[1] < PLATEAU * increment:
+        raise GroundCollapseError(
+            f"excavation.deconfinement: the unsupported ground collapses in {where}: its ground reaction levels out "
+            f"at λ {peak:.4g}, the displacement doubling for {lam - ref[1]:.2g} more of the load (less than "
+            f"{PLATEAU:.0%} of an increment; {advice})")
+    return x, lam
+
+
 def advance(solve, commit, x: np.ndarray, x_prev: np.ndarray, lam: float, lam_prev: float, end: float,
             increment: float, h: float, where: str, arc_length: bool = True):
     """Take a stage's load from ``lam`` to ``end`` (one increment, of ``increment``) along the
@@ -211,18 +231,6 @@ def advance(solve, commit, x: np.ndarray, x_prev: np.ndarray, lam: float, lam_pr
             ref = x, lam  # where the arc began: the displacement and load a plateau is measured from
         x_prev, lam_prev, x, lam, p = x, lam, new, float(lam_new), p_new
         peak = max(peak, lam)
-        if peak - lam > 0.5 * increment:
-            raise GroundCollapseError(
-                f"excavation.deconfinement: the unsupported ground collapses in {where}: the load it holds "
-                f"peaks at λ {peak:.4g} and falls to {lam:.4g} as it deforms further (a stronger ground, or "
-                "support placed earlier: a lower excavation.deconfinement)")
-        if ref is not None and np.linalg.norm(x - ref[0]) >= np.linalg.norm(ref[0]):
-            if lam - ref[1] < PLATEAU * increment:
-                raise GroundCollapseError(
-                    f"excavation.deconfinement: the unsupported ground collapses in {where}: its ground reaction "
-                    f"levels out at λ {peak:.4g}, the displacement doubling for {lam - ref[1]:.2g} more of the load "
-                    f"(less than {PLATEAU:.0%} of an increment; a stronger ground, or support placed earlier: a "
-                    "lower excavation.deconfinement)")
-            ref = x, lam
+        ref = _collapse(where, x, lam, peak, ref, increment)
         steps.converged(its)
     return x, p, used, x_prev, lam_prev, min(steps.h, increment)
