@@ -21,8 +21,10 @@ associated (ψ = 0 against φ = 25°) a shear band forming in the unsupported gr
 holds dip by a few per cent of an increment and rise again (a snap-through). Load control cannot
 pass it; arc-length steps (Riks) follow the path through, the load solved from the arc's plane at
 each iterate (``G`` is affine in the load, so the arc costs nothing per iteration). A path whose
-load falls by more than half an increment below its peak has passed the ground's limit load: the
-unsupported ground collapses, and the error says so with what it held. The consistent tangent is not
+load falls by more than half an increment below its peak, or whose displacement doubles for less
+than 1 % of an increment's load, has passed or reached the ground's limit load: the unsupported
+ground collapses, and the error says so with what it held. A case whose solve fails short of a
+collapse is solved once more at half ``solver.plastic_tolerance`` (:func:`tightened`). The consistent tangent is not
 used: along these shear-band modes its Newton step leaves the region where its linearization holds
 (issue 25's measurements, docs/performance.md).
 
