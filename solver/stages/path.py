@@ -148,12 +148,15 @@ def _collapse(where: str, x: np.ndarray, lam: float, peak: float, ref, increment
     """Raise :class:`~solver.errors.GroundCollapseError` where the path has passed the ground's limit
     load (its load ``lam`` more than half an increment below its ``peak``) or reached it (since ``ref``,
     the displacement and load where the arc began or last doubled, the displacement has doubled for
-    less than :data:`PLATEAU` of an increment's load); else the reference for the next doubling."""
+    less than :data:`PLATEAU` of an increment's load, the path at its peak); else the reference for the
+    next doubling (in a dip below the peak, the dip's latest state)."""
     advice = "a stronger ground, or support placed earlier: a lower excavation.deconfinement"
     if peak - lam > 0.5 * increment:
         raise GroundCollapseError(
             f"excavation.deconfinement: the unsupported ground collapses in {where}: the load it holds peaks at "
             f"λ {peak:.4g} and falls to {lam:.4g} as it deforms further ({advice})")
+    if ref is not None and lam < peak - PLATEAU * increment:
+        return x, lam  # in a dip below the peak (a snap-through): a plateau is measured from where it ends
     if ref is None or np.linalg.norm(x - ref[0]) < np.linalg.norm(ref[0]):
         return ref
     if lam - ref[1] < PLATEAU * increment:

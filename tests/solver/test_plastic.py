@@ -541,3 +541,19 @@ def test_an_unsupported_hole_in_almost_cohesionless_ground_collapses_where_salen
     closed = salencon(P0, 1.0e3, 25.0, 25.0, E, NU, A, p=(1 - held) * P0)
     assert closed["R0"] > 0.75 * 30.0 and closed["u_wall"] > 10 * A
     assert salencon(P0, 1.0e3, 25.0, 25.0, E, NU, A, p=0.1 * P0)["R0"] < 10.0
+
+
+def test_a_long_dip_is_not_taken_for_a_plateau():
+    """A snap-through whose dip lasts while the displacement doubles is not a mechanism: the plateau is
+    measured only where the path is at its peak, from the end of the dip."""
+    loads = iter([0.25, 0.27] + [0.26] * 40 + [0.275 + 0.001 * k for k in range(40)])
+
+    def solve(guess, limit, patience, frac=None, arc=None):
+        if arc is None:
+            raise path.Stalled(2.0, 1.0, 20)
+        lam = next(loads)
+        return guess, np.full(2, lam), (), 20, lam  # steps of constant length: the displacement grows steadily
+
+    with pytest.raises(StopIteration):  # the scripted path ends before the increment does: no collapse on the way
+        path.advance(solve, lambda *state: None, np.ones(2), np.zeros(2), 0.2, 0.1, 0.4, 0.2, 0.2,
+                     "stage 1, increment 3 of 10")
