@@ -32,8 +32,8 @@ class NotConvergedError(SolverError):
 
 
 class GroundCollapseError(NotConvergedError):
-    """The unsupported ground cannot stand at the asked deconfinement: past its limit load the load
-    it holds falls as it deforms (SPEC §9.1: a result, named with what the ground held)."""
+    """The unsupported ground cannot stand at the asked deconfinement: at its limit load the load it
+    holds levels out or falls as it deforms (SPEC §9.1: a result, named with what the ground held)."""
 
 
 class NoAdmissibleBoltError(SolverError):
