@@ -252,24 +252,26 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "
                 u1, p1, its, u1_prev, lam_prev, h = advance(solve1, commit, u1, u1_prev, lam, lam_prev,
                                                              ld * k / steps, ld / steps, h, where)
             except NotConvergedError as err:
-                raise type(err)(f"{err}. {held(curve, unit)}") from None
+                raise type(err)(f"{err}. {held(curve, unit, isinstance(err, GroundCollapseError))}") from None
             lam = ld * k / steps
             iterations += its
             curve.append((lam, mean_convergence(body.expand(u1), iface)))
     return u1, p1, iterations, curve
 
 
-def held(curve: list[tuple[float, float]], unit: float) -> str:
+def held(curve: list[tuple[float, float]], unit: float, collapse: bool = False) -> str:
     """What the unsupported ground held before a stage-1 increment failed, for the failure's
     message: the last converged release on the ground reaction ``curve`` [(released, mean
     convergence)], its convergence against the elastic ground's (``unit``: the elastic mean
     convergence of the whole excavation load) and how steep the curve had become. Near a
     mechanism the curve steepens without bound (the last increment many times as steep as the
-    elastic line); a stall with the curve still near elastic is the iteration's, not the ground's."""
+    elastic line); a stall with the curve still near elastic is the iteration's, not the ground's.
+    After a ``collapse`` (whose error names the largest load held) the last full increment is told as such."""
     if not curve or unit == 0:
         return "The ground yielded within the first increment: no release converged on the unsupported ground"
     (l0, c0), (l1, c1) = ((0.0, 0.0), curve[-1]) if len(curve) == 1 else curve[-2:]
-    return (f"The unsupported ground held λd {l1:.3g} (mean wall convergence {1e3 * c1:.3g} mm, "
+    lead = "Its last full increment reached" if collapse else "The unsupported ground held"
+    return (f"{lead} λd {l1:.3g} (mean wall convergence {1e3 * c1:.3g} mm, "
             f"{c1 / (l1 * unit):.3g} times the elastic ground's; the ground reaction curve's last "
             f"increment {(c1 - c0) / ((l1 - l0) * unit):.3g} times as steep as the elastic line)")
 
