@@ -35,7 +35,7 @@ import statistics  # noqa: E402
 import time  # noqa: E402
 
 from solver import CaseSpec, run_case  # noqa: E402
-from solver.errors import SolverError  # noqa: E402
+from solver.errors import GroundCollapseError, SolverError  # noqa: E402
 from solver.model import TunnelModel  # noqa: E402
 from solver.stages.loads import seepage as seepage_of  # noqa: E402
 
@@ -109,7 +109,7 @@ def _timed(case: dict):
         # solved again at a tighter stop test (solver.stages.plastic.tightened), which its warnings say
         outcome = "retried" if any(w.startswith("solver.plastic_tolerance") for w in warnings) else "converged"
     except SolverError as e:
-        outcome = "collapse" if type(e).__name__ == "GroundCollapseError" else f"failed: {e}"
+        outcome = "collapse" if isinstance(e, GroundCollapseError) else f"failed: {e}"
     return time.perf_counter() - t0, outcome
 
 

@@ -145,6 +145,12 @@ class _Points:
         stress = stress.reshape(trial.shape)
         return stress, dep, flags.reshape(self.shape), self.tau + (trial - stress)
 
+    def state(self, u_free: np.ndarray) -> tuple:
+        """The state at the ground's unknowns ``u_free`` as the equilibrium iteration carries it:
+        ``(u_free, grad, stress, plastic strain increment, flags, D ε_p)`` (:meth:`trial`)."""
+        grad = self.gradient(u_free)
+        return (u_free, grad) + self.trial(grad)
+
     def commit(self, grad, stress, dep, flags, tau) -> None:
         self.grad, self.sigma, self.tau = grad, stress, tau
         self.eqps = self.eqps + equivalent(dep).reshape(self.shape)
@@ -197,10 +203,12 @@ def first_yield(points: _Points, u_unit: np.ndarray, limit: float) -> float:
     return low
 
 
-def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "_Points", stress_of, commit):
+def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "_Points", commit=None):
     """Stage 1: λd r on the unsupported ground in ``steps`` equal increments; those the ground
     takes elastically in one solve (up to its first yield). Returns the free-DOF displacement,
-    the plastic load, the iterations and the ground reaction curve [(released, convergence)]."""
+    the plastic load, the iterations and the ground reaction curve [(released, convergence)].
+    ``commit(*state)`` stores a converged state (:meth:`_Points.state`; default: ``gauss``'s history)."""
+    commit = commit or (lambda u_free, *state: gauss.commit(*state))
     ground = model.ground
     body, iface = ground.body, model.mesh.interface
     K = ground.stiffness()
@@ -214,14 +222,12 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "
         elastic = int(np.floor(start / ld * steps * (1 + 1e-12)))
         if elastic:
             u1 = ld * elastic / steps * u_r
-            commit(*stress_of(u1))
+            commit(*gauss.state(u1))
             reached = mean_convergence(body.expand(u1), iface)  # linear in the load up to here
             curve.extend((ld * k / steps, reached * k / elastic) for k in range(1, elastic + 1))
         u1_prev = u1 - ld / steps * u_r
 
         atol = tol * ld / steps * float(np.linalg.norm(release))  # of the increment's load (SPEC §9.1)
-
-        unit = mean_convergence(body.expand(u_r), iface)  # the elastic ground's, of the whole release
 
         def solve1(guess, limit, patience, frac=None, arc=None):
             """Equilibrium at the load ``frac`` (load control) or, with ``arc`` = (x_s, n, ds), on the
@@ -231,7 +237,7 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "
             box = {}
 
             def G(x):
-                state = stress_of(x)
+                state = gauss.state(x)
                 p = _plastic_load(gauss, state[-1])
                 g0 = ground.backward(ground.forward(p, rows), rows)
                 if arc is None:
@@ -252,6 +258,7 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "
                 u1, p1, its, u1_prev, lam_prev, h = advance(solve1, commit, u1, u1_prev, lam, lam_prev,
                                                              ld * k / steps, ld / steps, h, where)
             except NotConvergedError as err:
+                unit = mean_convergence(body.expand(u_r), iface)  # the elastic ground's, of the whole release
                 raise type(err)(f"{err}. {held(curve, unit, isinstance(err, GroundCollapseError))}") from None
             lam = ld * k / steps
             iterations += its
@@ -285,16 +292,7 @@ def release_unsupported(model, spec, rows, fraction: float = 1.0):
 
     def attempt(tol: float):
         gauss = _Points(model, spec, "gauss")
-
-        def stress_of(u_free):
-            grad = gauss.gradient(u_free)
-            return (u_free, grad) + gauss.trial(grad)
-
-        def commit(u_free, grad, stress, dep, flags, tau):
-            gauss.commit(grad, stress, dep, flags, tau)
-
-        curve = _stage_one(model, rows, release, fraction, spec.solver.load_steps, tol, gauss, stress_of, commit)[3]
-        return curve, gauss
+        return _stage_one(model, rows, release, fraction, spec.solver.load_steps, tol, gauss)[3], gauss
 
     return tightened(attempt, spec.solver.plastic_tolerance)[0]
 
@@ -340,16 +338,12 @@ def _staged(model, spec, rows, t0: float, tol: float):
     ld = spec.excavation.deconfinement if loads.release is not None else 0.0
     K = ground.stiffness()
 
-    def stress_of(u_free):
-        grad = gauss.gradient(u_free)
-        return (u_free, grad) + gauss.trial(grad)
-
     def commit(u_free, grad, stress, dep, flags, tau):
         gauss.commit(grad, stress, dep, flags, tau)
         og = out.gradient(u_free)
         out.commit(og, *out.trial(og))
 
-    u1, p1, iterations, curve = _stage_one(model, rows, loads.release, ld, steps, tol, gauss, stress_of, commit)
+    u1, p1, iterations, curve = _stage_one(model, rows, loads.release, ld, steps, tol, gauss, commit)
     stage1 = out.at_yield.reshape(-1).copy()  # the ground that yielded before the lining was placed
     # stage 2: the rest, with the lining and contact
     full = StageLoads(loads.ground, loads.lining, None, loads.seepage)
@@ -375,7 +369,7 @@ def _staged(model, spec, rows, t0: float, tol: float):
     def solve2(guess, limit, patience, frac):
 
         def G(x):
-            state = stress_of(u1 + x)
+            state = gauss.state(u1 + x)
             p = _plastic_load(gauss, state[-1])
             _, stage, d = stage_of(p, frac)
             _, t = contact_tractions(model, spec, d, frac * F2_full)

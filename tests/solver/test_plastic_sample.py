@@ -20,7 +20,7 @@ def test_a_seeded_sample_of_weak_soft_ground_converges_throughout():
     arc-length steps, three of the first 32 of this sequence stalled (cases 5, 25 and 29); each case here
     converges with a yielded zone and a ground loss, or collapses saying what the ground held."""
     mesh = {"interface_size": 0.15, "far_size": 6.0}
-    outcomes = []
+    outcomes, yielded = [], []
     for case in sample_cases(16, "weak", seed=7):
         try:
             spec = CaseSpec.model_validate({**case, "mesh": mesh})
@@ -33,10 +33,11 @@ def test_a_seeded_sample_of_weak_soft_ground_converges_throughout():
             assert "held" in str(err) or "levels out at λ" in str(err) or "peaks at λ" in str(err)
             outcomes.append("collapse")
             continue
-        assert float(ds["ground_loss"]) > 0 and float(ds["stage1_plastic_area"]) >= 0
+        assert float(ds["ground_loss"]) > 0
+        yielded.append(float(ds["stage1_plastic_area"]))
         warnings = ds.attrs["warnings"]
         warnings = json.loads(warnings) if isinstance(warnings, str) else warnings
         outcomes.append("retried" if any(w.startswith("solver.plastic_tolerance") for w in warnings) else "converged")
     assert outcomes.count("refused") <= 2 and len(outcomes) == 16
-    assert set(outcomes) <= {"converged", "retried", "collapse", "refused"}
     assert outcomes[5] == "converged"  # the case that stalled before
+    assert sum(a > 1.0 for a in yielded) >= 4  # a sample of weak ground, not of elastic cases
