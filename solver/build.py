@@ -68,8 +68,10 @@ def model_key(spec: CaseSpec) -> str:
     return json.dumps(shared, sort_keys=True, separators=(",", ":"))
 
 
-#: Full-release solves a built model keeps (:meth:`BuiltModel.kept_release`).
-KEPT_RELEASES = 16
+#: What a built model keeps of the solves it made, per kind (:meth:`BuiltModel.kept`, the most recent):
+#: full releases of the unsupported ground (a curve and a radius each: :mod:`solver.stages.face`) and
+#: stage-1 states of yielding ground (their points' histories, a few MB each: :mod:`solver.stages.plastic`).
+KEPT = {"release": 16, "stage one": 4}
 
 
 class BuiltModel:
@@ -138,7 +140,7 @@ class BuiltModel:
         self.factorize(rows_of_model(spec.interface.model))
         self._units: dict[str, np.ndarray] = {}
         self._built: dict = {}
-        self._releases: "OrderedDict[str, tuple]" = OrderedDict()
+        self._kept: "dict[str, OrderedDict[str, object]]" = {kind: OrderedDict() for kind in KEPT}
         self._seepage: "OrderedDict[tuple, water.SeepageModel]" = OrderedDict()
         self._lock = threading.Lock()
 
@@ -262,19 +264,20 @@ class BuiltModel:
     def accepts(self, spec: CaseSpec) -> bool:
         return model_key(spec) == self.key
 
-    def kept_release(self, key: str, compute):
-        """A full-release stage-1 solve of yielding ground (:mod:`solver.stages.face`), by ``key``
-        (the case's physics less its stages): ``compute()`` once, then kept (the last
-        :data:`KEPT_RELEASES`), so that a sweep over the face distance solves one."""
+    def kept(self, kind: str, key: str, compute):
+        """``compute()`` for ``key`` (the physics it depends on beyond this model), computed once and kept
+        (the last ``KEPT[kind]``; shared with the model's scaled views): a sweep over what that solve
+        does not depend on (the face distance, the design for yielding ground's stage 1) makes it once."""
+        kept = self._kept[kind]
         with self._lock:
-            if key in self._releases:
-                self._releases.move_to_end(key)
-                return self._releases[key]
+            if key in kept:
+                kept.move_to_end(key)
+                return kept[key]
         found = compute()
         with self._lock:
-            self._releases[key] = found
-            while len(self._releases) > KEPT_RELEASES:
-                self._releases.popitem(last=False)
+            kept[key] = found
+            while len(kept) > KEPT[kind]:
+                kept.popitem(last=False)
         return found
 
     def for_case(self, spec: CaseSpec) -> "BuiltModel":

@@ -41,6 +41,7 @@ integrates the plastic load.
 """
 from __future__ import annotations
 
+import json
 import logging
 
 import numpy as np
@@ -151,6 +152,21 @@ class _Points:
         grad = self.gradient(u_free)
         return (u_free, grad) + self.trial(grad)
 
+    #: what a converged increment leaves at the points (:meth:`commit`, :meth:`history`)
+    HISTORY = ("grad", "sigma", "tau", "eqps", "at_yield", "yielded")
+
+    def history(self) -> dict:
+        """The points' history as it stands, read-only (:func:`_first_stage` keeps it on the model:
+        every later commit replaces these arrays, none writes into them)."""
+        kept = {name: getattr(self, name) for name in self.HISTORY}
+        for value in kept.values():
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
+        return kept
+
+    def restore(self, history: dict) -> None:
+        self.__dict__.update(history)
+
     def commit(self, grad, stress, dep, flags, tau) -> None:
         self.grad, self.sigma, self.tau = grad, stress, tau
         self.eqps = self.eqps + equivalent(dep).reshape(self.shape)
@@ -201,6 +217,47 @@ def first_yield(points: _Points, u_unit: np.ndarray, limit: float) -> float:
         mid = 0.5 * (low + high)
         low, high = (low, mid) if at_yield(mid, out, material).any() else (mid, high)
     return low
+
+
+#: What stage 1 does not depend on: the lining's weight (its stiffness is the model's), the interface, the
+#: design checks and the report (:func:`stage_one_key`).
+_STAGE_TWO = ("lining", "interface", "design", "settlement", "name")
+
+
+def stage_one_key(spec, rows, tol: float | None = None) -> str:
+    """What the unsupported ground's release depends on beyond its model (:meth:`~solver.build.BuiltModel.kept`):
+    the case less :data:`_STAGE_TWO`; of the solver its steps and stop test (``tol``: a retry's own, or
+    none where the caller retries), and the factorization's ``rows`` (another interface model's
+    factorization solves the same equations with other rounding)."""
+    case = spec.model_dump(mode="json", exclude=set(_STAGE_TWO))
+    case["solver"] = {"load_steps": spec.solver.load_steps, "plastic_tolerance": spec.solver.plastic_tolerance,
+                      "tol": tol, "rows": rows}
+    return json.dumps(case, sort_keys=True, separators=(",", ":"))
+
+
+def _first_stage(model, spec, rows, release, ld: float, tol: float, points: tuple, commit):
+    """Stage 1 of a case (:func:`_stage_one`), kept on its model by :func:`stage_one_key` with the
+    histories of its ``points`` (restored into them on a later case): a sweep on one model whose
+    cases differ only in the lining's weight, the interface's strength, the design checks or the
+    solver's contact settings solves it once, with the answer a fresh model gives. A stage 1 that
+    failed fails the later cases alike, without solving it again."""
+
+    def compute():
+        try:
+            u1, p1, iterations, curve = _stage_one(model, rows, release, ld, spec.solver.load_steps, tol,
+                                                   points[0], commit)
+        except NotConvergedError as err:
+            return err
+        u1.flags.writeable = p1.flags.writeable = False
+        return (u1, p1, iterations, tuple(curve)), [p.history() for p in points]
+
+    kept = model.kept("stage one", stage_one_key(spec, rows, tol), compute)
+    if isinstance(kept, NotConvergedError):
+        raise type(kept)(str(kept))
+    (u1, p1, iterations, curve), histories = kept
+    for p, history in zip(points, histories):
+        p.restore(history)
+    return u1, p1, iterations, list(curve)
 
 
 def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "_Points", commit=None):
@@ -343,7 +400,7 @@ def _staged(model, spec, rows, t0: float, tol: float):
         og = out.gradient(u_free)
         out.commit(og, *out.trial(og))
 
-    u1, p1, iterations, curve = _stage_one(model, rows, loads.release, ld, steps, tol, gauss, commit)
+    u1, p1, iterations, curve = _first_stage(model, spec, rows, loads.release, ld, tol, (gauss, out), commit)
     stage1 = out.at_yield.reshape(-1).copy()  # the ground that yielded before the lining was placed
     # stage 2: the rest, with the lining and contact
     full = StageLoads(loads.ground, loads.lining, None, loads.seepage)

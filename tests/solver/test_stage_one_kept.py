@@ -1,0 +1,121 @@
+"""Yielding ground's stage 1 kept on its built model (:func:`solver.stages.plastic._first_stage`): a sweep
+whose cases differ only in what stage 2 depends on (the lining's weight, the interface's strength, the
+design checks) solves the unsupported ground's release once, with the answer of a fresh model; anything
+stage 1 depends on solves it again."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import solver.stages.plastic as plastic
+from solver import CaseSpec
+from solver.fe.flexibility import rows_of_model
+from solver.model import TunnelModel
+from solver.run import run_case
+
+COARSE = {"interface_size": 0.15, "far_size": 6.0}
+BASE = {"ground": {"model": "mohr-coulomb", "cohesion": 1.0e4, "friction_angle": 28.0},
+        "interface": {"model": "coulomb", "friction": 0.3}, "mesh": COARSE}
+
+
+def _case(**parts) -> CaseSpec:
+    case = {key: dict(value) for key, value in BASE.items()}
+    for part, values in parts.items():
+        case[part] = {**case.get(part, {}), **values}
+    return CaseSpec.model_validate(case)
+
+
+@pytest.fixture
+def counted(monkeypatch):
+    """The number of stage-1 solves made (calls of :func:`solver.stages.plastic._stage_one`)."""
+    calls = []
+    real = plastic._stage_one
+
+    def counting(*args, **kwargs):
+        calls.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(plastic, "_stage_one", counting)
+    return calls
+
+
+def _same(a, b) -> None:
+    for name in ("displacement_x", "displacement_y", "normal_pressure", "moment", "plastic", "stage1_plastic",
+                 "effective_stress_xx"):
+        if name in a:
+            np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
+    for name in ("max_abs_moment", "plastic_area", "stage1_plastic_area", "max_utilization"):
+        assert float(a[name]) == float(b[name]), name
+
+
+def test_a_sweep_over_what_stage_two_depends_on_solves_stage_one_once(counted):
+    first = _case()
+    model = TunnelModel(first)
+    run_case(first, model=model)
+    assert len(counted) == 1
+    others = [_case(lining={"density": 2000.0}), _case(interface={"friction": 0.6}),
+              _case(design={"reinforcement_area": 2.0e-3, "concrete_strength": 4.0e7})]
+    kept = [run_case(case, model=model) for case in others]
+    assert len(counted) == 1  # the unsupported ground's release was solved once
+    for case, ds in zip(others, kept):
+        _same(ds, run_case(case))  # a fresh model's answer, exactly
+    assert len(counted) == 1 + len(others)
+    assert float(kept[0]["stage1_plastic_area"]) > 0  # the ground did yield before the lining went in
+
+
+def test_what_stage_one_depends_on_solves_it_again(counted):
+    first = _case()
+    model = TunnelModel(first)
+    base = run_case(first, model=model)
+    changed = [_case(ground={"cohesion": 1.2e4}), _case(loads={"lateral_ratio": 0.6}),
+               _case(excavation={"deconfinement": 0.4}), _case(solver={"plastic_tolerance": 5e-3}),
+               _case(interface={"model": "frictionless", "friction": 0.0})]
+    for case in changed:
+        assert model.accepts(case)
+        ds = run_case(case, model=model)
+        assert float(ds["stage1_plastic_area"]) != float(base["stage1_plastic_area"]) or \
+            not np.array_equal(ds["displacement_x"].values, base["displacement_x"].values)
+    assert len(counted) == 1 + len(changed)
+
+
+def test_the_key_leaves_out_exactly_what_stage_two_alone_depends_on():
+    rows = rows_of_model("coulomb")
+    key = plastic.stage_one_key(_case(), rows, 0.01)
+    same = [_case(lining={"density": 2000.0}), _case(interface={"friction": 0.6}),
+            _case(design={"concrete_strength": 4.0e7}), _case(settlement={"volume_loss": 0.01}),
+            _case(solver={"tolerance": 1e-9})]
+    for case in same:
+        assert plastic.stage_one_key(case, rows, 0.01) == key
+    other = [_case(ground={"dilatancy": 2.0}), _case(water={"table": 5.0}), _case(solver={"load_steps": 20}),
+             _case(geometry={"gap": 0.01}, interface={"model": "frictionless", "friction": 0.0})]
+    for case in other:
+        assert plastic.stage_one_key(case, rows_of_model(case.interface.model), 0.01) != key
+    assert plastic.stage_one_key(_case(), rows, 0.005) != key  # a retry's tighter stop test
+    assert plastic.stage_one_key(_case(), rows_of_model("frictionless"), 0.01) != key  # other rounding
+
+
+def test_a_stage_one_that_failed_fails_the_next_case_alike_without_solving_it_again(counted, monkeypatch):
+    import solver.stages.path as path
+    from solver.errors import NotConvergedError
+
+    monkeypatch.setattr(path, "MAX_STEP_ITERATIONS", 2)  # every stage 1 runs out of iterations
+    first = _case()
+    model = TunnelModel(first)
+    with pytest.raises(NotConvergedError) as one:
+        run_case(first, model=model)
+    solved = len(counted)
+    assert solved == 2  # at the asked stop test and once more at a tighter one
+    with pytest.raises(NotConvergedError) as two:
+        run_case(_case(lining={"density": 2000.0}), model=model)
+    assert len(counted) == solved
+    assert str(two.value) == str(one.value) and "ran out" in str(two.value)
+
+
+def test_the_kept_history_cannot_be_written_into(counted):
+    first = _case()
+    model = TunnelModel(first)
+    run_case(first, model=model)
+    (u1, _, _, _), histories = next(iter(model._kept["stage one"].values()))
+    assert not u1.flags.writeable
+    for history in histories:
+        assert not history["sigma"].flags.writeable and not history["grad"].flags.writeable
