@@ -15,7 +15,9 @@ from .mixing import Anderson
 
 log = logging.getLogger(__name__)
 
-#: Iterations allowed per load increment: its steps (arc-length ones too) and their stalled attempts together.
+#: Iterations allowed per load increment, on average over a stage: its steps (arc-length ones too) and their
+#: stalled attempts together. A stage's increments share this many times their number (:func:`advance`'s
+#: ``budget``), so an increment that needs more takes what the easier ones left.
 MAX_STEP_ITERATIONS = 2500
 #: An iteration has stalled when its least out-of-balance force has not fallen by a tenth in
 #: this many iterations: the step is then halved, or followed by arc-length (:func:`advance`); the
@@ -168,7 +170,7 @@ def _collapse(where: str, x: np.ndarray, lam: float, peak: float, ref, increment
 
 
 def advance(solve, commit, x: np.ndarray, x_prev: np.ndarray, lam: float, lam_prev: float, end: float,
-            increment: float, h: float, where: str, arc_length: bool = True):
+            increment: float, h: float, where: str, arc_length: bool = True, budget: int | None = None):
     """Take a stage's load from ``lam`` to ``end`` (one increment, of ``increment``) along the
     equilibrium path: in load-controlled steps of ``h``, halved where the iteration stalls and
     doubled after a quick success (:data:`GROW_BELOW`); where a step of 1/2^:data:`ARC_SPLITS` of the
@@ -187,21 +189,23 @@ def advance(solve, commit, x: np.ndarray, x_prev: np.ndarray, lam: float, lam_pr
     step down the elastic unloading line (the load falling, no point flowing) is no path: refused.
     Without ``arc_length`` (stage 2: the contact makes the load's share of an iterate nonlinear) the
     halving goes on to 1/2^:data:`MAX_SPLITS`. The smallest steps run without the stall test, on what
-    is left of :data:`MAX_STEP_ITERATIONS`.
+    is left of the increment's ``budget`` of iterations (what its stage has left; default
+    :data:`MAX_STEP_ITERATIONS`).
 
     ``solve(guess, limit, patience, frac=…)`` is the equilibrium iteration (:func:`fixed_point`, plus
     the load reached) at the load ``frac``; for stage 1 also ``solve(…, arc=(x_s, n, ds))``. ``commit``
     stores a converged state. Returns the displacement, the plastic load, the iterations spent
     (stalled attempts included), the last step's start and load and the step the next increment
     tries first."""
+    budget = MAX_STEP_ITERATIONS if budget is None else budget
     steps = _Steps(increment, h, arc_length)
     used, p, peak, ref = 0, None, lam, None
     while lam < end:
-        left = MAX_STEP_ITERATIONS - used
+        left = budget - used
         if left <= 0:
             raise NotConvergedError(
                 f"solver.load_steps: the yielding ground did not reach equilibrium in {where}: its "
-                f"{MAX_STEP_ITERATIONS} iterations ran out at {lam:.4g} of {end:.4g} of the load, in {steps} "
+                f"{budget} iterations ran out at {lam:.4g} of {end:.4g} of the load, in {steps} "
                 "(a stronger ground, or a coarser solver.plastic_tolerance)")
         step = x - x_prev
         length = float(np.linalg.norm(step))
@@ -230,6 +234,7 @@ def advance(solve, commit, x: np.ndarray, x_prev: np.ndarray, lam: float, lam_pr
                 f"{used} iterations (a coarser solver.plastic_tolerance, more solver.load_steps, or a dilatancy "
                 "closer to the friction angle)")
         commit(*state)
+        log.debug("%s: at %.5g of the load after %d iterations (%s)", where, lam_new, its, steps)
         if steps.arc is not None and ref is None:
             ref = x, lam  # where the arc began: the displacement and load a plateau is measured from
         x_prev, lam_prev, x, lam, p = x, lam, new, float(lam_new), p_new

@@ -54,6 +54,7 @@ from ..ground.strata import strata
 from ..results.post import mean_convergence
 from .contact import contact_tractions
 from .loads import stage_loads
+from . import path
 from .path import advance, fixed_point
 from .recovery import finish
 from .state import Forward, StageLoads
@@ -311,9 +312,10 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "
         lam, lam_prev, h = ld * elastic / steps, ld * (elastic - 1) / steps, ld / steps
         for k in range(elastic + 1, steps + 1):
             where = f"stage 1, increment {k} of {steps}"
-            try:
+            try:  # the plastic increments share the stage's iterations (path.MAX_STEP_ITERATIONS each)
                 u1, p1, its, u1_prev, lam_prev, h = advance(solve1, commit, u1, u1_prev, lam, lam_prev,
-                                                             ld * k / steps, ld / steps, h, where)
+                                                             ld * k / steps, ld / steps, h, where,
+                                                             budget=path.MAX_STEP_ITERATIONS * (k - elastic) - iterations)
             except NotConvergedError as err:
                 unit = mean_convergence(body.expand(u_r), iface)  # the elastic ground's, of the whole release
                 raise type(err)(f"{err}. {held(curve, unit, isinstance(err, GroundCollapseError))}") from None
@@ -434,12 +436,14 @@ def _staged(model, spec, rows, t0: float, tol: float):
 
         return fixed_point(G, guess, K, atol, patience, limit) + (frac,)
 
-    a, a_prev, h = 0.0, -1.0 / steps, 1.0 / steps
+    a, a_prev, h, used = 0.0, -1.0 / steps, 1.0 / steps, 0
     for k in range(1, steps + 1):
         u2, p, its, u2_prev, a_prev, h = advance(solve2, commit, u2, u2_prev, a, a_prev, k / steps, 1.0 / steps, h,
-                                                  f"stage 2, increment {k} of {steps}", arc_length=False)
+                                                  f"stage 2, increment {k} of {steps}", arc_length=False,
+                                                  budget=path.MAX_STEP_ITERATIONS * k - used)
         a = k / steps
-        iterations += its
+        used += its
+    iterations += used
     # the whole contact stage (both bodies, the checks) of the last increment's converged iterate
     sol = finish(model, spec, rows, *stage_of(p, 1.0), F2_full, t0, u1=u1)
     E = out.shape[0]

@@ -559,3 +559,20 @@ def test_a_long_dip_is_not_taken_for_a_plateau():
     with pytest.raises(StopIteration):  # the scripted path ends before the increment does: no collapse on the way
         path.advance(solve, lambda *state: None, np.ones(2), np.zeros(2), 0.2, 0.1, 0.4, 0.2, 0.2,
                      "stage 1, increment 3 of 10")
+
+
+def test_a_stages_increments_share_its_iterations(monkeypatch):
+    """Issue 36's c 10 kPa case (coarse mesh) takes 5, 10, 13, 16 and 21 iterations in stage 1's plastic
+    increments. With 15 iterations an increment on average, the last two take what the first three left
+    and the case solves as with the default budget (before: increment 9 ran out at 15); with 12 on
+    average (60 for the stage's 65) it fails saying so. The sample's weak cases that ran out of one
+    increment's iterations 99 % of the way through it converge so (docs/performance.md)."""
+    case = CaseSpec.model_validate({"ground": {"model": "mohr-coulomb", "cohesion": 1.0e4, "friction_angle": 28.0},
+                                    "mesh": COARSE})
+    full = run_case(case)
+    monkeypatch.setattr(path, "MAX_STEP_ITERATIONS", 15)
+    shared = run_case(case)
+    np.testing.assert_array_equal(shared["displacement_x"].values, full["displacement_x"].values)
+    monkeypatch.setattr(path, "MAX_STEP_ITERATIONS", 12)
+    with pytest.raises(NotConvergedError, match=r"stage 1, increment 10 of 10: its \d+ iterations ran out"):
+        run_case(case)
