@@ -68,11 +68,46 @@ def model_key(spec: CaseSpec) -> str:
     return json.dumps(shared, sort_keys=True, separators=(",", ":"))
 
 
-#: What a built model keeps of the solves it made, per kind (:meth:`BuiltModel.kept`, the most recent):
+#: What a built model keeps of the solves it made, per kind (:class:`Kept`, the most recent):
 #: full releases of the unsupported ground (a curve and a radius each: :mod:`solver.stages.face`) and
-#: stage-1 states of yielding ground (their points' histories, a few MB each: :mod:`solver.stages.plastic`).
-KEPT = {"release": 16, "stage one": 4}
+#: stage-1 states of yielding ground (their points' histories, a few MB each: :mod:`solver.stages.plastic`)
+#: and the solutions of cases (their mechanics, by :func:`solver.model.mechanics_key`).
+KEPT = {"release": 16, "stage one": 4, "solution": 4}
 
+
+
+class Kept:
+    """What a built model keeps of the solves it made, per kind (:data:`KEPT`), the most recent."""
+
+    def __init__(self):
+        self._kinds: "dict[str, OrderedDict[str, object]]" = {kind: OrderedDict() for kind in KEPT}
+        self._lock = threading.Lock()
+
+    def get(self, kind: str, key: str, compute):
+        """``compute()`` for ``key`` (the physics it depends on beyond the model), computed once and kept
+        (the last ``KEPT[kind]``): a sweep over what that solve does not depend on (the face distance for a
+        full release, the design for a case's mechanics, the lining's weight for yielding ground's stage 1)
+        makes it once."""
+        kept = self._kinds[kind]
+        with self._lock:
+            if key in kept:
+                kept.move_to_end(key)
+                return kept[key]
+        found = compute()
+        with self._lock:
+            kept[key] = found
+            while len(kept) > KEPT[kind]:
+                kept.popitem(last=False)
+        return found
+
+    def values(self, kind: str) -> list:
+        with self._lock:
+            return list(self._kinds[kind].values())
+
+    def forget(self, kind: str = "solution") -> None:
+        """Drop what is kept of one kind: a benchmark timing the same case twice solves it twice."""
+        with self._lock:
+            self._kinds[kind].clear()
 
 class BuiltModel:
     """Mesh, stiffness, factorizations and interface flexibility of one geometry and material pair.
@@ -140,7 +175,8 @@ class BuiltModel:
         self.factorize(rows_of_model(spec.interface.model))
         self._units: dict[str, np.ndarray] = {}
         self._built: dict = {}
-        self._kept: "dict[str, OrderedDict[str, object]]" = {kind: OrderedDict() for kind in KEPT}
+        #: what the model keeps of the solves it made (shared with its scaled views)
+        self.kept = Kept()
         self._seepage: "OrderedDict[tuple, water.SeepageModel]" = OrderedDict()
         self._lock = threading.Lock()
 
@@ -263,22 +299,6 @@ class BuiltModel:
 
     def accepts(self, spec: CaseSpec) -> bool:
         return model_key(spec) == self.key
-
-    def kept(self, kind: str, key: str, compute):
-        """``compute()`` for ``key`` (the physics it depends on beyond this model), computed once and kept
-        (the last ``KEPT[kind]``; shared with the model's scaled views): a sweep over what that solve
-        does not depend on (the face distance, the design for yielding ground's stage 1) makes it once."""
-        kept = self._kept[kind]
-        with self._lock:
-            if key in kept:
-                kept.move_to_end(key)
-                return kept[key]
-        found = compute()
-        with self._lock:
-            kept[key] = found
-            while len(kept) > KEPT[kind]:
-                kept.popitem(last=False)
-        return found
 
     def for_case(self, spec: CaseSpec) -> "BuiltModel":
         """This model as ``spec``'s: itself, or, when the case's ground is this model's with

@@ -16,12 +16,16 @@ backward solve with the contact tractions the displacements (:meth:`FactoredBody
 """
 from __future__ import annotations
 
+import dataclasses
+import json
 import os
 import threading
 from collections import OrderedDict
 
 from .build import BuiltModel, model_key
+from .errors import SolverError
 from .ground.loads import LOAD_TERMS
+from .limits import CaseCancelled, TimeLimitExceeded
 from .spec import CaseSpec
 from .stages.loads import load_coefficients
 from .stages.solve import solve_case
@@ -35,8 +39,40 @@ class TunnelModel(BuiltModel):
     """A :class:`~solver.build.BuiltModel` that solves cases: build once, solve many."""
 
     def solve(self, spec: CaseSpec) -> Solution:
-        """Solve ``spec`` (which must share this model's :func:`model_key`): :func:`solver.stages.solve.solve_case`."""
-        return solve_case(self, spec)
+        """Solve ``spec`` (which must share this model's :func:`model_key`): :func:`solver.stages.solve.solve_case`.
+
+        The mechanics are kept on the model (:class:`~solver.build.Kept`) by :func:`mechanics_key`:
+        a case that differs from one solved here only in its design checks, its settlement trough or its
+        name (a design sweep, a search for the least reinforcement) takes them as they are, and only its
+        results are worked out again (:func:`solver.results.dataset.to_dataset`); a case whose solve failed
+        fails so again (not one stopped by its time limit or cancelled)."""
+        if not self.accepts(spec):
+            return solve_case(self, spec)  # which says why
+
+        def compute():
+            try:
+                return solve_case(self, spec)
+            except (TimeLimitExceeded, CaseCancelled):
+                raise  # the clock's or the user's, not the case's: another try may finish
+            except SolverError as err:
+                return err
+
+        kept = self.kept.get("solution", mechanics_key(spec), compute)
+        if isinstance(kept, SolverError):
+            raise type(kept)(str(kept))
+        # the solved case as solve_case leaves it (a face distance's λd found), with this one's checks, trough and name
+        solved = kept.spec.model_copy(update={part: getattr(spec, part) for part in _RESULTS_ONLY})
+        return dataclasses.replace(kept, spec=solved, timings=dict(kept.timings))
+
+
+#: What a case's mechanics do not depend on: what its results make of them (:func:`mechanics_key`).
+_RESULTS_ONLY = ("design", "settlement", "name")
+
+
+def mechanics_key(spec: CaseSpec) -> str:
+    """The case less its design checks (SPEC §1.6), settlement trough (§9.3) and name: what
+    :func:`solver.stages.solve.solve_case` depends on beyond the model."""
+    return json.dumps(spec.model_dump(mode="json", exclude=set(_RESULTS_ONLY)), sort_keys=True, separators=(",", ":"))
 
 
 _SHARED: "OrderedDict[str, TunnelModel]" = OrderedDict()

@@ -91,7 +91,7 @@ def invert_curve(curve, convergence: float) -> float:
 def full_release(model, spec: CaseSpec, rows, radius: float) -> tuple[list, float]:
     """The full-release ground reaction curve and R* of ``spec``'s ground on ``model``, solved once
     per physics (the case less its stages: its face distance, profile and λd do not enter) and
-    kept on the model (:meth:`~solver.build.BuiltModel.kept`), so that a sweep over the
+    kept on the model (:class:`~solver.build.Kept`), so that a sweep over the
     face distance solves it once."""
     released = with_deconfinement(spec, 1.0)
     released = released.model_copy(update={"excavation": released.excavation.model_copy(
@@ -101,7 +101,7 @@ def full_release(model, spec: CaseSpec, rows, radius: float) -> tuple[list, floa
         curve, points = _full_release(model, released, rows)
         return curve, plastic_radius(points, radius)
 
-    return model.kept("release", stage_one_key(released, rows), compute)
+    return model.kept.get("release", stage_one_key(released, rows), compute)
 
 
 def _full_release(model, spec: CaseSpec, rows):

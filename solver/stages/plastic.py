@@ -226,7 +226,7 @@ _STAGE_TWO = ("lining", "interface", "design", "settlement", "name")
 
 
 def stage_one_key(spec, rows, tol: float | None = None) -> str:
-    """What the unsupported ground's release depends on beyond its model (:meth:`~solver.build.BuiltModel.kept`):
+    """What the unsupported ground's release depends on beyond its model (:class:`~solver.build.Kept`):
     the case less :data:`_STAGE_TWO`; of the solver its steps and stop test (``tol``: a retry's own, or
     none where the caller retries), and the factorization's ``rows`` (another interface model's
     factorization solves the same equations with other rounding)."""
@@ -252,7 +252,7 @@ def _first_stage(model, spec, rows, release, ld: float, tol: float, points: tupl
         u1.flags.writeable = p1.flags.writeable = False
         return (u1, p1, iterations, tuple(curve)), [p.history() for p in points]
 
-    kept = model.kept("stage one", stage_one_key(spec, rows, tol), compute)
+    kept = model.kept.get("stage one", stage_one_key(spec, rows, tol), compute)
     if isinstance(kept, NotConvergedError):
         raise type(kept)(str(kept))
     (u1, p1, iterations, curve), histories = kept

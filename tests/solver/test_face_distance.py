@@ -126,7 +126,7 @@ def test_a_built_model_solves_the_full_release_once():
     model = TunnelModel(near)
     run_case(near, model=model)
     shared = run_case(far, model=model)
-    assert len(model._kept["release"]) == 1
+    assert len(model.kept.values("release")) == 1
     alone = run_case(far)
     assert float(shared["deconfinement"]) == float(alone["deconfinement"])
     assert float(shared["max_abs_moment"]) == float(alone["max_abs_moment"])

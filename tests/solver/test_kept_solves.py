@@ -1,7 +1,8 @@
-"""Yielding ground's stage 1 kept on its built model (:func:`solver.stages.plastic._first_stage`): a sweep
-whose cases differ only in what stage 2 depends on (the lining's weight, the interface's strength, the
-design checks) solves the unsupported ground's release once, with the answer of a fresh model; anything
-stage 1 depends on solves it again."""
+"""Solves kept on a built model (:class:`solver.build.Kept`): a case's mechanics
+(:meth:`solver.model.TunnelModel.solve`: a design sweep works out only its checks) and yielding ground's
+stage 1 (:func:`solver.stages.plastic._first_stage`: a sweep whose cases differ only in what stage 2
+depends on, the lining's weight or the interface, solves the unsupported ground's release once), each
+with the answer of a fresh model; anything they depend on solves them again."""
 from __future__ import annotations
 
 import numpy as np
@@ -49,12 +50,13 @@ def _same(a, b) -> None:
 
 
 def test_a_sweep_over_what_stage_two_depends_on_solves_stage_one_once(counted):
+    """(Not the design: the case's whole mechanics are kept for that, the next test.)"""
     first = _case()
     model = TunnelModel(first)
     run_case(first, model=model)
     assert len(counted) == 1
     others = [_case(lining={"density": 2000.0}), _case(interface={"friction": 0.6}),
-              _case(design={"reinforcement_area": 2.0e-3, "concrete_strength": 4.0e7})]
+              _case(interface={"friction": 0.45}, solver={"tolerance": 1e-9})]
     kept = [run_case(case, model=model) for case in others]
     assert len(counted) == 1  # the unsupported ground's release was solved once
     for case, ds in zip(others, kept):
@@ -115,7 +117,74 @@ def test_the_kept_history_cannot_be_written_into(counted):
     first = _case()
     model = TunnelModel(first)
     run_case(first, model=model)
-    (u1, _, _, _), histories = next(iter(model._kept["stage one"].values()))
+    (u1, _, _, _), histories = model.kept.values("stage one")[0]
     assert not u1.flags.writeable
     for history in histories:
         assert not history["sigma"].flags.writeable and not history["grad"].flags.writeable
+
+
+@pytest.fixture
+def solved(monkeypatch):
+    """The number of mechanical solves made (calls of :func:`solver.model.solve_case`)."""
+    import solver.model as model_module
+
+    calls = []
+    real = model_module.solve_case
+
+    def counting(*args, **kwargs):
+        calls.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(model_module, "solve_case", counting)
+    return calls
+
+
+@pytest.mark.parametrize("ground", [{}, BASE["ground"]], ids=["elastic", "yielding"])
+def test_a_design_sweep_solves_the_mechanics_once_and_checks_each_design(solved, ground):
+    first = _case(ground=ground) if ground else CaseSpec.model_validate({"mesh": COARSE})
+    model = TunnelModel(first)
+    base = run_case(first, model=model)
+    designs = [{"reinforcement_area": 0.0}, {"reinforcement_area": 5.0e-3, "concrete_strength": 5.0e7},
+               {"load_factor": 1.5, "crack_width_limit": 2.0e-4}]
+    cases = [first.model_copy(update={"design": first.design.model_copy(update=d), "name": f"design {i}"})
+             for i, d in enumerate(designs)]
+    cases.append(first.model_copy(update={"settlement": first.settlement.model_copy(update={"volume_loss": 0.01})}))
+    kept = [run_case(case, model=model) for case in cases]
+    assert len(solved) == 1  # one mechanical solve for the sweep
+    for case, ds in zip(cases, kept):
+        np.testing.assert_array_equal(ds["displacement_x"].values, base["displacement_x"].values)
+        fresh = run_case(case)
+        _same(ds, fresh)
+        assert "max_utilization" in fresh and "design_max_settlement" in fresh
+        for name in ("max_utilization", "max_crack_width", "design_max_settlement"):
+            if name in fresh:
+                assert float(ds[name]) == float(fresh[name]) or np.isnan(float(fresh[name])), name
+        assert ds.attrs.get("name") == fresh.attrs.get("name")
+    # the checks are each design's own: plain concrete is used more than the heavily reinforced section
+    assert float(kept[0]["max_utilization"]) > float(kept[1]["max_utilization"])
+    assert float(kept[3]["design_max_settlement"]) != float(base["design_max_settlement"])
+    again = run_case(first, model=model)  # the kept solution was not changed by the others' results
+    _same(again, base)
+    assert float(again["max_utilization"]) == float(base["max_utilization"])
+
+
+def test_a_failed_solve_fails_a_design_variant_alike_but_a_time_limit_is_not_kept(solved, monkeypatch):
+    import solver.stages.path as path
+    from solver.errors import NotConvergedError
+    from solver.limits import TimeLimitExceeded
+
+    first = _case()
+    model = TunnelModel(first)
+    with monkeypatch.context() as m:
+        m.setattr(path, "MAX_STEP_ITERATIONS", 2)
+        with pytest.raises(NotConvergedError) as one:
+            run_case(first, model=model)
+    with pytest.raises(NotConvergedError) as two:
+        run_case(first.model_copy(update={"design": first.design.model_copy(update={"load_factor": 1.5})}),
+                 model=model)
+    assert len(solved) == 1 and str(two.value) == str(one.value)
+    other = _case(ground={"cohesion": 2.0e4})
+    with pytest.raises(TimeLimitExceeded):
+        run_case(other, model=model, time_limit_seconds=1e-9)
+    assert float(run_case(other, model=model)["max_abs_moment"]) > 0  # solved in full, not the kept failure
+    assert len(solved) == 3
