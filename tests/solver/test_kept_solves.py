@@ -26,18 +26,23 @@ def _case(**parts) -> CaseSpec:
     return CaseSpec.model_validate(case)
 
 
-@pytest.fixture
-def counted(monkeypatch):
-    """The number of stage-1 solves made (calls of :func:`solver.stages.plastic._stage_one`)."""
+def _calls(monkeypatch, module, name: str) -> list:
+    """The calls made of ``module.name`` from here on (one entry each)."""
     calls = []
-    real = plastic._stage_one
+    real = getattr(module, name)
 
     def counting(*args, **kwargs):
         calls.append(1)
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(plastic, "_stage_one", counting)
+    monkeypatch.setattr(module, name, counting)
     return calls
+
+
+@pytest.fixture
+def counted(monkeypatch):
+    """The number of stage-1 solves made (calls of :func:`solver.stages.plastic._stage_one`)."""
+    return _calls(monkeypatch, plastic, "_stage_one")
 
 
 def _same(a, b) -> None:
@@ -128,15 +133,7 @@ def solved(monkeypatch):
     """The number of mechanical solves made (calls of :func:`solver.model.solve_case`)."""
     import solver.model as model_module
 
-    calls = []
-    real = model_module.solve_case
-
-    def counting(*args, **kwargs):
-        calls.append(1)
-        return real(*args, **kwargs)
-
-    monkeypatch.setattr(model_module, "solve_case", counting)
-    return calls
+    return _calls(monkeypatch, model_module, "solve_case")
 
 
 @pytest.mark.parametrize("ground", [{}, BASE["ground"]], ids=["elastic", "yielding"])
