@@ -53,17 +53,27 @@ _GROUND = ("density", "young", "poisson", "cohesion", "tensile_strength", "young
 
 
 def _values(spec) -> list[tuple[str, float]]:
-    """``(path, value)`` of every field with a range, layers by index."""
+    """``(path, value)`` of every field with a range, layers by index; not a Hoek–Brown ground's
+    default tension cut-off (its apex s σci / m_b, filled in: tens of Pa in weak rock, and not typed)."""
     out = []
     for path in PLAUSIBLE:
         section, field = path.split(".")
         value = getattr(getattr(spec, section), field)
-        if value is not None:
+        if value is not None and not (path == "ground.tensile_strength" and _hoek_brown_apex(spec.ground) == value):
             out.append((path, value))
     for i, layer in enumerate(spec.ground.layers):
         out += [(f"ground.layers.{i}.{field}", getattr(layer, field)) for field in _GROUND
                 if getattr(layer, field, None) is not None]  # a field the layer leaves to the ground
     return out
+
+
+def _hoek_brown_apex(ground) -> float | None:
+    """A Hoek–Brown ground's default tension cut-off (Pa), None for another law."""
+    if ground.model != "hoek-brown":
+        return None
+    from ..ground.hoek_brown import default_tensile_strength
+
+    return float(default_tensile_strength(ground.ucs, ground.gsi, ground.mi, ground.disturbance))
 
 
 def plausibility_warnings(spec) -> list[str]:

@@ -32,6 +32,17 @@ def test_implausible_values_warn_naming_the_field(case, field, words):
     assert len(warnings) == 1 and warnings[0].startswith(field + ":") and words in warnings[0]
 
 
+def test_a_hoek_brown_grounds_own_tension_cut_off_is_not_taken_for_a_slip():
+    """Weak rock's default cut-off s σci / m_b is tens of Pa: filled in, not typed, so no warning (before:
+    "ground.tensile_strength: 0.0872 kPa … kPa typed as Pa?" on every such case); a typed 50 Pa still warns."""
+    rock = {"model": "hoek-brown", "young": 2.3e8, "ucs": 3.57e5, "gsi": 32.9, "mi": 14.2, "disturbance": 0.44}
+    spec = CaseSpec.model_validate({"ground": rock, "loads": {"lateral_ratio": 1.0}})
+    assert spec.ground.tensile_strength < 100.0  # below the plausible range's floor
+    assert plausibility_warnings(spec) == []
+    typed = CaseSpec.model_validate({"ground": {**rock, "tensile_strength": 50.0}, "loads": {"lateral_ratio": 1.0}})
+    assert [w.split(":")[0] for w in plausibility_warnings(typed)] == ["ground.tensile_strength"]
+
+
 def test_zero_is_plausible_where_the_input_may_be_absent():
     spec = CaseSpec.model_validate({"loads": {"surface_load": 0.0}, "design": {"reinforcement_area": 0.0}})
     assert plausibility_warnings(spec) == []
