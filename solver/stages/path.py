@@ -16,9 +16,12 @@ from .mixing import Anderson
 log = logging.getLogger(__name__)
 
 #: Iterations allowed per load increment, on average over a stage: its steps (arc-length ones too) and their
-#: stalled attempts together. A stage's increments share this many times their number (:func:`advance`'s
-#: ``budget``), so an increment that needs more takes what the easier ones left.
+#: stalled attempts together. A stage's increments share this many times their number (:func:`share`), so
+#: an increment that needs more takes what the easier ones left.
 MAX_STEP_ITERATIONS = 2500
+#: No increment takes more than this many times :data:`MAX_STEP_ITERATIONS` (:func:`share`): what a case
+#: that fails spends stays bounded.
+MOST_SHARES = 2
 #: An iteration has stalled when its least out-of-balance force has not fallen by a tenth in
 #: this many iterations: the step is then halved, or followed by arc-length (:func:`advance`); the
 #: smallest steps have what is left of :data:`MAX_STEP_ITERATIONS`.
@@ -36,6 +39,13 @@ ARC_SPLITS = 3
 PLATEAU = 0.01
 #: Anderson mixing depth.
 DEPTH = 8
+
+
+def share(increment: int, used: int) -> int:
+    """The iterations left to a stage's ``increment``-th increment (counted from its first plastic one)
+    after ``used`` in those before: :data:`MAX_STEP_ITERATIONS` an increment, with what the easier
+    ones left, and at most :data:`MOST_SHARES` of them (:func:`advance`'s ``budget``)."""
+    return min(MAX_STEP_ITERATIONS * increment - used, MOST_SHARES * MAX_STEP_ITERATIONS)
 
 
 class Stalled(Exception):

@@ -312,10 +312,10 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "
         lam, lam_prev, h = ld * elastic / steps, ld * (elastic - 1) / steps, ld / steps
         for k in range(elastic + 1, steps + 1):
             where = f"stage 1, increment {k} of {steps}"
-            try:  # the plastic increments share the stage's iterations (path.MAX_STEP_ITERATIONS each)
+            try:  # the plastic increments share the stage's iterations (path.share)
                 u1, p1, its, u1_prev, lam_prev, h = advance(solve1, commit, u1, u1_prev, lam, lam_prev,
                                                              ld * k / steps, ld / steps, h, where,
-                                                             budget=path.MAX_STEP_ITERATIONS * (k - elastic) - iterations)
+                                                             budget=path.share(k - elastic, iterations))
             except NotConvergedError as err:
                 unit = mean_convergence(body.expand(u_r), iface)  # the elastic ground's, of the whole release
                 raise type(err)(f"{err}. {held(curve, unit, isinstance(err, GroundCollapseError))}") from None
@@ -440,7 +440,7 @@ def _staged(model, spec, rows, t0: float, tol: float):
     for k in range(1, steps + 1):
         u2, p, its, u2_prev, a_prev, h = advance(solve2, commit, u2, u2_prev, a, a_prev, k / steps, 1.0 / steps, h,
                                                   f"stage 2, increment {k} of {steps}", arc_length=False,
-                                                  budget=path.MAX_STEP_ITERATIONS * k - used)
+                                                  budget=path.share(k, used))
         a = k / steps
         used += its
     iterations += used
