@@ -75,7 +75,6 @@ def model_key(spec: CaseSpec) -> str:
 KEPT = {"release": 16, "stage one": 4, "solution": 4}
 
 
-
 class Kept:
     """What a built model keeps of the solves it made, per kind (:data:`KEPT`), the most recent."""
 
@@ -108,6 +107,7 @@ class Kept:
         """Drop what is kept of one kind: a benchmark timing the same case twice solves it twice."""
         with self._lock:
             self._kinds[kind].clear()
+
 
 class BuiltModel:
     """Mesh, stiffness, factorizations and interface flexibility of one geometry and material pair.
