@@ -70,9 +70,9 @@ def model_key(spec: CaseSpec) -> str:
 
 #: What a built model keeps of the solves it made, per kind (:class:`Kept`, the most recent):
 #: full releases of the unsupported ground (a curve and a radius each: :mod:`solver.stages.face`) and
-#: stage-1 states of yielding ground (their points' histories, a few MB each: :mod:`solver.stages.plastic`)
-#: and the solutions of cases (their mechanics, by :func:`solver.model.mechanics_key`).
-KEPT = {"release": 16, "stage one": 4, "solution": 4}
+#: stage-1 states of yielding ground (their points' histories: 5.3 MB each at the default mesh,
+#: :mod:`solver.stages.plastic`) and the solutions of cases (1.2 MB: :func:`solver.model.mechanics_key`).
+KEPT = {"release": 16, "stage one": 2, "solution": 4}
 
 
 class Kept:
