@@ -91,6 +91,23 @@ def sample_cases(n: int, family: str, seed: int = 36) -> list[dict]:
     return cases
 
 
+def rock_cases(n: int, seed: int = 7) -> list[dict]:
+    """``n`` weak-rock cases of generalized Hoek–Brown ground from a scrambled Sobol' sequence (seeded):
+    σci 0.3–5 MPa log-uniform, GSI 10–40, mi 5–20, D 0–0.5, ψ 0–5°, K0 0.4–1.5, λd 0.2–0.7, E = 150 σci
+    within 0.1–5 GPa; default geometry."""
+    from scipy.stats import qmc
+
+    u = qmc.Sobol(d=7, scramble=True, seed=seed).random(n)
+    cases = []
+    for a, gsi, mi, d, psi, k0, ld in qmc.scale(u, [0, 10, 5, 0, 0, 0.4, 0.2], [1, 40, 20, 0.5, 5, 1.5, 0.7]):
+        ucs = 0.3e6 * (5.0e6 / 0.3e6) ** a
+        cases.append({"ground": {"model": "hoek-brown", "young": round(min(max(150.0 * ucs, 1.0e8), 5.0e9), -5),
+                                 "ucs": round(ucs, -3), "gsi": round(gsi, 1), "mi": round(mi, 1),
+                                 "disturbance": round(d, 2), "dilatancy": round(psi, 2)},
+                      "loads": {"lateral_ratio": round(k0, 3)}, "excavation": {"deconfinement": round(ld, 3)}})
+    return cases
+
+
 def _solve_again(model: TunnelModel, spec: CaseSpec):
     """``model.solve(spec)`` as a sweep's next case: the solutions the model kept (a case met before
     is not solved again) forgotten first, what it kept of other solves (stage 1) not."""
