@@ -17,7 +17,8 @@ in the same round. ``--weak`` also solves, once on its built model, issue 25's w
 
 ``--sample N`` instead solves a seeded Sobol' sample (scipy.stats.qmc) of N weak soft-ground cases
 (c′ 1–15 kPa, φ′ 20–32°, ψ 0–5°, λd 0.2–0.6, K0 0.4–0.7, E 30–150 MPa log-uniform, default
-geometry; issue 36) and N of a wider range (c′ 5–50 kPa, φ′ 20–38°), each ``run_case`` timed
+geometry; issue 36), N of a wider range (c′ 5–50 kPa, φ′ 20–38°) and N weak rocks of generalized
+Hoek–Brown ground (:func:`rock_cases`), each ``run_case`` timed
 back to back with its elastic twin (the same case with elastic ground): the share that
 converged (a collapse is named, with the deconfinement held), and the cost ratios' median, 95th
 percentile and maximum; then issue 36's default Mohr–Coulomb case (c 10 kPa, φ 28°, ψ 0) against
@@ -152,9 +153,10 @@ def sample_study(n: int) -> dict:
 
     run_case(CaseSpec.model_validate({}))  # warm the imports
     out = {}
-    for family in FAMILIES:
+    families = {**{family: sample_cases(n, family) for family in FAMILIES}, "rock": rock_cases(n)}
+    for family, cases in families.items():
         rows = []
-        for case in sample_cases(n, family):
+        for case in cases:
             plastic, outcome = _timed(case)
             if outcome.startswith("refused"):
                 rows.append({"case": case, "outcome": outcome, "ratio": float("nan"), "seconds": 0.0})
@@ -199,7 +201,7 @@ def main(argv=None) -> None:
         if args.json:
             print(json.dumps(study, indent=2))
             return
-        for family in FAMILIES:
+        for family in (*FAMILIES, "rock"):
             r = study[family]
             print(f"{family}: {100 * r['converged_or_collapse']:.0f} % converged or named collapse "
                   f"({r['collapses']} collapses, {r['retried']} solved again at half the tolerance, "
