@@ -76,10 +76,50 @@ def _hoek_brown_apex(ground) -> float | None:
     return float(default_tensile_strength(ground.ucs, ground.gsi, ground.mi, ground.disturbance))
 
 
+#: The in-situ relative shear stress at the tunnel's axis from which a Mohr–Coulomb ground is near failure
+#: (:func:`near_failure_warnings`).
+NEAR_FAILURE = 0.85
+
+
+def near_failure_warnings(spec) -> list[str]:
+    """A sentence where the Mohr–Coulomb ground at the tunnel's axis already mobilizes :data:`NEAR_FAILURE`
+    or more of its shear strength in situ: the relative shear stress ``τ/τ_max`` (PLAXIS's), ``τ`` the
+    radius of the in-situ Mohr circle and ``τ_max`` that of the circle with its centre touching the
+    Mohr–Coulomb line, ``c′ cos φ′ + p′ sin φ′``. Accepted (the state is inside the surface), but a wide
+    zone then yields, up to the surface, the results are sensitive to K0 and c′, and the plastic solve is
+    slow: in issue 36's seeded sample (docs/performance.md) the four cases at 0.88–0.90 cost 90–210 elastic
+    ones, and no case above 0.8 cost under 15."""
+    import math
+
+    import numpy as np
+
+    from ..ground.strata import geostatic_state, layer_at, strata
+
+    layers, z = strata(spec), spec.geometry.depth
+    s = layers[int(layer_at(layers, np.array([z]))[0])]
+    if s.model != "mohr-coulomb" or spec.excavation.method != "deconfinement":
+        return []
+    state = geostatic_state(spec, layers, np.array([z]))
+    v, h = float(state["effective_v"][0]), float(state["effective_h"][0])
+    phi = math.radians(s.friction_angle)
+    strength = s.cohesion * math.cos(phi) + 0.5 * (v + h) * math.sin(phi)
+    relative = 0.5 * abs(v - h) / strength if strength > 0 else math.inf
+    if relative < NEAR_FAILURE:
+        return []
+    named = bool(spec.ground.layers)
+    field = f"ground.layers.{s.index}.lateral_ratio" if named and spec.ground.layers[s.index].lateral_ratio \
+        is not None else "loads.lateral_ratio"
+    return [f"{field}: in situ the ground at the tunnel's axis ({z:.4g} m deep) already mobilizes {relative:.0%} of "
+            f"its shear strength (K0 {s.k0:.4g}, c′ {s.cohesion / 1e3:.4g} kPa, φ′ {s.friction_angle:.4g}°): it is "
+            "close to failure before the excavation, so a wide zone yields (up to the surface), the results are "
+            "sensitive to K0 and c′, and the plastic solve takes long (tens of seconds to minutes)"]
+
+
 def plausibility_warnings(spec) -> list[str]:
     """One sentence per field of the case :class:`~solver.spec.CaseSpec` ``spec`` outside its
-    plausible range (:data:`PLAUSIBLE`)."""
-    warnings = []
+    plausible range (:data:`PLAUSIBLE`), and per layer whose in-situ state is near failure
+    (:func:`near_failure_warnings`)."""
+    warnings = near_failure_warnings(spec)
     for path, value in _values(spec):
         r = PLAUSIBLE[path if ".layers." not in path else "ground." + path.rsplit(".", 1)[1]]
         if (r.zero and value == 0) or r.low <= value <= r.high:

@@ -74,3 +74,39 @@ def test_unknown_field_without_a_close_one():
     with pytest.raises(ValidationError) as info:
         CaseSpec.model_validate({"ground": {"zzzz": 1.0}})
     assert field_errors(info.value) == [("ground.zzzz", "unknown field")]
+
+
+def test_ground_near_failure_in_situ_is_said_and_names_the_field():
+    """The relative shear stress of the in-situ state at the tunnel's axis (τ over the radius of the circle
+    whose centre touches the Mohr–Coulomb line): at 0.85 or more the ground is near failure before the
+    excavation. Of issue 36's seeded samples (weak and wide, 48 cases) it names exactly the four that cost
+    90–210 elastic ones; a layer's own K0 is named as its field; elastic or strong ground says nothing."""
+    import math
+
+    from bench.ground import sample_cases
+
+    def named(case):
+        return [w.split(":")[0] for w in plausibility_warnings(CaseSpec.model_validate(case))
+                if "shear strength" in w]
+
+    near = {"ground": {"model": "mohr-coulomb", "young": 4.31e7, "cohesion": 6992.2, "friction_angle": 23.91,
+                       "dilatancy": 2.35}, "loads": {"lateral_ratio": 0.446}, "excavation": {"deconfinement": 0.485}}
+    assert named(near) == ["loads.lateral_ratio"]
+    text = plausibility_warnings(CaseSpec.model_validate(near))[0]
+    sv = 2000.0 * 9.81 * 15.0 + CaseSpec().loads.surface_load  # the default surcharge too
+    phi = math.radians(23.91)
+    expected = 0.5 * (1 - 0.446) * sv / (6992.2 * math.cos(phi) + 0.5 * (1 + 0.446) * sv * math.sin(phi))
+    assert f"mobilizes {expected:.0%}" in text and "15 m deep" in text
+    assert named({**near, "ground": {**near["ground"], "cohesion": 3.0e4}}) == []  # stronger: not near
+    assert named({"loads": {"lateral_ratio": 0.446}}) == []  # elastic ground
+    layered = {"ground": {**near["ground"], "layers": [{"thickness": 5.0}, {"lateral_ratio": 0.446}]}}
+    assert named(layered) == ["ground.layers.1.lateral_ratio"]
+    flagged = []
+    for family in ("weak", "wide"):
+        for i, case in enumerate(sample_cases(24, family)):
+            try:
+                if named(case):
+                    flagged.append((family, i))
+            except ValidationError:
+                pass
+    assert flagged == [("weak", 0), ("weak", 3), ("weak", 4), ("wide", 16)]
