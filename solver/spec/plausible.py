@@ -88,7 +88,7 @@ def near_failure_warnings(spec) -> list[str]:
     Mohr–Coulomb line, ``c′ cos φ′ + p′ sin φ′``. Accepted (the state is inside the surface), but a wide
     zone then yields, up to the surface, the results are sensitive to K0 and c′, and the plastic solve is
     slow: in issue 36's seeded sample (docs/performance.md) the four cases at 0.88–0.90 cost 90–210 elastic
-    ones, and no case above 0.8 cost under 15."""
+    ones, and none of the others reached 0.8."""
     import math
 
     import numpy as np
@@ -117,8 +117,8 @@ def near_failure_warnings(spec) -> list[str]:
 
 def plausibility_warnings(spec) -> list[str]:
     """One sentence per field of the case :class:`~solver.spec.CaseSpec` ``spec`` outside its
-    plausible range (:data:`PLAUSIBLE`), and per layer whose in-situ state is near failure
-    (:func:`near_failure_warnings`)."""
+    plausible range (:data:`PLAUSIBLE`), and one where the ground at the tunnel's axis is near failure
+    in situ (:func:`near_failure_warnings`)."""
     warnings = near_failure_warnings(spec)
     for path, value in _values(spec):
         r = PLAUSIBLE[path if ".layers." not in path else "ground." + path.rsplit(".", 1)[1]]
