@@ -37,6 +37,7 @@ from .geometry.mesh import build_mesh
 from .ground import water
 from .ground.loads import load_shapes, moduli
 from .ground.strata import strata, table_line
+from .limits import CaseCancelled, TimeLimitExceeded
 from .lining import joints
 from .spec import CaseSpec
 
@@ -75,6 +76,9 @@ def model_key(spec: CaseSpec) -> str:
 KEPT = {"release": 16, "stage one": 2, "solution": 4}
 
 
+_MISSING = object()
+
+
 class Kept:
     """What a built model keeps of the solves it made, per kind (:data:`KEPT`), the most recent."""
 
@@ -82,21 +86,31 @@ class Kept:
         self._kinds: "dict[str, OrderedDict[str, object]]" = {kind: OrderedDict() for kind in KEPT}
         self._lock = threading.Lock()
 
-    def get(self, kind: str, key: str, compute):
+    def get(self, kind: str, key: str, compute, failures: tuple = ()):
         """``compute()`` for ``key`` (the physics it depends on beyond the model), computed once and kept
         (the last ``KEPT[kind]``): a sweep over what that solve does not depend on (the face distance for a
         full release, the design for a case's mechanics, the lining's weight for yielding ground's stage 1)
-        makes it once."""
+        makes it once. A failure of one of the ``failures`` types is kept too and raised again (a copy,
+        with its message); a time limit or a cancellation never is (the clock's or the user's, not the
+        solve's: another try may finish)."""
         kept = self._kinds[kind]
         with self._lock:
-            if key in kept:
+            found = kept.get(key, _MISSING)
+            if found is not _MISSING:
                 kept.move_to_end(key)
-                return kept[key]
-        found = compute()
-        with self._lock:
-            kept[key] = found
-            while len(kept) > KEPT[kind]:
-                kept.popitem(last=False)
+        if found is _MISSING:
+            try:
+                found = compute()
+            except (TimeLimitExceeded, CaseCancelled):
+                raise
+            except failures as err:
+                found = err
+            with self._lock:
+                kept[key] = found
+                while len(kept) > KEPT[kind]:
+                    kept.popitem(last=False)
+        if isinstance(found, BaseException):
+            raise type(found)(str(found))
         return found
 
     def values(self, kind: str) -> list:

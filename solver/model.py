@@ -17,7 +17,6 @@ backward solve with the contact tractions the displacements (:meth:`FactoredBody
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
 import threading
 from collections import OrderedDict
@@ -25,8 +24,8 @@ from collections import OrderedDict
 from .build import BuiltModel, model_key
 from .errors import SolverError
 from .ground.loads import LOAD_TERMS
-from .limits import CaseCancelled, TimeLimitExceeded
 from .spec import CaseSpec
+from .spec.canonical import canonical_json
 from .stages.loads import load_coefficients
 from .stages.solve import solve_case
 from .stages.state import CONTACT_GAP_TOL, KKT_ACCEPT, Forward, Solution, StageLoads, accepted_residual
@@ -48,18 +47,7 @@ class TunnelModel(BuiltModel):
         fails so again (not one stopped by its time limit or cancelled)."""
         if not self.accepts(spec):
             return solve_case(self, spec)  # which says why
-
-        def compute():
-            try:
-                return solve_case(self, spec)
-            except (TimeLimitExceeded, CaseCancelled):
-                raise  # the clock's or the user's, not the case's: another try may finish
-            except SolverError as err:
-                return err
-
-        kept = self.kept.get("solution", mechanics_key(spec), compute)
-        if isinstance(kept, SolverError):
-            raise type(kept)(str(kept))
+        kept = self.kept.get("solution", mechanics_key(spec), lambda: solve_case(self, spec), failures=(SolverError,))
         # the solved case as solve_case leaves it (a face distance's λd found), with this one's checks, trough and name
         solved = kept.spec.model_copy(update={part: getattr(spec, part) for part in _RESULTS_ONLY})
         return dataclasses.replace(kept, spec=solved, timings=dict(kept.timings))
@@ -72,7 +60,7 @@ _RESULTS_ONLY = ("design", "settlement", "name")
 def mechanics_key(spec: CaseSpec) -> str:
     """The case less its design checks (SPEC §1.6), settlement trough (§9.3) and name: what
     :func:`solver.stages.solve.solve_case` depends on beyond the model."""
-    return json.dumps(spec.model_dump(mode="json", exclude=set(_RESULTS_ONLY)), sort_keys=True, separators=(",", ":"))
+    return canonical_json(spec, exclude=set(_RESULTS_ONLY))
 
 
 _SHARED: "OrderedDict[str, TunnelModel]" = OrderedDict()

@@ -23,9 +23,10 @@ MAX_SEGMENTS = 24
 MAX_STIFFNESS_RATIO = 1.0e6
 
 
-def canonical_json(model: BaseModel) -> str:
-    """Defaults filled, keys sorted, no whitespace: the text a model's id hashes."""
-    return json.dumps(model.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+def canonical_json(model: BaseModel, exclude=None) -> str:
+    """Defaults filled, keys sorted, no whitespace: the text a model's id hashes; less the fields of
+    ``exclude`` (as pydantic's ``model_dump`` takes it: what a solve kept by it does not depend on)."""
+    return json.dumps(model.model_dump(mode="json", exclude=exclude), sort_keys=True, separators=(",", ":"))
 
 
 def content_id(text: str) -> str:

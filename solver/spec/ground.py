@@ -51,7 +51,7 @@ class Strength(_Frozen):
                    "hoek-brown": MOHR_COULOMB_ONLY}.get(model, {})
         data = {**data, **{k: v for k, v in ignored.items() if k not in data or _ignorable(data[k])}}
         if model == "hoek-brown" and data.get("tensile_strength") is None:
-            data["tensile_strength"] = _hoek_brown_apex(data)  # SPEC §9.1: s ucs / m_b by default
+            data["tensile_strength"] = hoek_brown_apex(data)  # SPEC §9.1: s ucs / m_b by default
         return data
 
     @model_validator(mode="after")
@@ -84,7 +84,7 @@ class Strength(_Frozen):
         return self
 
 
-def _hoek_brown_apex(data: dict) -> float:
+def hoek_brown_apex(data: dict) -> float:
     """The default tension cut-off s ucs / m_b of a Hoek–Brown ground's ``data`` (0.0 when its
     constants are missing or out of range: the after-validator names the field)."""
     from ..ground.hoek_brown import default_tensile_strength, parameter_errors

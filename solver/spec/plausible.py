@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from .ground import hoek_brown_apex
+
 __all__ = ["PLAUSIBLE", "plausibility_warnings"]
 
 
@@ -59,21 +61,13 @@ def _values(spec) -> list[tuple[str, float]]:
     for path in PLAUSIBLE:
         section, field = path.split(".")
         value = getattr(getattr(spec, section), field)
-        if value is not None and not (path == "ground.tensile_strength" and _hoek_brown_apex(spec.ground) == value):
+        if value is not None and not (path == "ground.tensile_strength" and spec.ground.model == "hoek-brown"
+                                      and hoek_brown_apex(spec.ground.model_dump()) == value):
             out.append((path, value))
     for i, layer in enumerate(spec.ground.layers):
         out += [(f"ground.layers.{i}.{field}", getattr(layer, field)) for field in _GROUND
                 if getattr(layer, field, None) is not None]  # a field the layer leaves to the ground
     return out
-
-
-def _hoek_brown_apex(ground) -> float | None:
-    """A Hoek–Brown ground's default tension cut-off (Pa), None for another law."""
-    if ground.model != "hoek-brown":
-        return None
-    from ..ground.hoek_brown import default_tensile_strength
-
-    return float(default_tensile_strength(ground.ucs, ground.gsi, ground.mi, ground.disturbance))
 
 
 #: The in-situ relative shear stress at the tunnel's axis from which a Mohr–Coulomb ground is near failure

@@ -41,7 +41,6 @@ integrates the plastic load.
 """
 from __future__ import annotations
 
-import json
 import logging
 
 import numpy as np
@@ -52,6 +51,8 @@ from ..ground.laws import PointLaws
 from ..ground.mohr_coulomb import equivalent
 from ..ground.strata import strata
 from ..results.post import mean_convergence
+from ..spec.canonical import canonical_json
+from ..spec.case import PLASTIC_SOLVER_FIELDS
 from .contact import contact_tractions
 from .loads import stage_loads
 from . import path
@@ -227,34 +228,27 @@ _STAGE_TWO = ("lining", "interface", "design", "settlement", "name")
 
 def stage_one_key(spec, rows, tol: float | None = None) -> str:
     """What the unsupported ground's release depends on beyond its model (:class:`~solver.build.Kept`):
-    the case less :data:`_STAGE_TWO`; of the solver its steps and stop test (``tol``: a retry's own, or
+    the case less :data:`_STAGE_TWO`; of the solver its steps and stop test (``tol`` too: a retry's own, or
     none where the caller retries), and the factorization's ``rows`` (another interface model's
     factorization solves the same equations with other rounding)."""
-    case = spec.model_dump(mode="json", exclude=set(_STAGE_TWO))
-    case["solver"] = {"load_steps": spec.solver.load_steps, "plastic_tolerance": spec.solver.plastic_tolerance,
-                      "tol": tol, "rows": rows}
-    return json.dumps(case, sort_keys=True, separators=(",", ":"))
+    contact = set(type(spec.solver).model_fields) - set(PLASTIC_SOLVER_FIELDS)
+    return f"{canonical_json(spec, exclude={**dict.fromkeys(_STAGE_TWO, True), 'solver': contact})}|{tol!r}|{rows}"
 
 
 def _first_stage(model, spec, rows, release, ld: float, tol: float, points: tuple, commit):
     """Stage 1 of a case (:func:`_stage_one`), kept on its model by :func:`stage_one_key` with the
     histories of its ``points`` (restored into them on a later case): a sweep on one model whose
-    cases differ only in the lining's weight, the interface's strength, the design checks or the
-    solver's contact settings solves it once, with the answer a fresh model gives. A stage 1 that
+    cases differ only in the lining's weight, the interface's strength or the solver's contact
+    settings solves it once, with the answer a fresh model gives (a design sweep takes the whole
+    solution: :meth:`solver.model.TunnelModel.solve`). A stage 1 that
     failed fails the later cases alike, without solving it again."""
 
     def compute():
-        try:
-            u1, p1, iterations, curve = _stage_one(model, rows, release, ld, spec.solver.load_steps, tol,
-                                                   points[0], commit)
-        except NotConvergedError as err:
-            return err
+        u1, p1, iterations, curve = _stage_one(model, rows, release, ld, spec.solver.load_steps, tol, points[0], commit)
         u1.flags.writeable = p1.flags.writeable = False
         return (u1, p1, iterations, tuple(curve)), [p.history() for p in points]
 
-    kept = model.kept.get("stage one", stage_one_key(spec, rows, tol), compute)
-    if isinstance(kept, NotConvergedError):
-        raise type(kept)(str(kept))
+    kept = model.kept.get("stage one", stage_one_key(spec, rows, tol), compute, failures=(NotConvergedError,))
     (u1, p1, iterations, curve), histories = kept
     for p, history in zip(points, histories):
         p.restore(history)
