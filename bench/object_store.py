@@ -156,18 +156,22 @@ def sweep_seconds(client, root, specs) -> float:
     return time.perf_counter() - start
 
 
-def measure_throughput(cases: int, workdir: Path, mesh: str = "coarse") -> dict:
+def measure_throughput(cases: int, workdir: Path, mesh: str = "coarse", workers: int = 2) -> dict:
     from solver import CaseSpec
     from workflows.sweep import local_client
 
     base = COARSE if mesh == "coarse" else {}
-    specs = [CaseSpec.model_validate({**base, "ground": {"young": 1.5e7 + 1e6 * i}}) for i in range(cases)]
+
+    def sweep_cases(run: int) -> list:  # each run's own cases (a key the scheduler still holds is not run again)
+        return [CaseSpec.model_validate({**base, "ground": {"young": 1.5e7 + 1e6 * i + 1e3 * run}})
+                for i in range(cases)]
+
     timings: dict[str, list[float]] = {"local": [], "s3": []}
     os.environ["TUNNEL_CONTACT_CACHE"] = str(workdir / "workers")  # the workers' cache (they inherit it)
-    with local_client(2) as client:
+    with local_client(workers) as client:
         client.submit(lambda: None).result()
         # warm-up: imports and the first mesh in each worker
-        sweep_seconds(client, str(workdir / "warm"), specs[:4])
+        sweep_seconds(client, str(workdir / "warm"), sweep_cases(0)[:2 * workers])
         for round_ in range(2):
             for kind in ("local", "s3"):
                 if kind == "local":
@@ -175,13 +179,27 @@ def measure_throughput(cases: int, workdir: Path, mesh: str = "coarse") -> dict:
                 else:
                     root = f"s3://bench-{uuid.uuid4().hex[:8]}/results"
                     store_at(root, workdir / "api").remote.make_bucket()
-                timings[kind].append(sweep_seconds(client, root, specs))
+                timings[kind].append(sweep_seconds(client, root, sweep_cases(1 + 2 * round_ + (kind == "s3"))))
                 print(f"{kind}: {timings[kind][-1]:.1f} s", file=sys.stderr, flush=True)
     os.environ.pop("TUNNEL_CONTACT_CACHE", None)
     local, s3 = min(timings["local"]), min(timings["s3"])
-    return {"cases": cases, "mesh": mesh, "local_seconds": timings["local"], "s3_seconds": timings["s3"],
-            "local_cases_per_minute": 60 * cases / local, "s3_cases_per_minute": 60 * cases / s3,
-            "ratio": local / s3}
+    return {"cases": cases, "mesh": mesh, "workers": workers, "local_seconds": timings["local"],
+            "s3_seconds": timings["s3"], "local_cases_per_minute": 60 * cases / local,
+            "s3_cases_per_minute": 60 * cases / s3, "ratio": local / s3}
+
+
+def split_processors(store_cores: int) -> set[int] | None:
+    """The last ``store_cores`` processors of this process's for the store (None: 0); this process
+    (every thread of it, and the workers it starts later) kept to the others."""
+    if not store_cores:
+        return None
+    mine = sorted(os.sched_getaffinity(0))
+    if not 0 < store_cores < len(mine):
+        raise SystemExit(f"--store-cores must be between 1 and {len(mine) - 1} here ({len(mine)} processors)")
+    store, rest = set(mine[-store_cores:]), set(mine[:-store_cores])
+    for thread in os.listdir("/proc/self/task"):
+        os.sched_setaffinity(int(thread), rest)
+    return store
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -194,17 +212,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--local", action="store_true", help="open_results over a local folder only")
     parser.add_argument("--server", choices=SERVERS, default=None,
                         help="the S3 server started on loopback (default: seaweedfs if installed, else moto)")
+    parser.add_argument("--workers", type=int, default=2, help="worker processes of the sweep (one thread each)")
+    parser.add_argument("--store-cores", type=int, default=0,
+                        help="processors of the store's own (the last ones; the workers get the others)")
     args = parser.parse_args(argv)
+    store_cpus = split_processors(args.store_cores)
     if args.local:
         with tempfile.TemporaryDirectory(prefix="bench-object-store-") as folder:
             print(json.dumps({"local_open_results": measure_local_open_results(args.cases, Path(folder))}))
         return 0
-    with s3_endpoint(args.server) as server, tempfile.TemporaryDirectory(prefix="bench-object-store-") as folder:
-        out = {"server": server}
+    with s3_endpoint(args.server, store_cpus) as server, \
+            tempfile.TemporaryDirectory(prefix="bench-object-store-") as folder:
+        out = {"server": server, "store_cpus": sorted(store_cpus or ()), "worker_cpus": sorted(os.sched_getaffinity(0))}
         out |= {"open_results": measure_open_results(args.cases, Path(folder))} if args.cases else {}
         print(json.dumps(out), file=sys.stderr, flush=True)  # partial figures, as they come
         if args.sweep:
-            out["throughput"] = measure_throughput(args.sweep, Path(folder), args.mesh)
+            out["throughput"] = measure_throughput(args.sweep, Path(folder), args.mesh, args.workers)
     if args.json:
         json.dump(out, sys.stdout, indent=1)
         print()
@@ -216,7 +239,10 @@ def main(argv: list[str] | None = None) -> int:
               f"warm {o['warm_seconds']:.2f} s; publishing them took {o['fill_seconds']:.1f} s")
     if "throughput" in out:  # also without the open_results figures (--cases 0)
         t = out["throughput"]
-        print(f"sweep of {t['cases']} {t['mesh']}-mesh cases (S3 server: {out['server']}) on two workers: "
+        where = f", the store on processors {out['store_cpus']}, the workers on {out['worker_cpus']}" \
+            if out["store_cpus"] else ", all on the same processors"
+        print(f"sweep of {t['cases']} {t['mesh']}-mesh cases (S3 server: {out['server']}{where}) "
+              f"on {t['workers']} workers: "
               f"folder {t['local_cases_per_minute']:.0f}, bucket {t['s3_cases_per_minute']:.0f} cases/min: "
               f"{100 * t['ratio']:.0f} %")
     return 0

@@ -75,11 +75,12 @@ def _wait(port: int, server: subprocess.Popen, name: str, seconds: float = 60.0)
         time.sleep(0.1)
 
 
-def _start(kind: str, folder: Path) -> tuple[subprocess.Popen, int]:
+def _start(kind: str, folder: Path, cpus: set[int] | None = None) -> tuple[subprocess.Popen, int]:
+    pinned = (lambda: os.sched_setaffinity(0, cpus)) if cpus else None  # every thread it starts inherits it
     if kind == "moto":
         (port,) = _free_ports(1)
         server = subprocess.Popen([sys.executable, "-m", "moto.server", "-H", "127.0.0.1", "-p", str(port)],
-                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, preexec_fn=pinned)
         return server, port
     weed = weed_program()
     if weed is None:
@@ -91,21 +92,22 @@ def _start(kind: str, folder: Path) -> tuple[subprocess.Popen, int]:
             "-s3", f"-s3.port={s3}", "-s3.port.iceberg=0", "-s3.port.lance=0", "-metricsPort=0",
             "-volume.preStopSeconds=0"]
     with open(folder / "weed.log", "wb") as log:  # the child keeps its own handle
-        server = subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT)
+        server = subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT, preexec_fn=pinned)
     return server, s3
 
 
 @contextmanager
-def serve(kind: str | None = None):
+def serve(kind: str | None = None, cpus: set[int] | None = None):
     """Start ``kind`` (:data:`SERVERS`; :func:`default_server` if not given) on loopback for the
-    block; yields the environment a client needs (``AWS_ENDPOINT_URL``, made-up keys), setting
-    nothing in this process's."""
+    block, on the processors ``cpus`` if given (a store on cores of its own); yields the
+    environment a client needs (``AWS_ENDPOINT_URL``, made-up keys), setting nothing in this
+    process's."""
     kind = kind or default_server()
     with tempfile.TemporaryDirectory(prefix=f"s3-{kind}-") as folder:
         for attempt in range(3):  # a port found free may be taken before the server binds it
             here = Path(folder) / str(attempt)
             here.mkdir()
-            server, port = _start(kind, here)
+            server, port = _start(kind, here, cpus)
             try:
                 _wait(port, server, kind)
                 break
@@ -127,15 +129,15 @@ def serve(kind: str | None = None):
 
 
 @contextmanager
-def s3_endpoint(kind: str | None = None):
+def s3_endpoint(kind: str | None = None, cpus: set[int] | None = None):
     """``AWS_*`` in this process's environment pointing at an S3 server for the block: the one
     configured (``AWS_ENDPOINT_URL`` set: yields ``'configured'``), else :func:`serve`'s (yields
-    its kind)."""
+    its kind; ``cpus``: the processors it runs on)."""
     if os.environ.get("AWS_ENDPOINT_URL"):
         yield "configured"
         return
     kind = kind or default_server()
-    with serve(kind) as environment:
+    with serve(kind, cpus) as environment:
         os.environ.update(environment)
         try:
             yield kind

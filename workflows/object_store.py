@@ -4,10 +4,12 @@ but a local path).
 The objects keep the layout of the local folder (:mod:`workflows.store_files`) under the URL's
 prefix. Each process works in a local cache folder of its own (:func:`cache_folder`): a file is
 written there as before (atomically, with its checksum), then *published*: uploaded as one
-object (``.b2`` first, then the file: S3 shows an object only once its upload is complete, so no
-reader ever sees a part of one). A case file is read from the cache once its copy matches the
-object's current ETag and its bytes the object's checksum (:meth:`Remote.fetch`): a damaged
-object is never served. The workers write to the bucket directly; nothing needs a shared disk.
+object, its checksum in the object's metadata (``x-amz-meta-blake2b``, so one request; a ``.b2``
+object first where the store has no metadata or the file is larger than :data:`SINGLE_PUT`). S3
+shows an object only once its upload is complete, so no reader ever sees a part of one. A case
+file is read from the cache once its copy matches the object's current ETag and its bytes the
+object's checksum (:meth:`Remote.fetch`): a damaged object is never served. The workers write to
+the bucket directly; nothing needs a shared disk.
 
 Endpoint and keys: the standard ``AWS_*`` variables (``AWS_ENDPOINT_URL`` for an S3-compatible
 server, ``AWS_ACCESS_KEY_ID``, ``AWS_SECRET_ACCESS_KEY``), or ``TUNNEL_CONTACT_STORAGE_OPTIONS``, a
@@ -21,7 +23,10 @@ import json
 import logging
 import os
 import tempfile
+import time
 from dataclasses import dataclass
+from datetime import datetime, timezone
+from email.utils import parsedate_to_datetime
 from functools import cached_property
 from pathlib import Path
 from typing import Any, Iterable, Optional
@@ -30,6 +35,9 @@ logger = logging.getLogger(__name__)
 
 #: Suffix of the sidecar that records which object version (ETag) a cached file is a copy of.
 ETAG_SUFFIX = ".etag"
+#: The user-metadata key of an object's BLAKE2b checksum (the ``.b2`` file's text, travelling with
+#: the object: written by its PutObject, read back by the HEAD that tells whether a copy is current).
+CHECKSUM_METADATA = "blake2b"
 
 
 def is_url(location: Any) -> bool:
@@ -104,31 +112,34 @@ class Remote:
     # -- objects -------------------------------------------------------------------------
 
     def publish(self, path: Path, *, remember: bool = True) -> Optional[dict]:
-        """Upload the cached file ``path`` as its object (with its checksum object first, if
-        it has one), recording the ETag the copy now matches; the object's info (from the
-        upload's answer: no HEAD, where the store is S3). Without ``remember`` (a file its writer
-        never reads back, such as a worker's index entry) the copy is fetched again by whoever
-        reads it."""
+        """Upload the cached file ``path`` as its object, with its checksum if it has one (in the
+        object's metadata: one request; else as a checksum object first), recording the ETag the
+        copy now matches; the object's info (from the upload's answer: no HEAD, where the store is
+        S3). Without ``remember`` (a file its writer never reads back, such as a worker's index
+        entry) the copy is fetched again by whoever reads it."""
         checksum = path.with_name(path.name + ".b2")
-        if checksum.is_file():
-            self._upload(checksum)
-        info = self._upload(path)
+        digest = checksum.read_text().strip() if checksum.is_file() else None
+        info = self._upload(path, digest)
         if not remember:
             self._sidecar(path).unlink(missing_ok=True)
             return None
         self._remember(path, info)
         return info
 
-    def _upload(self, path: Path) -> Optional[dict]:
-        """One file as its object; its info (ETag, size). On S3 a file up to
-        :data:`SINGLE_PUT` is one PutObject, whose answer carries the ETag; otherwise fsspec's
-        upload (multipart where large) and a HEAD."""
+    def _upload(self, path: Path, digest: Optional[str] = None) -> Optional[dict]:
+        """One file as its object; its info (ETag, size). On S3 a file up to :data:`SINGLE_PUT`
+        is one PutObject carrying ``digest`` as metadata, whose answer carries the ETag; otherwise
+        the checksum object first, then fsspec's upload (multipart where large) and a HEAD."""
         key = self.key(path)
         size = path.stat().st_size
         if hasattr(self.fs, "call_s3") and size <= SINGLE_PUT:
             bucket, _, name = key.partition("/")
-            answer = self.fs.call_s3("put_object", Bucket=bucket, Key=name, Body=path.read_bytes())
-            return {"ETag": answer.get("ETag"), "size": size}
+            metadata = {CHECKSUM_METADATA: digest} if digest else {}
+            answer = self.fs.call_s3("put_object", Bucket=bucket, Key=name, Body=path.read_bytes(),
+                                     Metadata=metadata)
+            return {"ETag": answer.get("ETag"), "size": size, "Metadata": metadata}
+        if digest:
+            self.fs.pipe_file(self.key(path.with_name(path.name + ".b2")), (digest + "\n").encode())
         self.fs.put_file(str(path), key)
         return self.info(path)
 
@@ -140,15 +151,37 @@ class Remote:
                 bucket, _, name = key.partition("/")
                 head = self.fs.call_s3("head_object", Bucket=bucket, Key=name)
                 return {"ETag": head.get("ETag"), "size": head.get("ContentLength"),
-                        "LastModified": head.get("LastModified")}
+                        "LastModified": head.get("LastModified"), "Metadata": head.get("Metadata") or {}}
             return self.fs.info(key)
         except FileNotFoundError:
             return None
 
+    def age(self, path: Path) -> Optional[float]:
+        """Seconds since the object of ``path`` was written, by the store's own clock (on S3 the
+        HEAD answer's ``Date`` less the object's ``Last-Modified``, both the server's, so no
+        machine's clock is compared with another's; one-second resolution); None if there is no
+        object. Other file systems: this machine's clock against the object's time."""
+        key = self.key(path)
+        try:
+            if hasattr(self.fs, "call_s3"):
+                bucket, _, name = key.partition("/")
+                head = self.fs.call_s3("head_object", Bucket=bucket, Key=name)
+                now = head.get("ResponseMetadata", {}).get("HTTPHeaders", {}).get("date")
+                now = parsedate_to_datetime(now) if now else datetime.now(timezone.utc)
+                return (now - head["LastModified"]).total_seconds()
+            info = self.fs.info(key)
+        except FileNotFoundError:
+            return None
+        made = info.get("LastModified") or info.get("mtime") or info.get("created")
+        if isinstance(made, datetime):
+            return (datetime.now(timezone.utc) - made).total_seconds()
+        return time.time() - float(made) if made is not None else 0.0
+
     def fetch(self, path: Path, info: Optional[dict] = None) -> bool:
-        """Make the cached ``path`` a copy of its object (and its checksum object), downloading
-        only when the object changed since the copy was made; False (and no copy) when there is
-        no object. The copy is verified against the checksum by the caller (:func:`files.verify`)."""
+        """Make the cached ``path`` a copy of its object and its checksum (the object's metadata,
+        else its checksum object), downloading only when the object changed since the copy was
+        made; False (and no copy) when there is no object. The copy is verified against the
+        checksum by the caller (:func:`files.verify`)."""
         info = info if info is not None else self.info(path)
         if info is None:
             path.unlink(missing_ok=True)
@@ -156,10 +189,14 @@ class Remote:
         if path.is_file() and self._remembered(path) == etag(info):
             return True
         checksum = path.with_name(path.name + ".b2")
-        try:
-            data = self.fs.cat_file(self.key(checksum))
-        except FileNotFoundError:
-            data = None
+        digest = (info.get("Metadata") or {}).get(CHECKSUM_METADATA)
+        if digest:  # the checksum the object was written with (a checksum object beside it is older)
+            data = (digest + "\n").encode()
+        else:  # an object without one: its checksum object, if any (published before checksums travelled)
+            try:
+                data = self.fs.cat_file(self.key(checksum))
+            except FileNotFoundError:
+                data = None
         _write(checksum, data) if data is not None else checksum.unlink(missing_ok=True)
         _write(path, self.fs.cat_file(self.key(path)))
         self._remember(path, info)

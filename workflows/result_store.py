@@ -123,12 +123,17 @@ class ResultStore(StoreFiles):
         """Solve and store ``spec``; its scalars and warnings, from memory. A solver failure
         is recorded (:meth:`write_error`) and re-raised."""
         logger.info("solving case %s", spec.case_id)
-        self.clear_cancel(spec.case_id)  # a request older than this solve (the case ended first) is void
+        # a cancel request older than this solve (its case ended first) is void: in a folder removed
+        # now; in a bucket found stale by its age when the solve first asks (no request a case)
+        started = time.monotonic()
+        if not self.url:
+            self.clear_cancel(spec.case_id)
         stored = False
         try:
             self.check_room(spec)  # before the work, not after it
             # cases sharing geometry, mesh and materials reuse one factorized model per process
-            ds = solver.run_case(spec, model=shared_model(spec), stop=lambda: self.cancel_requested(spec.case_id))
+            ds = solver.run_case(spec, model=shared_model(spec), stop=lambda: self.cancel_requested(
+                spec.case_id, running_for=time.monotonic() - started))
             try:
                 self.write_case(ds)
                 stored = True

@@ -9,7 +9,7 @@ its index, its combined results and the solving of cases is
 Layout under the results directory ``root``::
 
     cases/<case_id>.nc                 the result Dataset of a case (SPEC §3): the truth
-    cases/<case_id>.nc.b2              its checksum (workflows.files)
+    cases/<case_id>.nc.b2              its checksum (workflows.files; in a bucket, the object's metadata)
     cases/<case_id>.error.json         why the case could not be solved
     plots/<case_id>/<name>.png         cached figures of a case (workflows.artifacts)
     sweeps/<sweep_id>-<digest>.nc      combined result of a sweep's finished cases
@@ -47,7 +47,7 @@ from contextlib import contextmanager
 from collections.abc import Collection, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Union
+from typing import Any, Optional, Union
 
 import numpy as np
 import xarray as xr
@@ -75,6 +75,9 @@ STORE_FULL = "StoreFull"
 #: Global attribute of a case file: the digest of its values (:func:`content_digest`), so that it
 #: verifies without its checksum file (a lost ``.b2`` does not make a damaged file good).
 CONTENT_DIGEST = "content_blake2b"
+#: A cancel request in a bucket older than the asking solve by more than this (seconds) was made
+#: for an earlier run (:meth:`StoreFiles.cancel_requested`): the store's clock counts whole seconds.
+STALE_CANCEL_SECONDS = 2.0
 #: Options every stored netCDF file is opened with: values come back exactly as written
 #: (integer ``face_nodes`` keep their dtype and ``_FillValue`` attribute).
 OPEN_OPTIONS: dict[str, Any] = dict(
@@ -204,20 +207,24 @@ class StoreFiles(ObjectCopies):
         """Ask whoever solves ``case_id`` to give it up (seen within half a second)."""
         marker = self.cancel_marker(case_id)
         if self.url:
-            self.remote.write(marker, b"")
-            return
+            return self.remote.write(marker, b"")
         marker.parent.mkdir(parents=True, exist_ok=True)
         marker.touch()
 
-    def cancel_requested(self, case_id: str) -> bool:
+    def cancel_requested(self, case_id: str, running_for: Optional[float] = None) -> bool:
+        """Whether the solve of ``case_id`` (running for ``running_for`` seconds) is asked to give it
+        up. In a bucket, a request older than the solve by :data:`STALE_CANCEL_SECONDS` (the store's
+        clock) was an earlier run's, and is voided here rather than by a request a case at the start."""
         marker = self.cancel_marker(case_id)
-        return self.remote.exists(marker) if self.url else marker.exists()
+        age = self.remote.age(marker) if self.url else (0.0 if marker.exists() else None)
+        if self.url and age is not None and running_for is not None and age > running_for + STALE_CANCEL_SECONDS:
+            self.remote.remove(marker)
+            return False
+        return age is not None
 
     def clear_cancel(self, case_id: str) -> None:
-        if self.url:
-            self.remote.remove(self.cancel_marker(case_id))
-        else:
-            self.cancel_marker(case_id).unlink(missing_ok=True)
+        marker = self.cancel_marker(case_id)
+        self.remote.remove(marker) if self.url else marker.unlink(missing_ok=True)
 
     @property
     def records_dir(self) -> Path:

@@ -47,7 +47,9 @@ def test_cases_stored_by_one_process_are_read_by_another_as_from_a_local_folder(
         local.run_and_store(spec)
     ids = sorted(s.case_id for s in SPECS)
     names = set(writer.remote.listing(writer.cases_dir))
-    assert names == {f"{c}.nc" for c in ids} | {f"{c}.nc.b2" for c in ids}  # one object per file
+    assert names == {f"{c}.nc" for c in ids}  # one object per file, its checksum in its metadata
+    assert writer.remote.info(writer.case_path(ids[0]))["Metadata"] == {
+        "blake2b": writer.case_path(ids[0]).with_name(f"{ids[0]}.nc.b2").read_text().strip()}
     assert str(writer) == bucket and writer.root == tmp_path / "worker"
 
     reader = store_in(bucket, tmp_path / "api", monkeypatch)  # nothing cached here
@@ -85,24 +87,74 @@ def test_a_damaged_object_is_never_served_and_a_failure_is_recorded_there(bucket
 
 
 def test_an_upload_records_the_etag_a_head_reads(bucket, monkeypatch, tmp_path):
-    """The object's ETag and size come from the upload's answer (no HEAD): the same a HEAD reads,
-    checksum object first; a file above ``SINGLE_PUT`` by fsspec's upload and a HEAD alike."""
+    """The object's ETag and size come from the upload's answer (no HEAD): the same a HEAD reads;
+    the checksum travels in the object's metadata (one request), or, for a file above
+    ``SINGLE_PUT`` (fsspec's upload and a HEAD), as a checksum object first. A reader with no copy
+    gets the file and its checksum either way."""
     import os
 
     from workflows import object_store
 
     remote = store_in(bucket, tmp_path / "worker", monkeypatch).remote
+    reader = store_in(bucket, tmp_path / "reader", monkeypatch).remote
     for single_put in (object_store.SINGLE_PUT, 1000):
         monkeypatch.setattr(object_store, "SINGLE_PUT", single_put)
         path = remote.cache / "cases" / f"c{single_put}.nc"
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_bytes(os.urandom(300_000))
-        path.with_name(path.name + ".b2").write_bytes(b"checksum")
+        path.with_name(path.name + ".b2").write_text(f"digest{single_put}\n")
         info = remote.publish(path)
         head = remote.info(path)
         assert object_store.etag(info) == object_store.etag(head) and info["size"] == head["size"] == 300_000
-        assert remote.read(path.with_name(path.name + ".b2")) == b"checksum"
+        checksum_object = remote.read(path.with_name(path.name + ".b2"))
+        if single_put > 300_000:
+            assert head["Metadata"] == {"blake2b": f"digest{single_put}"} and checksum_object is None
+        else:
+            assert checksum_object == f"digest{single_put}\n".encode()
         assert remote.fetch(path)  # the copy is current: nothing downloaded
+        copy = reader.cache / "cases" / path.name
+        assert reader.fetch(copy) and copy.read_bytes() == path.read_bytes()
+        assert copy.with_name(copy.name + ".b2").read_text() == f"digest{single_put}\n"
+
+
+def test_a_cancel_request_older_than_the_solve_is_void_by_the_stores_clock(bucket, monkeypatch, tmp_path):
+    """A solve in a bucket store does not delete its case's cancel request before it starts (a request
+    a case); a request the store dates before the solve began (an earlier run's, which ended first) is
+    voided when the solve first asks, and one made since is honoured. The ages are the server's
+    (its ``Date`` less the object's ``Last-Modified``), so no two machines' clocks are compared."""
+    from workflows.store_files import STALE_CANCEL_SECONDS
+
+    writer = store_in(bucket, tmp_path / "worker", monkeypatch)
+    api = store_in(bucket, tmp_path / "api", monkeypatch)
+    case_id = SPECS[0].case_id
+    api.request_cancel(case_id)
+    assert 0 <= writer.remote.age(writer.cancel_marker(case_id)) <= 1.5
+    assert writer.cancel_requested(case_id, running_for=5.0)  # made while the solve ran
+    assert writer.cancel_requested(case_id)  # no solve's age given: any request counts
+    # a solve that began a few seconds after the request was made (a negative age of the solve
+    # stands for waiting that long): the request is an earlier run's, removed
+    assert not writer.cancel_requested(case_id, running_for=-(STALE_CANCEL_SECONDS + 2.0))
+    assert writer.remote.age(writer.cancel_marker(case_id)) is None and not api.cancel_requested(case_id)
+
+    # the same through a solve that asks at once, its case's request written before it began
+    import time
+
+    import solver.limits
+    monkeypatch.setattr(solver.limits, "STOP_POLL", 0.0)
+    asked, ask = [], ResultStore.cancel_requested
+    monkeypatch.setattr(ResultStore, "cancel_requested",
+                        lambda self, *a, **k: asked.append(ask(self, *a, **k)) or asked[-1])
+    # cases of this bucket's own (a model keeps its last solutions: a case solved before asks nothing)
+    old, new = (CaseSpec.model_validate({**COARSE, "ground": {"young": 3e7 + 1e3 * (hash(bucket) % 1000 + k)}})
+                for k in (0, 1000))
+    api.request_cancel(old.case_id)
+    time.sleep(STALE_CANCEL_SECONDS + 1.5)
+    assert writer.run_and_store(old) == old.case_id and writer.is_stored(old.case_id)
+    assert asked and not any(asked) and not api.cancel_requested(old.case_id)
+    api.request_cancel(new.case_id)  # made while the solve runs (here: just before it asks)
+    with pytest.raises(solver.limits.CaseCancelled):
+        writer.run_and_store(new)
+    assert not writer.is_stored(new.case_id) and not api.cancel_requested(new.case_id)
 
 
 def test_uploads_are_not_hashed_for_their_signature_unless_configured():
