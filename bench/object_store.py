@@ -156,6 +156,30 @@ def sweep_seconds(client, root, specs) -> float:
     return time.perf_counter() - start
 
 
+def processor_times() -> dict[int, dict[str, float]]:
+    """Each processor's seconds so far in user, system and soft-interrupt time (Linux's /proc/stat;
+    empty elsewhere): where a run's CPU went, the store's server and the kernel's loopback traffic
+    included, which no process's own counters show."""
+    try:
+        lines = Path("/proc/stat").read_text().splitlines()
+    except OSError:
+        return {}
+    tick = os.sysconf("SC_CLK_TCK")
+    out = {}
+    for line in lines:
+        name, *fields = line.split()
+        if name.startswith("cpu") and name != "cpu":
+            user, nice, system, _idle, _iowait, irq, softirq = (int(f) for f in fields[:7])
+            out[int(name[3:])] = {"user": (user + nice) / tick, "system": system / tick,
+                                  "interrupts": (irq + softirq) / tick}
+    return out
+
+
+def busy_per_case(before: dict, after: dict, cases: int) -> dict[int, dict[str, float]]:
+    """Milliseconds a case of each processor's user, system and interrupt time between two readings."""
+    return {cpu: {k: round(1e3 * (after[cpu][k] - before[cpu][k]) / cases, 1) for k in after[cpu]} for cpu in after}
+
+
 def measure_throughput(cases: int, workdir: Path, mesh: str = "coarse", workers: int = 2) -> dict:
     from solver import CaseSpec
     from workflows.sweep import local_client
@@ -167,6 +191,7 @@ def measure_throughput(cases: int, workdir: Path, mesh: str = "coarse", workers:
                 for i in range(cases)]
 
     timings: dict[str, list[float]] = {"local": [], "s3": []}
+    busy: dict[str, list[dict]] = {"local": [], "s3": []}
     os.environ["TUNNEL_CONTACT_CACHE"] = str(workdir / "workers")  # the workers' cache (they inherit it)
     with local_client(workers) as client:
         client.submit(lambda: None).result()
@@ -179,12 +204,15 @@ def measure_throughput(cases: int, workdir: Path, mesh: str = "coarse", workers:
                 else:
                     root = f"s3://bench-{uuid.uuid4().hex[:8]}/results"
                     store_at(root, workdir / "api").remote.make_bucket()
+                before = processor_times()
                 timings[kind].append(sweep_seconds(client, root, sweep_cases(1 + 2 * round_ + (kind == "s3"))))
-                print(f"{kind}: {timings[kind][-1]:.1f} s", file=sys.stderr, flush=True)
+                busy[kind].append(busy_per_case(before, processor_times(), cases))
+                print(f"{kind}: {timings[kind][-1]:.1f} s; ms a case by processor: {busy[kind][-1]}",
+                      file=sys.stderr, flush=True)
     os.environ.pop("TUNNEL_CONTACT_CACHE", None)
     local, s3 = min(timings["local"]), min(timings["s3"])
     return {"cases": cases, "mesh": mesh, "workers": workers, "local_seconds": timings["local"],
-            "s3_seconds": timings["s3"], "local_cases_per_minute": 60 * cases / local,
+            "s3_seconds": timings["s3"], "busy_ms_per_case": busy, "local_cases_per_minute": 60 * cases / local,
             "s3_cases_per_minute": 60 * cases / s3, "ratio": local / s3}
 
 
