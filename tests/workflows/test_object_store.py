@@ -117,6 +117,38 @@ def test_an_upload_records_the_etag_a_head_reads(bucket, monkeypatch, tmp_path):
         assert copy.with_name(copy.name + ".b2").read_text() == f"digest{single_put}\n"
 
 
+def test_a_stored_case_costs_three_requests(bucket, monkeypatch, tmp_path):
+    """A case solved into a bucket is three requests to the store: its object (the checksum in its
+    metadata), one bulk removal of an older failure's record and cancel request, its index entry; no
+    checksum object, no delete before the solve, no HEAD after the upload (its answer carries the ETag).
+    Unless forced, one HEAD before: whether the case is stored already."""
+    import s3fs
+
+    writer = store_in(bucket, tmp_path / "worker", monkeypatch)
+    requests = []
+    call, sync_call = s3fs.S3FileSystem._call_s3, s3fs.S3FileSystem.call_s3
+
+    async def counted(self, method, *args, **kwargs):
+        requests.append(method)
+        return await call(self, method, *args, **kwargs)
+
+    def sync_counted(self, method, *args, **kwargs):
+        requests.append(method)
+        return sync_call(self, method, *args, **kwargs)
+
+    monkeypatch.setattr(s3fs.S3FileSystem, "_call_s3", counted)
+    monkeypatch.setattr(s3fs.S3FileSystem, "call_s3", sync_counted)
+    first, second = (CaseSpec.model_validate({**COARSE, "ground": {"young": 5e7 + 1e3 * (hash(bucket) % 1000 + k)}})
+                     for k in (0, 1000))
+    writer.run_and_store(first)  # the writer's first case also publishes the index's schema, once
+    requests.clear()
+    writer.run_and_store(second)
+    assert sorted(requests) == ["delete_objects", "head_object", "put_object", "put_object"], requests
+    requests.clear()
+    writer.run_and_store(second, force=True)  # solved again: not even a look for a stored one
+    assert sorted(requests) == ["delete_objects", "put_object", "put_object"], requests
+
+
 def test_a_cancel_request_older_than_the_solve_is_void_by_the_stores_clock(bucket, monkeypatch, tmp_path):
     """A solve in a bucket store does not delete its case's cancel request before it starts (a request
     a case); a request the store dates before the solve began (an earlier run's, which ended first) is
