@@ -174,8 +174,11 @@ class Remote:
             return None
         made = info.get("LastModified") or info.get("mtime") or info.get("created")
         if isinstance(made, datetime):
-            return (datetime.now(timezone.utc) - made).total_seconds()
-        return time.time() - float(made) if made is not None else 0.0
+            made = (made if made.tzinfo else made.replace(tzinfo=timezone.utc)).timestamp()
+        try:
+            return time.time() - float(made)
+        except (TypeError, ValueError):  # no time this file system tells: taken as new
+            return 0.0
 
     def fetch(self, path: Path, info: Optional[dict] = None) -> bool:
         """Make the cached ``path`` a copy of its object and its checksum (the object's metadata,

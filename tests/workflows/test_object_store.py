@@ -215,3 +215,14 @@ def test_a_damaged_cached_copy_is_fetched_again(bucket, monkeypatch, tmp_path):
     path.write_bytes(bytes(data))
     xr.testing.assert_identical(writer.open_case(case_id), good)
     assert path.read_bytes() != bytes(data)  # the copy replaced by the object's bytes
+
+
+def test_an_objects_age_on_a_file_system_without_s3s_clock(tmp_path):
+    """Off S3 (here fsspec's memory file system) an object's age is this machine's clock against the
+    object's time; none for a missing object."""
+    from workflows.object_store import Remote
+
+    remote = Remote(f"memory://age-{uuid.uuid4().hex[:8]}/store", tmp_path)
+    assert remote.age(tmp_path / "cancel" / "x") is None
+    remote.fs.pipe_file(remote.key(tmp_path / "cancel" / "x"), b"")
+    assert 0.0 <= remote.age(tmp_path / "cancel" / "x") < 5.0
