@@ -7,6 +7,10 @@ the dispatcher like any posted case, and the thread waits for them. The study's 
 JSON file in the results store (:mod:`workflows.reliability_methods.records`); on start-up every study
 still running is started again, replays its (seeded) points, finds their cases done, and goes
 on: a study killed midway ends with the answer it would have given.
+
+With several API replicas on one database a study is driven by the replica holding its lease
+(``reliability:<id>``), renewed at every look at its cases; the others take over the driving of a
+replica that died (:func:`service.replicas.adopt_orphans`), replaying the study as a restart does.
 """
 from __future__ import annotations
 
@@ -14,7 +18,6 @@ import asyncio
 import concurrent.futures
 import logging
 import time
-from pathlib import Path
 from typing import Annotated, Sequence
 
 from fastapi import APIRouter, Depends, Query, Request, Response
@@ -25,11 +28,12 @@ from pydantic import BaseModel
 from workflows.reliability_methods import ReliabilityRecord, ReliabilityStudy, all_records, read_record, run_study
 from workflows.reliability_methods.driver import finished, recorder
 from workflows.reliability_methods.records import new_record, write_record
-from workflows.result_store import estimated_result_bytes
+from workflows.result_store import as_store, estimated_result_bytes
 
 from .errors import responses
 from .guards import check_capacity, require_token
 from .params import Offset, not_found
+from .replicas import adopt_orphans
 from .schemas import CASE_ID_PATTERN
 from .views import render
 
@@ -46,12 +50,20 @@ class StudyStopped(RuntimeError):
     """The service stops while a study waits for its cases."""
 
 
+class LeaseLost(RuntimeError):
+    """Another replica drives the study now (this one's lease expired: it was too slow to renew it)."""
+
+
+def _lease(ident: str) -> str:
+    return f"reliability:{ident}"
+
+
 class JobRunner:
     """A study's runner (:data:`workflows.reliability_methods.limit_state.Runner`) over the service's
     job queue; called from the study's thread, it does its job-record work on the event loop."""
 
-    def __init__(self, jobs, loop: asyncio.AbstractEventLoop):
-        self.jobs, self.loop = jobs, loop
+    def __init__(self, jobs, loop: asyncio.AbstractEventLoop, lease: str):
+        self.jobs, self.loop, self.lease = jobs, loop, lease
         self.stopped = False
 
     def __call__(self, specs: Sequence) -> list[dict]:
@@ -83,6 +95,8 @@ class JobRunner:
             if counts["queued"] == 0 and counts["running"] == 0:
                 break
             await asyncio.sleep(POLL)
+            if not await asyncio.to_thread(jobs.store.take_lease, self.lease):
+                raise LeaseLost(f"the lease {self.lease} went to another replica")
         records = jobs.store.get_cases(ids)
         return [{"case_id": c, "status": r.status, "summary": r.summary, "error": r.error}
                 for c, r in records.items()]
@@ -93,28 +107,37 @@ class Studies:
 
     def __init__(self, jobs):
         self.jobs = jobs
-        self.root = Path(jobs.root)
+        self.root = as_store(jobs.root)  # the store itself: a bucket's records are its objects
         self.tasks: dict[str, asyncio.Task] = {}
         self.runners: dict[str, JobRunner] = {}
+        self.adopting: asyncio.Task | None = None
 
     def start(self, record: ReliabilityRecord) -> None:
-        if record.status == "running" and record.id not in self.tasks:
+        """Drive ``record`` here if it is running, not driven here yet and its lease is free."""
+        if record.status == "running" and record.id not in self.tasks and self.jobs.store.take_lease(_lease(record.id)):
+            logger.info("driving reliability study %s (%d of %d calls made)", record.id, record.calls, record.budget)
             self.tasks[record.id] = asyncio.get_running_loop().create_task(self._drive(record))
 
     def resume(self) -> None:
         for record in all_records(self.root):
             self.start(record)
+        if self.adopting is None:
+            self.adopting = asyncio.get_running_loop().create_task(
+                adopt_orphans(lambda: all_records(self.root), self.start, "reliability studies"))
 
     async def stop(self) -> None:
         for runner in self.runners.values():
             runner.stopped = True
-        for task in self.tasks.values():
+        tasks = [*self.tasks.values(), *([self.adopting] if self.adopting else [])]
+        for task in tasks:
             task.cancel()
-        await asyncio.gather(*self.tasks.values(), return_exceptions=True)
+        await asyncio.gather(*tasks, return_exceptions=True)
         self.tasks.clear()
+        self.adopting = None
 
     async def _drive(self, record: ReliabilityRecord) -> None:
-        runner = self.runners[record.id] = JobRunner(self.jobs, asyncio.get_running_loop())
+        lease = _lease(record.id)
+        runner = self.runners[record.id] = JobRunner(self.jobs, asyncio.get_running_loop(), lease)
         record = record.model_copy(update={"history": []})
         try:
             study = ReliabilityStudy.model_validate(record.study)
@@ -122,6 +145,8 @@ class Studies:
             await asyncio.to_thread(write_record, self.root, finished(record, result))
         except asyncio.CancelledError:  # the service stops; the thread ends with its next batch
             raise
+        except LeaseLost as exc:  # driven by another replica now: its record is that one's to write
+            logger.warning("reliability study %s: %s; driven there", record.id, exc)
         except Exception as exc:  # a study that cannot go on says why
             logger.exception("reliability study %s failed", record.id)
             await asyncio.to_thread(write_record, self.root, record.model_copy(update={
@@ -129,6 +154,10 @@ class Studies:
         finally:
             self.tasks.pop(record.id, None)
             self.runners.pop(record.id, None)
+            try:
+                self.jobs.store.release_lease(lease)
+            except Exception as exc:  # expires by itself
+                logger.warning("could not release the lease of reliability study %s (%s)", record.id, exc)
 
 
 def studies_of(request: Request) -> Studies:

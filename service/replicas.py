@@ -4,10 +4,12 @@ Each process is one row of ``replicas`` (a random id), its ``heartbeat_at`` rene
 :data:`HEARTBEAT` seconds by a thread of its own; one silent for ``ttl`` (default :data:`TTL`)
 counts as dead (:meth:`Replica.live` no longer lists it) and the others take over its open cases
 (:class:`service.shared_records.SharedJobStore`) and its leases: a lease row names the one
-replica that may run a driver (a search) until it expires.
+replica that may run a driver (a search, a reliability study) until it expires; the others look for
+drivers to take over every :data:`ADOPT_INTERVAL` seconds (:func:`adopt_orphans`).
 """
 from __future__ import annotations
 
+import asyncio
 import logging
 import threading
 import time
@@ -26,6 +28,21 @@ HEARTBEAT = 1.0
 TTL = 10.0
 #: Seconds after which the row of a replica long gone is deleted (by the next replica to start).
 FORGET_AFTER = 86400.0
+#: Seconds between looks for drivers (searches, reliability studies) whose replica has gone.
+ADOPT_INTERVAL = 5.0
+
+
+async def adopt_orphans(records, start, what: str, interval: float = ADOPT_INTERVAL) -> None:
+    """Every ``interval`` seconds, ``start`` each of ``records()`` (read in a thread): ``start`` drives a
+    running record here where its lease is free, so one whose driver's replica died (its lease expired)
+    is taken over. Errors are logged and the loop goes on."""
+    while True:
+        await asyncio.sleep(interval)
+        try:
+            for record in await asyncio.to_thread(records):
+                start(record)
+        except Exception as exc:
+            logger.warning("looking for %s to drive failed (%s: %s)", what, type(exc).__name__, exc)
 
 metadata = sa.MetaData()
 replicas = sa.Table("replicas", metadata, sa.Column("id", sa.Text, primary_key=True),

@@ -10,7 +10,7 @@ job records or stored, are not computed twice.
 
 With several API replicas on one database (:mod:`service.shared_records`) a search is driven by
 the replica holding its lease (``search:<id>``), renewed at every look at its trial; the others
-look for running searches whose lease has expired every few seconds (:meth:`Searches.adopt`)
+look for running searches whose lease has expired every few seconds (:func:`service.replicas.adopt_orphans`)
 and take over the driving of a replica that died.
 """
 from __future__ import annotations
@@ -35,6 +35,7 @@ from workflows.sweep import expand_sweep, sweep_size
 from .errors import invalid, responses
 from .guards import check_capacity, require_token
 from .params import Offset, SearchId, not_found, settings_of
+from .replicas import adopt_orphans
 from .schemas import FieldError
 from .sweeps import enqueue_sweep, requeue_cancelled
 
@@ -45,8 +46,6 @@ router = APIRouter(prefix="/searches", tags=["studies"])
 POLL = 0.25
 #: Trials past :func:`max_trials` (its rounding) after which a search is failed rather than go on.
 TRIAL_SLACK = 2
-#: Seconds between looks for searches whose driver (another replica) has gone.
-ADOPT_INTERVAL = 5.0
 
 
 class SearchRecord(BaseModel):
@@ -118,18 +117,7 @@ class Searches:
         for record in self.all():
             self.start(record)
         if self.adopting is None:
-            self.adopting = asyncio.get_running_loop().create_task(self.adopt())
-
-    async def adopt(self, interval: float = ADOPT_INTERVAL) -> None:
-        """Every ``interval`` s, take over the running searches whose driver has gone (their
-        lease expired: another replica died); errors are logged and the loop goes on."""
-        while True:
-            await asyncio.sleep(interval)
-            try:
-                for record in await asyncio.to_thread(self.all):
-                    self.start(record)
-            except Exception as exc:
-                logger.warning("looking for searches to drive failed (%s: %s)", type(exc).__name__, exc)
+            self.adopting = asyncio.get_running_loop().create_task(adopt_orphans(self.all, self.start, "searches"))
 
     async def stop(self) -> None:
         tasks = [*self.tasks.values(), *([self.adopting] if self.adopting else [])]

@@ -3,7 +3,8 @@ from ``initdb``, an S3-compatible server (moto), a ``dask scheduler`` with two `
 processes writing to the bucket directly, and two API replicas (``tunnel-contact serve``) on
 the one database and the one bucket, each with a cache folder of its own (as on two machines).
 
-A 60-case sweep goes to the first replica, which is SIGKILLed midway; the second finishes it.
+A 60-case sweep and a FORM reliability study go to the first replica, which is SIGKILLed midway; the
+second finishes the sweep and takes the study over (its lease expired) to the answer.
 """
 from __future__ import annotations
 
@@ -18,7 +19,9 @@ import pyarrow.parquet as pq
 import pytest
 import sqlalchemy as sa
 import xarray as xr
-from service_helpers import coarse_case, wait_until
+from service_helpers import STUDY_MESH, coarse_case, wait_until
+
+from bench.exact_limit_state import ExactLimitState
 
 from service.database import engine_url
 from service.process import api_command, free_port, running_cluster, start, stop, wait_healthy
@@ -29,6 +32,8 @@ CASES = 60
 SWEEP = {"name": "replicas", "base": coarse_case(), "mode": "grid",
          "vary": {"ground.young": [1.5e7 + 1e6 * i for i in range(CASES)]}}
 TTL = 3.0
+#: A FORM study whose exact reliability index is 2 (bench.exact_limit_state), its cases coarse.
+STUDY = {**ExactLimitState(mesh=STUDY_MESH).study(2.0, "form", 40, seed=4), "name": "replicas"}
 #: What two solves of one case need not share: their time and the round-off left in the KKT conditions.
 DIAGNOSTICS = {"solve_seconds", "kkt_residual"}
 
@@ -53,14 +58,27 @@ def test_a_replica_killed_midway_leaves_its_sweep_to_the_other(database_url, s3,
             posted = httpx.post(f"{a}/sweeps", json=SWEEP, timeout=60)
             assert posted.status_code == 202, posted.text
             sweep_id = posted.json()["id"]
+            # a study whose cases queue behind the sweep's: still running when the first replica dies
+            study = httpx.post(f"{a}/reliability", json=STUDY, timeout=60)
+            assert study.status_code == 202, study.text
+            study_id = study.json()["id"]
+            seen = httpx.get(f"{b}/reliability/{study_id}", timeout=30)  # its record is the bucket's
+            assert seen.status_code == 200 and seen.json()["status"] == "running", seen.text
             wait_until(lambda: counts(b, sweep_id)["done"] >= 8, timeout=180, interval=0.2,
                        what="some cases done")
             stop(first[0], sig=signal.SIGKILL)  # midway: the rest is the second replica's
             left = counts(b, sweep_id)
             assert left["queued"] + left["running"] > 0, f"the sweep finished before the kill: {left}"
+            orphan = httpx.get(f"{b}/reliability/{study_id}", timeout=30).json()  # only the second can end it now
+            assert orphan["status"] == "running", f"the study ended before the kill: {orphan}"
             wait_until(lambda: counts(b, sweep_id)["done"] == CASES, timeout=300, interval=0.5,
                        what="the second replica to finish the sweep")
-            check_done_exactly_once(s3_client, bucket, database_url, sweep_id)
+            done = wait_until(lambda: (lambda r: r if r["status"] != "running" else None)(
+                httpx.get(f"{b}/reliability/{study_id}", timeout=30).json()), timeout=300, interval=0.5,
+                what="the second replica to take the study over and finish it")
+            assert done["status"] == "done" and done["calls"] <= 40, done
+            assert done["beta"] == pytest.approx(2.0, abs=0.02), done
+            check_done_exactly_once(s3_client, bucket, database_url, sweep_id, done["case_ids"])
             check_combined_and_table(b, sweep_id, tmp_path)
             check_equal_to_a_local_run(b, tmp_path)
             check_a_damaged_object_is_not_served(b, s3_client, bucket)
@@ -90,21 +108,23 @@ def case_ids() -> list[str]:
     return [s.case_id for s in expand_sweep(Sweep.model_validate(SWEEP))]
 
 
-def check_done_exactly_once(s3_client, bucket: str, database_url: str, sweep_id: str) -> None:
-    """One object per case, written once (one version); one record per case, none twice."""
+def check_done_exactly_once(s3_client, bucket: str, database_url: str, sweep_id: str, study_cases) -> None:
+    """One object per case of the sweep and of the study, written once (one version); one record
+    per case, none twice."""
     versions: dict[str, int] = {}
     for page in s3_client.get_paginator("list_object_versions").paginate(Bucket=bucket, Prefix="results/cases/"):
         for v in page.get("Versions", []):
             versions[v["Key"]] = versions.get(v["Key"], 0) + 1
     results = {k.rsplit("/", 1)[1][:16]: n for k, n in versions.items() if k.endswith(".nc")}
-    assert sorted(results) == sorted(case_ids())
+    every = set(case_ids()) | set(study_cases)
+    assert sorted(results) == sorted(every)
     assert set(results.values()) == {1}, {c: n for c, n in results.items() if n != 1}
     engine = sa.create_engine(engine_url(database_url))
     with engine.connect() as db:
         rows = db.execute(sa.text("SELECT id, status, submissions FROM cases")).all()
         members = db.execute(sa.text("SELECT count(*) FROM sweep_cases WHERE sweep_id = :s"), {"s": sweep_id}).scalar()
     engine.dispose()
-    assert len(rows) == CASES and {r.status for r in rows} == {"done"} and members == CASES
+    assert len(rows) == len(every) and {r.status for r in rows} == {"done"} and members == CASES
 
 
 def opened(content: bytes, path):

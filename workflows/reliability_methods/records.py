@@ -53,24 +53,35 @@ def record_path(root: StoreLike, ident: str) -> Path:
 
 
 def read_record(root: StoreLike, ident: str) -> Optional[ReliabilityRecord]:
+    """The study's record (on object storage: its current object), None if there is none."""
+    path = record_path(root, ident)
     try:
-        return ReliabilityRecord.model_validate_json(record_path(root, ident).read_text())
+        if not as_store(root).fetched(path):
+            return None
+        return ReliabilityRecord.model_validate_json(path.read_text())
     except FileNotFoundError:
         return None
 
 
 def write_record(root: StoreLike, record: ReliabilityRecord) -> None:
-    """Write the record; a finished study's design case loses its cached report, which is
-    written again saying that the case is a design point."""
-    write_atomically(record_path(root, record.id), lambda tmp: tmp.write_text(record.model_dump_json(indent=1)))
+    """Write the record (on object storage: publish it, so every replica reads it); a finished study's
+    design case loses its cached report, which is written again saying that the case is a design point."""
+    path = record_path(root, record.id)
+    write_atomically(path, lambda tmp: tmp.write_text(record.model_dump_json(indent=1)))
+    as_store(root).publish(path)
     if record.status == "done" and record.design_case:
         (as_store(root).plot_dir(record.design_case) / "report.pdf").unlink(missing_ok=True)
 
 
 def all_records(root: StoreLike) -> list[ReliabilityRecord]:
-    """Every study of the store, newest first (an unreadable record is logged and skipped)."""
+    """Every study of the store, newest first (an unreadable record is logged and skipped; on object
+    storage the records' objects are synced first)."""
+    store = as_store(root)
+    folder = Path(store.root) / FOLDER
+    if store.url:
+        store.remote.sync_folder(folder)
     out = []
-    for p in sorted((Path(as_store(root).root) / FOLDER).glob("*.json")):
+    for p in sorted(folder.glob("*.json")):
         try:
             out.append(ReliabilityRecord.model_validate_json(p.read_text()))
         except (OSError, ValueError) as exc:
@@ -85,10 +96,10 @@ def new_record(study) -> ReliabilityRecord:
 
 def design_point_of(root: StoreLike, case_id: str) -> list[ReliabilityRecord]:
     """The finished reliability studies whose design point is the case ``case_id``."""
-    folder = Path(as_store(root).root) / FOLDER
-    if not folder.is_dir():
+    store = as_store(root)
+    if not store.url and not (Path(store.root) / FOLDER).is_dir():
         return []
-    return [r for r in all_records(root) if r.design_case == case_id and r.status == "done"]
+    return [r for r in all_records(store) if r.design_case == case_id and r.status == "done"]
 
 
 def design_point_notes(root: StoreLike, case_id: str) -> list[str]:
