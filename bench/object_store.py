@@ -65,7 +65,7 @@ def fill(store, n: int) -> float:
 
     def land(case):  # what a worker does once its file is written: the objects, the index entry
         case_id, copy = case
-        info = store.remote.publish(store.case_path(case_id))
+        info = store.remote.publish(store.case_path(case_id), checksum_in_metadata=True)
         store.index.add(copy, object_key(info) if info is not None else store.version(case_id))
 
     pool, landing = ThreadPoolExecutor(8), []  # as eight workers would, each writing its own cases

@@ -4,12 +4,12 @@ but a local path).
 The objects keep the layout of the local folder (:mod:`workflows.store_files`) under the URL's
 prefix. Each process works in a local cache folder of its own (:func:`cache_folder`): a file is
 written there as before (atomically, with its checksum), then *published*: uploaded as one
-object, its checksum in the object's metadata (``x-amz-meta-blake2b``, so one request; a ``.b2``
-object first where the store has no metadata or the file is larger than :data:`SINGLE_PUT`). S3
-shows an object only once its upload is complete, so no reader ever sees a part of one. A case
-file is read from the cache once its copy matches the object's current ETag and its bytes the
-object's checksum (:meth:`Remote.fetch`): a damaged object is never served. The workers write to
-the bucket directly; nothing needs a shared disk.
+object, its checksum as a ``.b2`` object first, or, for a case file, in the object's metadata
+(``x-amz-meta-blake2b``: one request; a ``.b2`` object where the store has no metadata or the file
+is larger than :data:`SINGLE_PUT`). S3 shows an object only once its upload is complete, so no
+reader ever sees a part of one. A case file is read from the cache once its copy matches the
+object's current ETag and its bytes the object's checksum (:meth:`Remote.fetch`): a damaged object
+is never served. The workers write to the bucket directly; nothing needs a shared disk.
 
 Endpoint and keys: the standard ``AWS_*`` variables (``AWS_ENDPOINT_URL`` for an S3-compatible
 server, ``AWS_ACCESS_KEY_ID``, ``AWS_SECRET_ACCESS_KEY``), or ``TUNNEL_CONTACT_STORAGE_OPTIONS``, a
@@ -111,35 +111,39 @@ class Remote:
 
     # -- objects -------------------------------------------------------------------------
 
-    def publish(self, path: Path, *, remember: bool = True) -> Optional[dict]:
-        """Upload the cached file ``path`` as its object, with its checksum if it has one (in the
-        object's metadata: one request; else as a checksum object first), recording the ETag the
-        copy now matches; the object's info (from the upload's answer: no HEAD, where the store is
-        S3). Without ``remember`` (a file its writer never reads back, such as a worker's index
-        entry) the copy is fetched again by whoever reads it."""
+    def publish(self, path: Path, *, remember: bool = True, checksum_in_metadata: bool = False) -> Optional[dict]:
+        """Upload the cached file ``path`` as its object, with its checksum if it has one, recording
+        the ETag the copy now matches; the object's info (from the upload's answer: no HEAD, where
+        the store is S3). The checksum goes as a checksum object first, which a reader syncing the
+        folder by a listing gets with the file (the index), or, with ``checksum_in_metadata``, in
+        the object's metadata (one request; read back by the HEAD of :meth:`fetch`: case files).
+        Without ``remember`` (a file its writer never reads back, such as a worker's index entry)
+        the copy is fetched again by whoever reads it."""
         checksum = path.with_name(path.name + ".b2")
         digest = checksum.read_text().strip() if checksum.is_file() else None
-        info = self._upload(path, digest)
+        info = self._upload(path, digest, checksum_in_metadata)
         if not remember:
             self._sidecar(path).unlink(missing_ok=True)
             return None
         self._remember(path, info)
         return info
 
-    def _upload(self, path: Path, digest: Optional[str] = None) -> Optional[dict]:
-        """One file as its object; its info (ETag, size). On S3 a file up to :data:`SINGLE_PUT`
-        is one PutObject carrying ``digest`` as metadata, whose answer carries the ETag; otherwise
-        the checksum object first, then fsspec's upload (multipart where large) and a HEAD."""
+    def _upload(self, path: Path, digest: Optional[str], in_metadata: bool) -> Optional[dict]:
+        """One file as its object, after its checksum object (a ``digest`` not ``in_metadata``); its
+        info (ETag, size). On S3 a file up to :data:`SINGLE_PUT` is one PutObject (carrying the digest
+        ``in_metadata``), whose answer carries the ETag; otherwise fsspec's upload (multipart where
+        large) and a HEAD, the checksum always an object."""
         key = self.key(path)
         size = path.stat().st_size
-        if hasattr(self.fs, "call_s3") and size <= SINGLE_PUT:
+        single = hasattr(self.fs, "call_s3") and size <= SINGLE_PUT
+        if digest and not (single and in_metadata):
+            self.fs.pipe_file(self.key(path.with_name(path.name + ".b2")), (digest + "\n").encode())
+        if single:
             bucket, _, name = key.partition("/")
-            metadata = {CHECKSUM_METADATA: digest} if digest else {}
+            metadata = {CHECKSUM_METADATA: digest} if digest and in_metadata else {}
             answer = self.fs.call_s3("put_object", Bucket=bucket, Key=name, Body=path.read_bytes(),
                                      Metadata=metadata)
             return {"ETag": answer.get("ETag"), "size": size, "Metadata": metadata}
-        if digest:
-            self.fs.pipe_file(self.key(path.with_name(path.name + ".b2")), (digest + "\n").encode())
         self.fs.put_file(str(path), key)
         return self.info(path)
 

@@ -195,7 +195,7 @@ class ResultStore(StoreFiles):
         write_atomically(target, write, checksum=True, durable=not self.url)
         key = file_key(target.stat())
         if self.url:  # the object, checksum first; its key is the object's version
-            key = object_key(self.remote.publish(target))
+            key = object_key(self.remote.publish(target, checksum_in_metadata=True))  # read by fetch's HEAD
             # an older failure's record and a cancel request, void now: one bulk request
             self.remote.remove(self.error_path(case_id), self.cancel_marker(case_id))
         self.error_path(case_id).unlink(missing_ok=True)
