@@ -90,13 +90,13 @@ class JobRunner:
             elif known.status in ("queued", "running"):
                 jobs.submit(case_id, spec_json)  # no-op when on its way; a lost task goes again
         ids = [c for c, _ in cases]
-        while True:
+        while True:  # the lease renewed at every look, so also through a replay of cases all done
+            if not await asyncio.to_thread(jobs.store.take_lease, self.lease):
+                raise LeaseLost(f"the lease {self.lease} went to another replica")
             counts = jobs.store.status_counts(ids)
             if counts["queued"] == 0 and counts["running"] == 0:
                 break
             await asyncio.sleep(POLL)
-            if not await asyncio.to_thread(jobs.store.take_lease, self.lease):
-                raise LeaseLost(f"the lease {self.lease} went to another replica")
         records = jobs.store.get_cases(ids)
         return [{"case_id": c, "status": r.status, "summary": r.summary, "error": r.error}
                 for c, r in records.items()]

@@ -44,6 +44,7 @@ async def adopt_orphans(records, start, what: str, interval: float = ADOPT_INTER
         except Exception as exc:
             logger.warning("looking for %s to drive failed (%s: %s)", what, type(exc).__name__, exc)
 
+
 metadata = sa.MetaData()
 replicas = sa.Table("replicas", metadata, sa.Column("id", sa.Text, primary_key=True),
                     sa.Column("started_at", sa.Float), sa.Column("heartbeat_at", sa.Float))

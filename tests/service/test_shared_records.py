@@ -171,3 +171,28 @@ def test_a_lease_is_held_by_one_replica_and_taken_over_when_it_expires(database_
     finally:
         first.close()
         second.close()
+
+
+def test_a_reliability_study_driven_elsewhere_stops_here(database_url):
+    """A replica whose study's lease went to another (it was too slow to renew it) stops driving
+    at its next look at the study's cases, and writes nothing (service.reliability.LeaseLost);
+    the holder goes on."""
+    import asyncio
+    from types import SimpleNamespace
+
+    from service.reliability import JobRunner, LeaseLost
+
+    first, second = SharedJobStore(database_url), SharedJobStore(database_url)
+    try:
+        assert first.take_lease("reliability:1", seconds=30.0)
+
+        async def look(store):
+            runner = JobRunner(SimpleNamespace(store=store), asyncio.get_running_loop(), "reliability:1")
+            return await runner._solve([])
+
+        with pytest.raises(LeaseLost, match="reliability:1"):
+            asyncio.run(look(second))
+        assert asyncio.run(look(first)) == []  # the holder renews it and reads its cases
+    finally:
+        first.close()
+        second.close()
