@@ -148,39 +148,35 @@ class Remote:
         return self.info(path)
 
     def info(self, path: Path) -> Optional[dict]:
-        """The object's size and ETag (one HEAD), None if there is none."""
+        """The object's size, ETag, time and metadata (one HEAD; on S3 also ``Date``, the store's
+        clock when it answered), None if there is none."""
         key = self.key(path)
         try:
             if hasattr(self.fs, "call_s3"):  # s3fs's info lists the prefix after a 404 (a folder?): a HEAD alone
                 bucket, _, name = key.partition("/")
                 head = self.fs.call_s3("head_object", Bucket=bucket, Key=name)
+                date = head.get("ResponseMetadata", {}).get("HTTPHeaders", {}).get("date")
                 return {"ETag": head.get("ETag"), "size": head.get("ContentLength"),
-                        "LastModified": head.get("LastModified"), "Metadata": head.get("Metadata") or {}}
+                        "LastModified": head.get("LastModified"), "Metadata": head.get("Metadata") or {},
+                        "Date": parsedate_to_datetime(date) if date else None}
             return self.fs.info(key)
         except FileNotFoundError:
             return None
 
     def age(self, path: Path) -> Optional[float]:
-        """Seconds since the object of ``path`` was written, by the store's own clock (on S3 the
-        HEAD answer's ``Date`` less the object's ``Last-Modified``, both the server's, so no
-        machine's clock is compared with another's; one-second resolution); None if there is no
-        object. Other file systems: this machine's clock against the object's time."""
-        key = self.key(path)
-        try:
-            if hasattr(self.fs, "call_s3"):
-                bucket, _, name = key.partition("/")
-                head = self.fs.call_s3("head_object", Bucket=bucket, Key=name)
-                now = head.get("ResponseMetadata", {}).get("HTTPHeaders", {}).get("date")
-                now = parsedate_to_datetime(now) if now else datetime.now(timezone.utc)
-                return (now - head["LastModified"]).total_seconds()
-            info = self.fs.info(key)
-        except FileNotFoundError:
+        """Seconds since the object of ``path`` was written (its :meth:`info`), None if there is
+        none: on S3 by the store's own clock (the answer's ``Date`` less the object's
+        ``Last-Modified``, both the server's, so no machine's clock is compared with another's;
+        one-second resolution), elsewhere this machine's clock against the object's time."""
+        info = self.info(path)
+        if info is None:
             return None
         made = info.get("LastModified") or info.get("mtime") or info.get("created")
         if isinstance(made, datetime):
             made = (made if made.tzinfo else made.replace(tzinfo=timezone.utc)).timestamp()
+        now = info.get("Date")
         try:
-            return time.time() - float(made)
+            return (now.timestamp() if now else time.time()) - float(made)
         except (TypeError, ValueError):  # no time this file system tells: taken as new
             return 0.0
 

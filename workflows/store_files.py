@@ -212,12 +212,13 @@ class StoreFiles(ObjectCopies):
         marker.touch()
 
     def cancel_requested(self, case_id: str, running_for: Optional[float] = None) -> bool:
-        """Whether the solve of ``case_id`` (running for ``running_for`` seconds) is asked to give it
-        up. In a bucket, a request older than the solve by :data:`STALE_CANCEL_SECONDS` (the store's
-        clock) was an earlier run's, and is voided here rather than by a request a case at the start."""
+        """Whether the solve of ``case_id`` (running ``running_for`` s) is to give up; in a bucket a request
+        older than it by :data:`STALE_CANCEL_SECONDS` (the store's clock) was an earlier run's: voided."""
         marker = self.cancel_marker(case_id)
-        age = self.remote.age(marker) if self.url else (0.0 if marker.exists() else None)
-        if self.url and age is not None and running_for is not None and age > running_for + STALE_CANCEL_SECONDS:
+        if not self.url:
+            return marker.exists()
+        age = self.remote.age(marker)
+        if age is not None and running_for is not None and age > running_for + STALE_CANCEL_SECONDS:
             self.remote.remove(marker)
             return False
         return age is not None
