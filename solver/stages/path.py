@@ -75,6 +75,8 @@ def fixed_point(G, x0: np.ndarray, K, atol: float, patience: int | None = STAGNA
     ψ 0 case 430 → 215, issue 25's weak ground 940 → 709; docs/performance.md). Without ``load``
     (stage 2, a contact solve in every ``G``) the mix keeps the displacement changes: its forces
     measured no better there."""
+    if limit < 1:
+        raise Stalled(float("inf"), atol, 0)
     acc = Anderson(DEPTH)
     x, force = x0, float("inf")
     mark, since = float("inf"), 0

@@ -56,7 +56,8 @@ from ..spec.case import PLASTIC_SOLVER_FIELDS
 from .contact import contact_tractions
 from .loads import stage_loads
 from . import path
-from .path import advance, fixed_point
+from .path import Stalled, advance, fixed_point
+from .region import GivenUp, Zone
 from .recovery import finish
 from .state import Forward, StageLoads
 
@@ -281,11 +282,23 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "
 
         atol = tol * ld / steps * float(np.linalg.norm(release))  # of the increment's load (SPEC §9.1)
 
+        zones = []  # the zone the ground yields in (built at the first plastic step)
+
         def solve1(guess, limit, patience, frac=None, arc=None):
             """Equilibrium at the load ``frac`` (load control) or, with ``arc`` = (x_s, n, ds), on the
             plane ``n·(x - x_s) = ds`` at the load that plane asks of each iterate (arc-length: the
             load is affine in it, ``G(x) = K⁺p(x) + λ(x) u_r``). Returns the :func:`~solver.stages.path.fixed_point`
-            answer and its load."""
+            answer and its load: on the yielding zone (:mod:`solver.stages.region`) while it is small, else
+            on the whole ground."""
+            used = 0
+            if not zones and not ground.pinned:  # where the ground yields at λd on the elastic ground
+                zones.append(Zone(model, gauss, u_r, gauss.trial(gauss.gradient(ld * u_r))[2].any(axis=1)))
+            zone = zones[0] if zones else None
+            if zone is not None and zone.active:
+                try:
+                    return zone.solve(_plastic_load, rows, guess, limit, patience, atol, frac, arc)
+                except GivenUp as up:
+                    guess, used = up.guess, up.used
             box = {}
 
             def G(x):
@@ -301,7 +314,11 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "
 
             # the load G solves for: K K⁺ f = f where no DOF is pinned (the ground's boundary holds it)
             load = None if ground.pinned else (lambda p: box["lam"] * release + p)
-            return fixed_point(G, guess, K, atol, patience, limit, load) + (box["lam"],)
+            try:
+                x, p, state, count = fixed_point(G, guess, K, atol, patience, limit - used, load)
+            except Stalled as stall:
+                raise Stalled(stall.force, stall.atol, stall.iterations + used) from None
+            return x, p, state, count + used, box["lam"]
 
         lam, lam_prev, h = ld * elastic / steps, ld * (elastic - 1) / steps, ld / steps
         for k in range(elastic + 1, steps + 1):

@@ -10,6 +10,7 @@ import pytest
 
 import solver.stages.path as path
 import solver.stages.plastic as plastic
+import solver.stages.region as region
 from solver import CaseSpec
 from solver.analytic import salencon
 from solver.errors import NotConvergedError
@@ -274,6 +275,7 @@ def _stop_tests(monkeypatch) -> list[float]:
         return real(G, x0, K, atol, *args, **kwargs)
 
     monkeypatch.setattr(plastic, "fixed_point", spy)
+    monkeypatch.setattr(region, "fixed_point", spy)  # stage 1 on the yielding zone
     return asked
 
 

@@ -1,0 +1,126 @@
+"""A body's stiffness condensed onto a region of its unknowns: the exact Schur complement's factor.
+
+Where a load is non-zero only on the unknowns ``p`` of a region (the yielding ground's plastic load:
+:mod:`solver.stages.region`), the displacement there is ``(K⁻¹ f)_p = S⁻¹ f_p`` with the Schur complement
+``S = K_pp - K_pe K_ee⁻¹ K_ep`` of the rest ``e``: the rest of the body, elastic, is eliminated exactly.
+With the region ordered last in a Cholesky factorization ``P K Pᵀ = L Lᵀ`` (the rest first, each part by
+nested dissection), the factor's trailing block ``L_pp`` is ``S``'s own factor (``K_pp = L_pe L_peᵀ +
+L_pp L_ppᵀ``). A solve on the region runs CHOLMOD's supernodal triangular solves over the trailing
+supernodes alone (:class:`Tail`: a factor struct over them, sharing the factor's memory): it sweeps a
+fraction of the body's factor where the region is a fraction of the body.
+"""
+from __future__ import annotations
+
+import ctypes
+
+import numpy as np
+import scipy.sparse as sp
+
+from .linalg import (_DOUBLE, _REAL, Cholesky, _common, _Dense, _dense_p, _factor_p, _failure, _Factor, _int,
+                     _lib, _view)
+
+for _name in ("cholmod_l_super_lsolve", "cholmod_l_super_ltsolve"):
+    getattr(_lib, _name).restype = _int
+    getattr(_lib, _name).argtypes = [_factor_p, _dense_p, _dense_p, ctypes.c_void_p]
+
+
+class Tail:
+    """The trailing columns ``c0:`` of a supernodal factor ``L`` (``c0`` the first column of the supernode
+    holding column ``start``) as a factor of their own: CHOLMOD's supernodal forward and backward solves
+    over those supernodes only. Below a trailing column there are only trailing rows, so ``L[c0:, c0:]`` is
+    a Cholesky factor in itself (of the Schur complement of the leading columns).
+
+    The struct's integer arrays are shifted copies; its values are the factor's own (``chol`` is kept
+    alive with it)."""
+
+    def __init__(self, chol: Cholesky, start: int):
+        self.chol = chol
+        f = chol._struct
+        ns, sup, pi, px, rows_of, x = chol._supernodes()
+        s0 = int(np.searchsorted(sup, start, side="right")) - 1
+        self.c0, self.start, n = int(sup[s0]), start, chol.n
+        self._arrays = [np.ascontiguousarray(a, dtype=np.int64) for a in (
+            sup[s0:] - self.c0, pi[s0:] - pi[s0], px[s0:] - px[s0], rows_of[pi[s0]:] - self.c0)]
+        view = _Factor()
+        ctypes.pointer(view)[0] = f  # a copy of the struct, then its supernodes moved
+        view.n = n - self.c0
+        view.nsuper = ns - s0
+        view.ssize = int(rows_of.size - pi[s0])
+        view.xsize = int(x.size - px[s0])
+        view.super, view.pi, view.px, view.s = (a.ctypes.data for a in self._arrays)
+        view.x = f.x + 8 * int(px[s0])
+        view.Perm = view.ColCount = view.IPerm = None
+        self._view = view
+        self.k = n - start
+        self._E = np.zeros(max(int(f.maxesize), 1))
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """``(L_pp L_ppᵀ)⁻¹ b`` for ``b`` (k,) on the trailing positions ``start:`` in factor order."""
+        m = self._view.n
+        X = np.zeros(m)
+        X[self.start - self.c0:] = b
+        xd = _Dense(m, 1, m, m, X.ctypes.data, None, _REAL, _DOUBLE)
+        ed = _Dense(self._E.size, 1, self._E.size, self._E.size, self._E.ctypes.data, None, _REAL, _DOUBLE)
+        c = _common()
+        for routine in (_lib.cholmod_l_super_lsolve, _lib.cholmod_l_super_ltsolve):
+            if not routine(ctypes.byref(self._view), ctypes.byref(xd), ctypes.byref(ed), ctypes.byref(c)):
+                raise _failure(c, "region solve")
+        return X[self.start - self.c0:]
+
+
+def trailing_factor(chol: Cholesky, start: int) -> sp.csc_matrix:
+    """The columns ``start:`` of a supernodal factor ``L`` (rows ``start:`` too) as a sparse
+    lower-triangular (k, k) matrix in factor order: for products with the Schur complement."""
+    ns, sup, pi, px, rows_of, x = chol._supernodes()
+    rows, cols, vals = [], [], []
+    for s in np.flatnonzero(sup[1:] > start):
+        c0, c1 = int(sup[s]), int(sup[s + 1])
+        nr, nc = int(pi[s + 1] - pi[s]), c1 - c0
+        block = x[px[s]: px[s] + nr * nc].reshape(nc, nr).T  # column-major (nr, nc)
+        r = rows_of[pi[s]: pi[s + 1]]
+        j0 = max(start - c0, 0)
+        rr, jj = np.nonzero(np.arange(nr)[:, None] >= np.arange(j0, nc)[None, :])
+        rows.append(r[rr] - start)
+        cols.append(c0 + j0 + jj - start)
+        vals.append(block[:, j0:][rr, jj])
+    k = chol.n - start
+    return sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(k, k))
+
+
+class RegionSchur:
+    """``K`` (n, n) SPD condensed onto its unknowns ``inside`` (a boolean (n,) mask, not empty), with
+    ``order`` a fill-reducing ordering of all unknowns (:func:`~solver.fe.linalg.nested_dissection`):
+    :meth:`solve` with the Schur complement ``S`` on them and :meth:`product` by it.
+
+    Attributes: ``dofs`` the region's unknowns (ascending), ``entries`` of ``S``'s factor."""
+
+    def __init__(self, K: sp.spmatrix, order: np.ndarray, inside: np.ndarray):
+        inside = np.asarray(inside, bool)
+        n = K.shape[0]
+        order = np.asarray(order)
+        perm = np.concatenate([order[~inside[order]], order[inside[order]]])
+        start = n - int(inside.sum())
+        chol = Cholesky(K, perm, postorder=False)
+        if not np.array_equal(chol.perm, perm):
+            raise RuntimeError("CHOLMOD did not keep the region's unknowns last")
+        self._tail = Tail(chol, start)
+        self._L = trailing_factor(chol, start)
+        self._LT = self._L.T.tocsr()
+        self.entries = self._L.nnz
+        self.dofs = np.flatnonzero(inside)
+        #: the position in ``dofs`` of each trailing factor position's unknown
+        self._at = np.searchsorted(self.dofs, perm[start:])
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """``S⁻¹ b`` for ``b`` on the region's unknowns (``dofs``' order)."""
+        x = self._tail.solve(b[self._at])
+        out = np.empty_like(x)
+        out[self._at] = x
+        return out
+
+    def product(self, x: np.ndarray) -> np.ndarray:
+        """``S x`` for ``x`` on the region's unknowns."""
+        y = self._L @ (self._LT @ x[self._at])
+        out = np.empty_like(y)
+        out[self._at] = y
+        return out

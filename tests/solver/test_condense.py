@@ -1,0 +1,117 @@
+"""A stiffness condensed onto a region of its unknowns (solver.fe.condense) against dense linear algebra,
+and stage 1 on the yielding zone (solver.stages.region) against the whole ground's iteration."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import solver.stages.region as region
+from solver import CaseSpec, run_case
+from solver.fe.condense import RegionSchur
+
+
+
+def laplacian_2d(n: int) -> sp.csr_matrix:
+    T = sp.diags([-1, 2.1, -1], [-1, 0, 1], shape=(n, n))
+    return (sp.kron(sp.eye(n), T) + sp.kron(T, sp.eye(n))).tocsr()
+
+
+@pytest.mark.parametrize("size, seed", [(14, 0), (20, 1), (9, 2)])
+def test_the_region_solve_is_the_schur_complements(size, seed):
+    """``S⁻¹ b`` is ``(K⁻¹ b)_p`` for a load on the region alone, and ``S x`` the Schur complement's
+    product, for regions scattered through the ordering (so that supernodes straddle the region's first
+    column) and a random ordering of the rest."""
+    K = laplacian_2d(size)
+    n = K.shape[0]
+    rng = np.random.default_rng(seed)
+    inside = np.zeros(n, bool)
+    inside[rng.choice(n, n // 3, replace=False)] = True
+    schur = RegionSchur(K, rng.permutation(n), inside)
+    assert np.array_equal(schur.dofs, np.flatnonzero(inside))
+    A = K.toarray()
+    p, e = inside, ~inside
+    S = A[np.ix_(p, p)] - A[np.ix_(p, e)] @ np.linalg.solve(A[np.ix_(e, e)], A[np.ix_(e, p)])
+    b = rng.standard_normal(p.sum())
+    full = np.zeros(n)
+    full[p] = b
+    np.testing.assert_allclose(schur.solve(b), np.linalg.solve(A, full)[p], rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(schur.product(b), S @ b, rtol=1e-10, atol=1e-12)
+
+
+def test_a_region_of_one_block_and_of_everything():
+    """The region as the trailing block of the ordering, and the whole matrix."""
+    K = laplacian_2d(8)
+    n = K.shape[0]
+    A = K.toarray()
+    b = np.random.default_rng(3).standard_normal(n)
+    whole = RegionSchur(K, np.arange(n), np.ones(n, bool))
+    np.testing.assert_allclose(whole.solve(b), np.linalg.solve(A, b), rtol=1e-10)
+    np.testing.assert_allclose(whole.product(b), A @ b, rtol=1e-12)
+    tail = np.zeros(n, bool)
+    tail[-10:] = True
+    part = RegionSchur(sp.csr_matrix(A), np.arange(n), tail)
+    full = np.zeros(n)
+    full[tail] = b[:10]
+    np.testing.assert_allclose(part.solve(b[:10]), np.linalg.solve(A, full)[tail], rtol=1e-10)
+
+
+COARSE = {"interface_size": 0.15, "far_size": 6.0}
+#: issue 36's default Mohr–Coulomb ground; the weak sample's case 1 (split and arc-length steps)
+CASES = {
+    "mohr-coulomb": {"mesh": COARSE, "ground": {"model": "mohr-coulomb", "cohesion": 1.0e4, "friction_angle": 28.0,
+                                                "dilatancy": 0.0}},
+    "hoek-brown": {"mesh": COARSE, "ground": {"model": "hoek-brown", "young": 5.0e8, "ucs": 1.0e6, "gsi": 30.0,
+                                              "mi": 8.0, "dilatancy": 5.0}},
+    "stiffer": {"mesh": COARSE, "ground": {"model": "mohr-coulomb", "young": 3.0e8, "cohesion": 1.0e4,
+                                           "friction_angle": 28.0, "dilatancy": 0.0}},
+}
+
+
+def _solved(case: dict, monkeypatch, **settings):
+    for name, value in settings.items():
+        monkeypatch.setattr(region, name, value)
+    grown = []
+    real = region.Zone._grow
+
+    def spy(self, elements, layers=region.LAYERS):
+        real(self, elements, layers)
+        grown.append((int(self.elements.sum()), self.given_up))
+
+    monkeypatch.setattr(region.Zone, "_grow", spy)
+    ds = run_case(CaseSpec.model_validate(case))
+    monkeypatch.undo()
+    return ds, grown
+
+
+def _close(a, b, area_rtol: float):
+    for name in ("crown_settlement", "max_thrust", "max_moment", "ground_loss", "wall_convergence"):
+        if name in a:
+            assert float(b[name]) == pytest.approx(float(a[name]), rel=2e-3, abs=1e-9), name
+    for name in ("plastic_area", "stage1_plastic_area"):
+        assert float(b[name]) == pytest.approx(float(a[name]), rel=area_rtol, abs=0.02), name
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_stage_one_on_the_zone_is_the_whole_grounds(name, monkeypatch):
+    """The zone's answer is the whole ground's within the stop test: the displacements and forces to
+    0.2 %, the yielded areas (points within the stop test's reach of the surface) to 5 %, the zone a part of
+    the ground throughout; and started from a zone of a few elements, it grows
+    where the ground yields outside it (the check on the whole ground) to the same answer."""
+    whole, grown = _solved(CASES[name], monkeypatch, MOST=0.0)
+    assert grown and all(given_up for _, given_up in grown)
+    zone, grown = _solved(CASES[name], monkeypatch)
+    assert grown and not any(given_up for _, given_up in grown)
+    _close(whole, zone, 0.05)
+
+    real = region.Zone.__init__
+
+    def tiny(self, model, gauss, u_r, elements):
+        few = np.zeros_like(elements)
+        few[np.flatnonzero(elements)[:3]] = True
+        real(self, model, gauss, u_r, few)
+
+    monkeypatch.setattr(region.Zone, "__init__", tiny)
+    small, grown = _solved(CASES[name], monkeypatch, LAYERS=0, GROWTH=1)
+    assert len(grown) >= 3  # it grew as the ground yielded outside it
+    _close(whole, small, 0.05)
