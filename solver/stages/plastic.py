@@ -56,7 +56,8 @@ from ..spec.case import PLASTIC_SOLVER_FIELDS
 from .contact import contact_tractions
 from .loads import stage_loads
 from . import path
-from .path import Stalled, advance, fixed_point
+from .path import advance, fixed_point
+from . import region
 from .region import GivenUp, Zone
 from .recovery import finish
 from .state import Forward, StageLoads
@@ -290,35 +291,30 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "
             load is affine in it, ``G(x) = K⁺p(x) + λ(x) u_r``). Returns the :func:`~solver.stages.path.fixed_point`
             answer and its load: on the yielding zone (:mod:`solver.stages.region`) while it is small, else
             on the whole ground."""
-            used = 0
             if not zones and not ground.pinned:  # where the ground yields at λd on the elastic ground
                 zones.append(Zone(model, gauss, u_r, gauss.trial(gauss.gradient(ld * u_r))[2].any(axis=1)))
-            zone = zones[0] if zones else None
-            if zone is not None and zone.active:
-                try:
-                    return zone.solve(_plastic_load, rows, guess, limit, patience, atol, frac, arc)
-                except GivenUp as up:
-                    guess, used = up.guess, up.used
-            box = {}
+            setup, box = region.release_step(zones[0], _plastic_load, rows, frac, arc) if zones else (None, {})
 
-            def G(x):
-                state = gauss.state(x)
-                p = _plastic_load(gauss, state[-1])
-                g0 = ground.backward(ground.forward(p, rows), rows)
-                if arc is None:
-                    box["lam"] = frac
-                else:
-                    x_s, n, ds = arc
-                    box["lam"] = (ds - n @ (g0 - x_s)) / (n @ u_r)
-                return g0 + box["lam"] * u_r, p, state
+            def on_zone():
+                return zones[0].iterate(_plastic_load, rows, setup, guess, limit, patience, atol) + (box["lam"],)
 
-            # the load G solves for: K K⁺ f = f where no DOF is pinned (the ground's boundary holds it)
-            load = None if ground.pinned else (lambda p: box["lam"] * release + p)
-            try:
-                x, p, state, count = fixed_point(G, guess, K, atol, patience, limit - used, load)
-            except Stalled as stall:
-                raise Stalled(stall.force, stall.atol, stall.iterations + used) from None
-            return x, p, state, count + used, box["lam"]
+            def on_whole(guess, limit):
+                def G(x):
+                    state = gauss.state(x)
+                    p = _plastic_load(gauss, state[-1])
+                    g0 = ground.backward(ground.forward(p, rows), rows)
+                    if arc is None:
+                        box["lam"] = frac
+                    else:
+                        x_s, n, ds = arc
+                        box["lam"] = (ds - n @ (g0 - x_s)) / (n @ u_r)
+                    return g0 + box["lam"] * u_r, p, state
+
+                # the load G solves for: K K⁺ f = f where no DOF is pinned (the ground's boundary holds it)
+                load = None if ground.pinned else (lambda p: box["lam"] * release + p)
+                return fixed_point(G, guess, K, atol, patience, limit, load) + (box["lam"],)
+
+            return region.attempt(zones[0] if zones else None, on_zone, on_whole, guess, limit)
 
         lam, lam_prev, h = ld * elastic / steps, ld * (elastic - 1) / steps, ld / steps
         for k in range(elastic + 1, steps + 1):
@@ -436,16 +432,24 @@ def _staged(model, spec, rows, t0: float, tol: float):
     first = ld * float(np.linalg.norm(loads.release)) if loads.release is not None else 0.0
     atol = tol * max(own, first) / steps
 
+    zones = []  # the points whose stresses are returned (:meth:`solver.stages.region.Zone.watch`)
+
     def solve2(guess, limit, patience, frac):
 
-        def G(x):
-            state = gauss.state(u1 + x)
-            p = _plastic_load(gauss, state[-1])
-            _, stage, d = stage_of(p, frac)
-            _, t = contact_tractions(model, spec, d, frac * F2_full)
-            return ground.backward(stage.ground, rows, model.w * t), p, state
+        def make_G(points, dofs):
+            def G(x):
+                state = points.state((u1 + x)[dofs])
+                p = np.zeros(body.n)
+                p[dofs] = _plastic_load(points, state[-1])
+                _, stage, d = stage_of(p, frac)
+                _, t = contact_tractions(model, spec, d, frac * F2_full)
+                return ground.backward(stage.ground, rows, model.w * t), p, state
+            return G
 
-        return fixed_point(G, guess, K, atol, patience, limit) + (frac,)
+        if not zones:
+            zones.append(Zone(model, gauss, None, gauss.at_yield.any(axis=1) | (gauss.eqps > 0).any(axis=1),
+                              condensed=False))
+        return zones[0].watch(_plastic_load, make_G, guess, K, limit, patience, atol, u1) + (frac,)
 
     a, a_prev, h, used = 0.0, -1.0 / steps, 1.0 / steps, 0
     for k in range(1, steps + 1):

@@ -68,12 +68,13 @@ class Zone:
     whole ground's, ``gauss``: :class:`~solver.stages.plastic._Points`) and the ground condensed onto its
     unknowns. ``u_r`` is the ground's displacement under the whole excavation load."""
 
-    def __init__(self, model, gauss, u_r: np.ndarray, elements: np.ndarray):
+    def __init__(self, model, gauss, u_r: np.ndarray | None, elements: np.ndarray, layers: int = GROWTH * LAYERS,
+                 condensed: bool = True):
         self.model, self.gauss, self.u_r = model, gauss, u_r
-        self.ground = model.ground
+        self.ground, self.condensed = model.ground, condensed
         self.elements = np.zeros(gauss.shape[0], bool)
         self.given_up = False
-        self._grow(elements, GROWTH * LAYERS)
+        self._grow(elements, layers)
 
     @property
     def active(self) -> bool:
@@ -81,19 +82,31 @@ class Zone:
 
     def _grow(self, elements: np.ndarray, layers: int = LAYERS) -> None:
         """Cover ``elements`` too (and ``layers`` rings around them)."""
-        self.elements = self.elements | dilate(self.model, elements, layers)
-        want = self.elements
+        self.elements = want = self.elements | dilate(self.model, elements, layers)
         gauss = self.gauss
         E, Q = gauss.shape
         at = np.flatnonzero(want)
         points = (at[:, None] * Q + np.arange(Q)).ravel()
         rows = (np.arange(4)[:, None] * (E * Q) + points[None, :]).ravel()
         G = gauss.G[rows].tocsr()
-        dofs = np.unique(G.indices)
+        self.dofs = dofs = np.unique(G.indices)
         n = gauss.G.shape[1]
-        if dofs.size == 0 or dofs.size > MOST * n:
-            self.given_up = True
-            return
+        if self.condensed:
+            if dofs.size == 0 or dofs.size > MOST * n:
+                self.given_up = True
+                return
+            self._condense(dofs)
+        local = np.full(n, -1, np.int64)
+        local[dofs] = np.arange(dofs.size)
+        G = sp.csr_matrix((G.data, local[G.indices], G.indptr), shape=(G.shape[0], dofs.size))
+        self._at, self._G = at, G
+        rank = np.cumsum(gauss.yielding) - 1
+        self._yielding = gauss.yielding[points]
+        self._material = gauss.material.at(rank[points][self._yielding])
+
+    def _condense(self, dofs: np.ndarray) -> None:
+        """The ground condensed onto ``dofs`` (kept on the model: :data:`KEPT` zones)."""
+        n = self.gauss.G.shape[1]
         cache = self.model.built(("yielding zones",), OrderedDict)
         key = dofs.tobytes()
         schur = cache.get(key)
@@ -108,15 +121,6 @@ class Zone:
                 cache.popitem(last=False)
         self.schur = schur
         self.scale = float(getattr(self.ground, "scale", 1.0))
-        local = np.full(n, -1, np.int64)
-        local[dofs] = np.arange(dofs.size)
-        G = sp.csr_matrix((G.data, local[G.indices], G.indptr), shape=(G.shape[0], dofs.size))
-        self._at, self._G = at, G
-        self._u_r = self.u_r[dofs]
-        self._g_r = self.scale * schur.product(self._u_r)  # the excavation load condensed onto the zone
-        rank = np.cumsum(gauss.yielding) - 1
-        self._yielding = gauss.yielding[points]
-        self._material = gauss.material.at(rank[points][self._yielding])
 
     def points(self):
         """The zone's points as :class:`~solver.stages.plastic._Points` (their history as committed)."""
@@ -131,55 +135,110 @@ class Zone:
         sub.yielded = (np.zeros(at.size, bool), None, None)
         return sub
 
-    def solve(self, plastic_load, rows, guess, limit: int, patience, atol: float, frac=None, arc=None):
-        """:func:`~solver.stages.path.fixed_point` on the zone (stage 1's ``solve1``): the whole ground's
-        displacement, plastic load and state at the answer, the iterations and the load. Before it, the zone
-        grows to cover the points at yield as committed; after it, where a point outside the zone has
-        reached yield, it grows and the iteration goes on."""
-        g = self.gauss
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """``K⁻¹ b`` on the zone's unknowns for a load ``b`` on them alone."""
+        return self.schur.solve(b) / self.scale
+
+    def iterate(self, plastic_load, rows, setup, guess: np.ndarray, limit: int, patience, atol: float,
+                offset: np.ndarray | None = None):
+        """:func:`~solver.stages.path.fixed_point` on the zone: ``setup(points, dofs)`` gives its ``G`` and
+        ``load`` on the zone's unknowns and ``base()``, the whole ground's displacement the zone's answer differs
+        from by ``K⁻¹`` of a load on the zone (read after the iteration). Returns the whole ground's
+        displacement, plastic load and state (at ``offset +`` it) at the answer, and the iterations. Before it,
+        the zone grows to cover the points at yield as committed; after it, where a point outside the zone has
+        reached yield, it grows and the iteration goes on from there."""
+        g, ground = self.gauss, self.ground
         yielded = g.at_yield.any(axis=1) | (g.eqps > 0).any(axis=1)
         if self.active and (dilate(self.model, yielded) & ~self.elements).any():
             self._grow(yielded, GROWTH * LAYERS)  # grown by more than needed: each growth refactorizes
         used = 0
-        ground = self.ground
-        if arc is not None:
-            x_s, normal, ds = arc
-            w = ground.backward(ground.forward(normal, rows), rows)  # K⁻¹ n: n·K⁻¹p = (K⁻¹n)·p
-            along, start = float(normal @ self.u_r), float(normal @ x_s)
         while self.active:
             if used >= limit:
                 raise Stalled(float("inf"), atol, used)
-            sub, d = self.points(), self.schur.dofs
-            wp = w[d] if arc is not None else None
-            box = {}
-
-            def G(x):
-                state = sub.state(x)
-                p = plastic_load(sub, state[-1])
-                g0 = self.schur.solve(p) / self.scale
-                box["lam"] = frac if arc is None else (ds + start - wp @ p) / along
-                return g0 + box["lam"] * self._u_r, p, state
-
-            def load(p):
-                return box["lam"] * self._g_r + p
-
+            sub, d = self.points(), self.dofs
+            G, load, base = setup(sub, d)
             try:
-                x, p, _, count = fixed_point(G, guess[d], _Product(self.schur, self.scale), atol, patience,
+                x, _, _, count = fixed_point(G, guess[d], _Product(self.schur, self.scale), atol, patience,
                                              limit - used, load)
             except Stalled as stall:
                 raise Stalled(stall.force, stall.atol, stall.iterations + used) from None
             used += count
-            lam = box["lam"]
-            p_full = np.zeros(g.G.shape[1])
-            p_full[d] = p
-            x_full = ground.backward(ground.forward(p_full, rows), rows) + lam * self.u_r
-            state = g.state(x_full)
+            b = base()
+            q = np.zeros(b.size)
+            q[d] = self.scale * self.schur.product(x - b[d])
+            x_full = b + ground.backward(ground.forward(q, rows), rows)  # the answer on the whole ground
+            state = g.state(x_full if offset is None else offset + x_full)
             flags = state[4].any(axis=1)
             if not (flags & ~self.elements).any():
-                return x_full, plastic_load(g, state[-1]), state, used, lam
+                return x_full, plastic_load(g, state[-1]), state, used
             self._grow(flags | yielded, GROWTH * LAYERS)
             guess = x_full
         raise GivenUp(guess, used)
+
+
+    def watch(self, plastic_load, make_G, guess: np.ndarray, K, limit: int, patience, atol: float,
+              offset: np.ndarray):
+        """:func:`~solver.stages.path.fixed_point` on the whole ground with the stresses returned at the zone's
+        points alone (``make_G(points, dofs)`` gives its ``G``): the ground outside, elastic, adds nothing
+        to the plastic load. Checked at the answer (its state at ``offset +`` it) as in :meth:`iterate`."""
+        g = self.gauss
+        yielded = g.at_yield.any(axis=1) | (g.eqps > 0).any(axis=1)
+        if (dilate(self.model, yielded) & ~self.elements).any():
+            self._grow(yielded, GROWTH * LAYERS)
+        used = 0
+        while True:
+            try:
+                x, _, _, count = fixed_point(make_G(self.points(), self.dofs), guess, K, atol, patience, limit - used)
+            except Stalled as stall:
+                raise Stalled(stall.force, stall.atol, stall.iterations + used) from None
+            used += count
+            state = g.state(offset + x)
+            flags = state[4].any(axis=1)
+            if not (flags & ~self.elements).any():
+                return x, plastic_load(g, state[-1]), state, used
+            self._grow(flags | yielded, GROWTH * LAYERS)
+            guess = x
+
+
+def release_step(zone: Zone, plastic_load, rows, frac=None, arc=None):
+    """Stage 1's ``setup`` for :meth:`Zone.iterate` (the plastic load and the excavation load's share ``λ``:
+    ``G(x) = K⁻¹p + λ u_r``, at the load ``frac`` or on the arc's plane ``n·(x - x_s) = ds``, whose ``λ`` is
+    affine in ``p``: ``n·K⁻¹p = (K⁻¹n)·p``) and the load it reached (``box["lam"]``)."""
+    box = {}
+    if arc is not None:
+        x_s, normal, ds = arc
+        w = zone.ground.backward(zone.ground.forward(normal, rows), rows)
+        along, start = float(normal @ zone.u_r), float(normal @ x_s)
+
+    def setup(sub, d):
+        u_r, g_r = zone.u_r[d], zone.scale * zone.schur.product(zone.u_r[d])  # the excavation load condensed
+        wp = w[d] if arc is not None else None
+
+        def G(x):
+            state = sub.state(x)
+            p = plastic_load(sub, state[-1])
+            box["lam"] = frac if arc is None else (ds + start - wp @ p) / along
+            return zone.solve(p) + box["lam"] * u_r, p, state
+
+        return G, (lambda p: box["lam"] * g_r + p), (lambda: box["lam"] * zone.u_r)
+
+    return setup, box
+
+
+def attempt(zone: Zone | None, on_zone, on_whole, guess: np.ndarray, limit: int):
+    """``on_zone()`` while the ``zone`` is small; else, or from where it outgrew :data:`MOST`,
+    ``on_whole(guess, limit)``: the iterations of both counted together (a stall's too)."""
+    used = 0
+    if zone is not None and zone.active:
+        try:
+            return on_zone()
+        except GivenUp as up:
+            guess, used = up.guess, up.used
+    try:
+        x, p, state, count, lam = on_whole(guess, limit - used)
+    except Stalled as stall:
+        raise Stalled(stall.force, stall.atol, stall.iterations + used) from None
+    return x, p, state, count + used, lam
 
 
 class GivenUp(Exception):

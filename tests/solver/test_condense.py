@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
+import solver.stages.path as path
 import solver.stages.region as region
 from solver import CaseSpec, run_case
 from solver.fe.condense import RegionSchur
@@ -76,7 +77,8 @@ def _solved(case: dict, monkeypatch, **settings):
 
     def spy(self, elements, layers=region.LAYERS):
         real(self, elements, layers)
-        grown.append((int(self.elements.sum()), self.given_up))
+        if self.condensed:  # stage 1's (stage 2 returns the stresses at its zone's points alone)
+            grown.append((int(self.elements.sum()), self.given_up))
 
     monkeypatch.setattr(region.Zone, "_grow", spy)
     ds = run_case(CaseSpec.model_validate(case))
@@ -92,12 +94,19 @@ def _close(a, b, area_rtol: float):
         assert float(b[name]) == pytest.approx(float(a[name]), rel=area_rtol, abs=0.02), name
 
 
+def _whole_watch(self, plastic_load, make_G, guess, K, limit, patience, atol, offset):
+    """Stage 2 returning the stresses at every point of the ground (what :meth:`Zone.watch` saves)."""
+    return path.fixed_point(make_G(self.gauss, np.arange(self.gauss.G.shape[1])), guess, K, atol, patience, limit)
+
+
 @pytest.mark.parametrize("name", sorted(CASES))
-def test_stage_one_on_the_zone_is_the_whole_grounds(name, monkeypatch):
-    """The zone's answer is the whole ground's within the stop test: the displacements and forces to
+def test_the_zones_answer_is_the_whole_grounds(name, monkeypatch):
+    """Stage 1 on the zone (the rest of the ground condensed) and stage 2 with the stresses returned at the
+    zone's points give the whole ground's answer within the stop test: the displacements and forces to
     0.2 %, the yielded areas (points within the stop test's reach of the surface) to 5 %, the zone a part of
-    the ground throughout; and started from a zone of a few elements, it grows
+    the ground throughout; and started from a zone of a few elements, both grow
     where the ground yields outside it (the check on the whole ground) to the same answer."""
+    monkeypatch.setattr(region.Zone, "watch", _whole_watch)
     whole, grown = _solved(CASES[name], monkeypatch, MOST=0.0)
     assert grown and all(given_up for _, given_up in grown)
     zone, grown = _solved(CASES[name], monkeypatch)
@@ -106,10 +115,10 @@ def test_stage_one_on_the_zone_is_the_whole_grounds(name, monkeypatch):
 
     real = region.Zone.__init__
 
-    def tiny(self, model, gauss, u_r, elements):
+    def tiny(self, model, gauss, u_r, elements, *args, **kwargs):
         few = np.zeros_like(elements)
         few[np.flatnonzero(elements)[:3]] = True
-        real(self, model, gauss, u_r, few)
+        real(self, model, gauss, u_r, few, *args, **kwargs)
 
     monkeypatch.setattr(region.Zone, "__init__", tiny)
     small, grown = _solved(CASES[name], monkeypatch, LAYERS=0, GROWTH=1)

@@ -131,7 +131,7 @@ def test_the_readme_rock_example_reproduces():
                                                       "gsi": 30.0, "mi": 8.0, "dilatancy": 5.0}}))
     assert round(float(ds["max_thrust"]) / 1e3) == 552 and round(float(ds["max_abs_moment"]) / 1e3, 1) == 25.0
     assert round(float(ds["max_contact_pressure"]) / 1e3) == 219
-    assert round(float(ds["plastic_area"]), 2) == 2.65 and round(float(ds["max_plastic_extent"]), 2) == 3.37
+    assert round(float(ds["plastic_area"]), 2) == 2.66 and round(float(ds["max_plastic_extent"]), 2) == 3.37
     # not printed: the points at yield before the lining, within the stop test's reach (2.51 m² with
     # Anderson's mix on the displacement changes, 2.54 with it on the out-of-balance forces)
     assert float(ds["stage1_plastic_area"]) == pytest.approx(2.52, rel=0.02)
