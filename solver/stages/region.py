@@ -1,16 +1,19 @@
-"""Stage 1's equilibrium iteration on the yielding zone alone (:func:`solver.stages.plastic._stage_one`).
+"""The staged plastic solve's iteration on the yielding zone (:func:`solver.stages.plastic._stage_one`,
+:func:`~solver.stages.plastic._staged`).
 
 The plastic load is non-zero only on the elements that have yielded, so the unsupported ground's
-displacement is ``λ u_r + K⁻¹ p`` with ``p`` on their unknowns. Around them a zone of elements (those at
-yield and :data:`LAYERS` rings around them) is kept; the rest of the ground is eliminated exactly (its
-Schur complement, :class:`~solver.fe.condense.RegionSchur`), so each iteration computes strains, returns
-stresses, mixes and solves on the zone's points and unknowns only: the same iterates as on the whole
-ground (to rounding), at a fraction of the cost. What the zone assumes, that the ground outside it stays
-elastic, is checked on the whole ground at each answer: where a point outside has reached yield, the zone
-grows and the iteration goes on from there. The zone never shrinks within a stage; a zone of more than
-:data:`MOST` of the ground's unknowns is given up for the whole ground's iteration (its factor would cost
-as much). Zones are kept on the model (:data:`KEPT` of them): a sweep's cases whose ground yields alike
-share them.
+displacement is ``λ u_r + K⁻¹ p`` with ``p`` on their unknowns. Around them a zone of elements is kept
+(where the elastic ground yields at λd and ``GROWTH * LAYERS`` rings around it, grown as the ground
+yields). In stage 1 the rest of the ground is eliminated exactly (its Schur complement,
+:class:`~solver.fe.condense.RegionSchur`), so each iteration computes strains, returns stresses, mixes and
+solves on the zone's points and unknowns only (:meth:`Zone.iterate`): the same iterates as on the whole
+ground, to rounding, at a fraction of the cost. In stage 2 the whole ground is solved (the contact acts all
+round the lining) but stresses are returned at the zone's points alone (:meth:`Zone.watch`). What the zone
+assumes, that the ground outside it stays elastic, is checked on the whole ground at each answer: where a
+point outside has reached yield, the zone grows and the iteration goes on from there. The zone never
+shrinks within a stage; one of more than :data:`MOST` of the ground's unknowns is given up for the whole
+ground's iteration (its factor would cost more). Zones are kept on the model (:data:`KEPT` of them): a
+sweep's cases whose ground yields alike share them.
 """
 from __future__ import annotations
 
@@ -29,7 +32,7 @@ LAYERS = 2
 #: A zone that grows takes this many times :data:`LAYERS` rings around the points at yield.
 GROWTH = 2
 #: A zone of more than this share of the ground's unknowns is given up (the whole ground's iteration).
-MOST = 0.4
+MOST = 0.8
 #: Zones (their factors) kept on a model.
 KEPT = 3
 
@@ -64,9 +67,10 @@ def dilate(model, elements: np.ndarray, layers: int = LAYERS) -> np.ndarray:
 
 
 class Zone:
-    """The yielding zone of one stage-1 solve: the elements it covers, their points' history (from the
-    whole ground's, ``gauss``: :class:`~solver.stages.plastic._Points`) and the ground condensed onto its
-    unknowns. ``u_r`` is the ground's displacement under the whole excavation load."""
+    """The yielding zone of one stage's solve: the elements it covers, their points' history (from the
+    whole ground's, ``gauss``: :class:`~solver.stages.plastic._Points`) and, if ``condensed`` (stage 1), the
+    ground condensed onto its unknowns. ``u_r`` is the ground's displacement under the whole excavation load
+    (stage 1)."""
 
     def __init__(self, model, gauss, u_r: np.ndarray | None, elements: np.ndarray, layers: int = GROWTH * LAYERS,
                  condensed: bool = True):
