@@ -24,7 +24,11 @@ converged (a collapse is named, with the deconfinement held), and the cost ratio
 percentile and maximum; then issue 36's default Mohr–Coulomb case (c 10 kPa, φ 28°, ψ 0) against
 the default, and a next case of it on its built model (K0 varied; the lining lighter).
 
-    python -m bench.ground [--repeat N] [--json] [--weak] [--sample N]
+``--zones N`` solves the yielding cases (the two above, issue 36's default, the first N of each sampled family)
+with the yielding zone (:mod:`solver.stages.region`) and on the whole ground, back to back: the speed-up and
+how far the answers differ.
+
+    python -m bench.ground [--repeat N] [--json] [--weak] [--sample N] [--zones N]
 """
 from __future__ import annotations
 
@@ -189,13 +193,76 @@ def sample_study(n: int) -> dict:
     return out
 
 
+#: what the zone study compares: displacements and forces (relative), the yielded areas (m², within the
+#: stop test's reach of the surface)
+_MEASURES = ("crown_settlement", "max_thrust", "max_abs_moment", "ground_loss")
+
+
+def zone_study(n: int) -> dict:
+    """Each yielding case (the bench's two, issue 36's default and the first ``n`` of each sampled family)
+    solved with the yielding zone (:mod:`solver.stages.region`) and on the whole ground, back to back: the
+    time ratio and the largest relative difference of :data:`_MEASURES`."""
+    import numpy as np
+
+    from solver.stages import region
+
+    cases = {"mohr-coulomb": CASES["mohr-coulomb"], "hoek-brown": CASES["hoek-brown"], "c 10 kPa": MC_DEFAULT}
+    for family, sampled in {**{f: sample_cases(n, f) for f in FAMILIES}, "rock": rock_cases(n)}.items():
+        cases.update({f"{family} {i}": case for i, case in enumerate(sampled)})
+    run_case(CaseSpec.model_validate({}))  # warm the imports
+    rows = {}
+    for name, case in cases.items():
+        try:
+            spec = CaseSpec.model_validate(case)
+        except ValueError:
+            continue  # refused: its in-situ state outside the surface
+        got = {}
+        for enabled in (False, True):
+            region.ENABLED = enabled
+            t0 = time.perf_counter()
+            try:
+                ds = run_case(spec)
+            except SolverError as e:
+                got[enabled] = (time.perf_counter() - t0, str(e)[:80])
+                continue
+            got[enabled] = (time.perf_counter() - t0, {k: float(ds[k]) for k in _MEASURES + ("plastic_area",)})
+        region.ENABLED = True
+        (t_whole, whole), (t_zone, zone) = got[False], got[True]
+        row = {"whole_s": t_whole, "zone_s": t_zone, "speedup": t_whole / t_zone}
+        if isinstance(whole, dict) and isinstance(zone, dict):
+            row["largest_difference"] = max(abs(zone[k] - whole[k]) / max(abs(whole[k]), 1e-12) for k in _MEASURES)
+            row["area_difference_m2"] = abs(zone["plastic_area"] - whole["plastic_area"])
+        else:
+            row["outcome"] = f"whole: {whole if isinstance(whole, str) else 'ok'}; zone: " \
+                             f"{zone if isinstance(zone, str) else 'ok'}"
+        rows[name] = row
+    speedups = np.array([r["speedup"] for r in rows.values()])
+    return {"cases": rows, "median_speedup": float(np.median(speedups)), "least_speedup": float(speedups.min()),
+            "total_whole_s": sum(r["whole_s"] for r in rows.values()),
+            "total_zone_s": sum(r["zone_s"] for r in rows.values())}
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--weak", action="store_true", help="also solve issue 25's weak ground once")
     ap.add_argument("--sample", type=int, default=0, help="solve a seeded sample of this many cases per family")
+    ap.add_argument("--zones", type=int, default=0,
+                    help="time the yielding zone against the whole ground on this many cases per family")
     args = ap.parse_args(argv)
+    if args.zones:
+        study = zone_study(args.zones)
+        if args.json:
+            print(json.dumps(study, indent=2))
+            return
+        for name, r in study["cases"].items():
+            print(f"{name:12s} whole {r['whole_s']:7.2f} s  zone {r['zone_s']:7.2f} s  x{r['speedup']:.2f}  "
+                  + (f"largest difference {r['largest_difference']:.1e}, yielded area {r['area_difference_m2']:.3f} m2"
+                     if "largest_difference" in r else r["outcome"]))
+        print(f"zone over whole ground: median speed-up {study['median_speedup']:.2f}, least "
+              f"{study['least_speedup']:.2f}; in all {study['total_whole_s']:.1f} s -> {study['total_zone_s']:.1f} s")
+        return
     if args.sample:
         study = sample_study(args.sample)
         if args.json:

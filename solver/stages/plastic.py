@@ -291,7 +291,7 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "
             load is affine in it, ``G(x) = K⁺p(x) + λ(x) u_r``). Returns the :func:`~solver.stages.path.fixed_point`
             answer and its load: on the yielding zone (:mod:`solver.stages.region`) while it is small, else
             on the whole ground."""
-            if not zones and not ground.pinned:  # where the ground yields at λd on the elastic ground
+            if not zones and not ground.pinned and region.ENABLED:  # where it yields at λd on the elastic ground
                 zones.append(Zone(model, gauss, u_r, gauss.trial(gauss.gradient(ld * u_r))[2].any(axis=1)))
             setup, box = region.release_step(zones[0], _plastic_load, rows, frac, arc) if zones else (None, {})
 
@@ -446,10 +446,7 @@ def _staged(model, spec, rows, t0: float, tol: float):
                 return ground.backward(stage.ground, rows, model.w * t), p, state
             return G
 
-        if not zones:
-            zones.append(Zone(model, gauss, None, gauss.at_yield.any(axis=1) | (gauss.eqps > 0).any(axis=1),
-                              condensed=False))
-        return zones[0].watch(_plastic_load, make_G, guess, K, limit, patience, atol, u1) + (frac,)
+        return region.watched(zones, model, gauss, _plastic_load, make_G, guess, K, limit, patience, atol, u1) + (frac,)
 
     a, a_prev, h, used = 0.0, -1.0 / steps, 1.0 / steps, 0
     for k in range(1, steps + 1):

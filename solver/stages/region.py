@@ -31,10 +31,15 @@ from .path import Stalled, fixed_point
 LAYERS = 2
 #: A zone that grows takes this many times :data:`LAYERS` rings around the points at yield.
 GROWTH = 2
-#: A zone of more than this share of the ground's unknowns is given up (the whole ground's iteration).
-MOST = 0.8
+#: A zone of more than this share of the ground's unknowns is given up (the whole ground's iteration): zones of
+#: 53-62 % still made the long solves of weak ground near failure 1.2-1.5 times faster, one of 71-77 % made a
+#: short one (68 iterations) 10 % slower (``python -m bench.ground --zones 8``).
+MOST = 0.65
 #: Zones (their factors) kept on a model.
 KEPT = 3
+#: Off: no zone (:mod:`solver.stages.plastic` iterates on the whole ground in both stages, as before zones):
+#: what ``python -m bench.ground --zones`` and the tests measure zones against.
+ENABLED = True
 
 
 class _Product:
@@ -72,13 +77,13 @@ class Zone:
     ground condensed onto its unknowns. ``u_r`` is the ground's displacement under the whole excavation load
     (stage 1)."""
 
-    def __init__(self, model, gauss, u_r: np.ndarray | None, elements: np.ndarray, layers: int = GROWTH * LAYERS,
+    def __init__(self, model, gauss, u_r: np.ndarray | None, elements: np.ndarray, layers: int | None = None,
                  condensed: bool = True):
         self.model, self.gauss, self.u_r = model, gauss, u_r
         self.ground, self.condensed = model.ground, condensed
         self.elements = np.zeros(gauss.shape[0], bool)
         self.given_up = False
-        self._grow(elements, layers)
+        self._grow(elements, GROWTH * LAYERS if layers is None else layers)
 
     @property
     def active(self) -> bool:
@@ -89,16 +94,19 @@ class Zone:
         self.elements = want = self.elements | dilate(self.model, elements, layers)
         gauss = self.gauss
         E, Q = gauss.shape
+        if want.sum() > MOST * E:  # (elements and unknowns alike: a zone's share is about the same of both)
+            self.given_up = True
+            return
         at = np.flatnonzero(want)
         points = (at[:, None] * Q + np.arange(Q)).ravel()
         rows = (np.arange(4)[:, None] * (E * Q) + points[None, :]).ravel()
         G = gauss.G[rows].tocsr()
         self.dofs = dofs = np.unique(G.indices)
         n = gauss.G.shape[1]
+        if dofs.size == 0 or dofs.size > MOST * n:
+            self.given_up = True
+            return
         if self.condensed:
-            if dofs.size == 0 or dofs.size > MOST * n:
-                self.given_up = True
-                return
             self._condense(dofs)
         local = np.full(n, -1, np.int64)
         local[dofs] = np.arange(dofs.size)
@@ -190,7 +198,7 @@ class Zone:
         if (dilate(self.model, yielded) & ~self.elements).any():
             self._grow(yielded, GROWTH * LAYERS)
         used = 0
-        while True:
+        while self.active:
             try:
                 x, _, _, count = fixed_point(make_G(self.points(), self.dofs), guess, K, atol, patience, limit - used)
             except Stalled as stall:
@@ -202,6 +210,7 @@ class Zone:
                 return x, plastic_load(g, state[-1]), state, used
             self._grow(flags | yielded, GROWTH * LAYERS)
             guess = x
+        raise GivenUp(guess, used)
 
 
 def release_step(zone: Zone, plastic_load, rows, frac=None, arc=None):
@@ -231,7 +240,7 @@ def release_step(zone: Zone, plastic_load, rows, frac=None, arc=None):
 
 def attempt(zone: Zone | None, on_zone, on_whole, guess: np.ndarray, limit: int):
     """``on_zone()`` while the ``zone`` is small; else, or from where it outgrew :data:`MOST`,
-    ``on_whole(guess, limit)``: the iterations of both counted together (a stall's too)."""
+    ``on_whole(guess, limit)``: the iterations (the answers' 4th item) of both counted together (a stall's too)."""
     used = 0
     if zone is not None and zone.active:
         try:
@@ -239,10 +248,24 @@ def attempt(zone: Zone | None, on_zone, on_whole, guess: np.ndarray, limit: int)
         except GivenUp as up:
             guess, used = up.guess, up.used
     try:
-        x, p, state, count, lam = on_whole(guess, limit - used)
+        out = on_whole(guess, limit - used)
     except Stalled as stall:
         raise Stalled(stall.force, stall.atol, stall.iterations + used) from None
-    return x, p, state, count + used, lam
+    return out[:3] + (out[3] + used,) + out[4:]
+
+
+def watched(zones: list, model, gauss, plastic_load, make_G, guess: np.ndarray, K, limit: int, patience, atol: float,
+            offset: np.ndarray):
+    """Stage 2's equilibrium (:func:`~solver.stages.path.fixed_point` of ``make_G(points, dofs)``'s ``G``) with the
+    stresses returned at the zone's points (:meth:`Zone.watch`; ``zones`` holds the stage's, made at the first
+    call) while it is small, else at every point: the answer, its plastic load, state and the iterations."""
+    if not zones and ENABLED:
+        yielded = gauss.at_yield.any(axis=1) | (gauss.eqps > 0).any(axis=1)
+        zones.append(Zone(model, gauss, None, yielded, condensed=False))
+    return attempt(zones[0] if zones else None,
+                   lambda: zones[0].watch(plastic_load, make_G, guess, K, limit, patience, atol, offset),
+                   lambda guess, limit: fixed_point(make_G(gauss, slice(None)), guess, K, atol, patience, limit),
+                   guess, limit)
 
 
 class GivenUp(Exception):

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-import solver.stages.path as path
 import solver.stages.region as region
 from solver import CaseSpec, run_case
 from solver.fe.condense import RegionSchur
@@ -94,11 +93,6 @@ def _close(a, b, area_rtol: float):
         assert float(b[name]) == pytest.approx(float(a[name]), rel=area_rtol, abs=0.02), name
 
 
-def _whole_watch(self, plastic_load, make_G, guess, K, limit, patience, atol, offset):
-    """Stage 2 returning the stresses at every point of the ground (what :meth:`Zone.watch` saves)."""
-    return path.fixed_point(make_G(self.gauss, np.arange(self.gauss.G.shape[1])), guess, K, atol, patience, limit)
-
-
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_the_zones_answer_is_the_whole_grounds(name, monkeypatch):
     """Stage 1 on the zone (the rest of the ground condensed) and stage 2 with the stresses returned at the
@@ -106,9 +100,8 @@ def test_the_zones_answer_is_the_whole_grounds(name, monkeypatch):
     0.2 %, the yielded areas (points within the stop test's reach of the surface) to 5 %, the zone a part of
     the ground throughout; and started from a zone of a few elements, both grow
     where the ground yields outside it (the check on the whole ground) to the same answer."""
-    monkeypatch.setattr(region.Zone, "watch", _whole_watch)
-    whole, grown = _solved(CASES[name], monkeypatch, MOST=0.0)
-    assert grown and all(given_up for _, given_up in grown)
+    whole, grown = _solved(CASES[name], monkeypatch, ENABLED=False)
+    assert not grown  # no zone
     zone, grown = _solved(CASES[name], monkeypatch)
     assert grown and not any(given_up for _, given_up in grown)
     _close(whole, zone, 0.05)
@@ -124,3 +117,7 @@ def test_the_zones_answer_is_the_whole_grounds(name, monkeypatch):
     small, grown = _solved(CASES[name], monkeypatch, LAYERS=0, GROWTH=1)
     assert len(grown) >= 3  # it grew as the ground yielded outside it
     _close(whole, small, 0.05)
+    monkeypatch.setattr(region.Zone, "__init__", tiny)
+    outgrown, grown = _solved(CASES[name], monkeypatch, LAYERS=0, GROWTH=1, MOST=0.03)
+    assert not grown[0][1] and grown[-1][1], grown  # it outgrew MOST: the whole ground took over from there
+    _close(whole, outgrown, 0.05)
