@@ -12,7 +12,10 @@ geometry. The stop test is the equilibrium residual: the out-of-balance force
 ``‖K u - f - p(u)‖`` of the iterate, at most ``solver.plastic_tolerance`` of the increment's load
 (SPEC §9.1: stage 1's λd/n of the excavation load; stage 2's 1/n of its own loads, or stage 1's
 where larger); the plastic consistency holds at every point by the return
-mapping (:mod:`solver.ground.mohr_coulomb`, :mod:`solver.ground.hoek_brown`).
+mapping (:mod:`solver.ground.mohr_coulomb`, :mod:`solver.ground.hoek_brown`). The iteration runs on the
+yielding zone (:mod:`solver.stages.region`): in stage 1 on its unknowns alone, the elastic rest of the ground
+condensed out exactly; in stage 2 on the whole ground with the stresses returned at the zone's points; the
+whole ground checked at every answer.
 
 Where a load step stalls (:data:`~solver.stages.path.STAGNATION`) it is halved, and the steps grow again as they
 converge (:func:`~solver.stages.path.advance`; the automatic step control of commercial codes). Where a stage-1 step
@@ -58,7 +61,7 @@ from .loads import stage_loads
 from . import path
 from .path import advance, fixed_point
 from . import region
-from .region import GivenUp, Zone
+from .region import Zone
 from .recovery import finish
 from .state import Forward, StageLoads
 
