@@ -12,7 +12,8 @@ round the lining) but stresses are returned at the zone's points alone (:meth:`Z
 assumes, that the ground outside it stays elastic, is checked on the whole ground at each answer: where a
 point outside has reached yield, the zone grows and the iteration goes on from there. The zone never
 shrinks within a stage; one of more than :data:`MOST` of the ground's unknowns is given up for the whole
-ground's iteration (its factor would cost more). Zones are kept on the model (:data:`KEPT` of them): a
+ground's iteration (its factor would cost more), one of more than :data:`EARLY` waits until the stage's
+iterations are many enough to pay for its factor. Zones are kept on the model (:data:`KEPT` of them): a
 sweep's cases whose ground yields alike share them.
 """
 from __future__ import annotations
@@ -31,10 +32,14 @@ from .path import Stalled, fixed_point
 LAYERS = 2
 #: A zone that grows takes this many times :data:`LAYERS` rings around the points at yield.
 GROWTH = 2
-#: A zone of more than this share of the ground's unknowns is given up (the whole ground's iteration): zones of
-#: 53-62 % still made the long solves of weak ground near failure 1.2-1.5 times faster, one of 71-77 % made a
-#: short one (68 iterations) 10 % slower (``python -m bench.ground --zones 8``).
-MOST = 0.65
+#: A zone of more than this share of the ground's unknowns is given up (the whole ground's iteration).
+MOST = 0.8
+#: One of more than this share waits, the stage iterating on the whole ground, until it has spent
+#: :data:`AMORTIZE` iterations: zones of 53-77 % made the long solves of weak ground near failure (thousands of
+#: iterations) 1.2-1.5 times faster, while one of 71-77 % made a short one (68 iterations) 10 % slower, its
+#: factorizations not paid back (``python -m bench.ground --zones 8``, docs/performance.md).
+EARLY = 0.65
+AMORTIZE = 200
 #: Zones (their factors) kept on a model.
 KEPT = 3
 #: Off: no zone (:mod:`solver.stages.plastic` iterates on the whole ground in both stages, as before zones):
@@ -82,20 +87,31 @@ class Zone:
         self.model, self.gauss, self.u_r = model, gauss, u_r
         self.ground, self.condensed = model.ground, condensed
         self.elements = np.zeros(gauss.shape[0], bool)
-        self.given_up = False
+        self.given_up = self.waiting = False
+        self.spent = 0  # iterations of the stage so far (on the zone or the whole ground)
         self._grow(elements, GROWTH * LAYERS if layers is None else layers)
 
     @property
     def active(self) -> bool:
-        return not self.given_up
+        return not (self.given_up or self.waiting)
+
+    def _too_big(self, share: float) -> bool:
+        """Whether a zone of this ``share`` of the ground is given up or, for now, waits (:data:`EARLY`)."""
+        self.given_up = share > MOST
+        self.waiting = not self.given_up and share > EARLY and self.spent < AMORTIZE
+        return not self.active
+
+    def resume(self) -> None:
+        """A zone that waited, once the stage has spent :data:`AMORTIZE` iterations: built now."""
+        self.waiting = False
+        self._grow(np.zeros_like(self.elements), 0)
 
     def _grow(self, elements: np.ndarray, layers: int = LAYERS) -> None:
         """Cover ``elements`` too (and ``layers`` rings around them)."""
         self.elements = want = self.elements | dilate(self.model, elements, layers)
         gauss = self.gauss
         E, Q = gauss.shape
-        if want.sum() > MOST * E:  # (elements and unknowns alike: a zone's share is about the same of both)
-            self.given_up = True
+        if self._too_big(want.sum() / E):  # (of elements and unknowns alike: about the same share)
             return
         at = np.flatnonzero(want)
         points = (at[:, None] * Q + np.arange(Q)).ravel()
@@ -103,8 +119,9 @@ class Zone:
         G = gauss.G[rows].tocsr()
         self.dofs = dofs = np.unique(G.indices)
         n = gauss.G.shape[1]
-        if dofs.size == 0 or dofs.size > MOST * n:
+        if dofs.size == 0:
             self.given_up = True
+        if self.given_up or self._too_big(dofs.size / n):
             return
         if self.condensed:
             self._condense(dofs)
@@ -242,15 +259,26 @@ def attempt(zone: Zone | None, on_zone, on_whole, guess: np.ndarray, limit: int)
     """``on_zone()`` while the ``zone`` is small; else, or from where it outgrew :data:`MOST`,
     ``on_whole(guess, limit)``: the iterations (the answers' 4th item) of both counted together (a stall's too)."""
     used = 0
+    if zone is not None and zone.waiting and zone.spent >= AMORTIZE:
+        zone.resume()
     if zone is not None and zone.active:
         try:
-            return on_zone()
+            out = on_zone()
+            zone.spent += out[3]
+            return out
         except GivenUp as up:
             guess, used = up.guess, up.used
+        except Stalled as stall:
+            zone.spent += stall.iterations
+            raise
     try:
         out = on_whole(guess, limit - used)
     except Stalled as stall:
+        if zone is not None:
+            zone.spent += stall.iterations + used
         raise Stalled(stall.force, stall.atol, stall.iterations + used) from None
+    if zone is not None:
+        zone.spent += out[3] + used
     return out[:3] + (out[3] + used,) + out[4:]
 
 

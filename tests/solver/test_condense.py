@@ -77,7 +77,7 @@ def _solved(case: dict, monkeypatch, **settings):
     def spy(self, elements, layers=region.LAYERS):
         real(self, elements, layers)
         if self.condensed:  # stage 1's (stage 2 returns the stresses at its zone's points alone)
-            grown.append((int(self.elements.sum()), self.given_up))
+            grown.append((int(self.elements.sum()), self.given_up, self.waiting))
 
     monkeypatch.setattr(region.Zone, "_grow", spy)
     ds = run_case(CaseSpec.model_validate(case))
@@ -103,7 +103,7 @@ def test_the_zones_answer_is_the_whole_grounds(name, monkeypatch):
     whole, grown = _solved(CASES[name], monkeypatch, ENABLED=False)
     assert not grown  # no zone
     zone, grown = _solved(CASES[name], monkeypatch)
-    assert grown and not any(given_up for _, given_up in grown)
+    assert grown and not any(given_up or waiting for _, given_up, waiting in grown)
     _close(whole, zone, 0.05)
 
     real = region.Zone.__init__
@@ -121,3 +121,7 @@ def test_the_zones_answer_is_the_whole_grounds(name, monkeypatch):
     outgrown, grown = _solved(CASES[name], monkeypatch, LAYERS=0, GROWTH=1, MOST=0.03)
     assert not grown[0][1] and grown[-1][1], grown  # it outgrew MOST: the whole ground took over from there
     _close(whole, outgrown, 0.05)
+    # a zone over EARLY waits for the stage's iterations on the whole ground, then is built
+    waited, grown = _solved(CASES[name], monkeypatch, EARLY=0.0, AMORTIZE=10)
+    assert grown[0][2] and any(not waiting and not given_up for _, given_up, waiting in grown[1:]), grown
+    _close(whole, waited, 0.05)
