@@ -136,19 +136,18 @@ class Zone:
     def _condense(self, dofs: np.ndarray) -> None:
         """The ground condensed onto ``dofs`` (kept on the model: :data:`KEPT` zones)."""
         n = self.gauss.G.shape[1]
-        cache = self.model.built(("yielding zones",), OrderedDict)
+        model, body = self.model, self.ground.base.body
+        cache = model.built(("yielding zones",), OrderedDict)
         key = dofs.tobytes()
-        schur = cache.get(key)
-        if schur is None:
-            body = self.ground.base.body
-            order = self.model.built(("ground order",), lambda: nested_dissection(body.basis.mesh, body.node_of_dof()))
-            inside = np.zeros(n, bool)
-            inside[dofs] = True
-            schur = RegionSchur(body.K, order, inside)
-            cache[key] = schur
-            while len(cache) > KEPT:
-                cache.popitem(last=False)
-        self.schur = schur
+        with model._lock:  # a model shared by threads (:func:`solver.model.shared_model`)
+            if key not in cache:
+                order = model.built(("ground order",), lambda: nested_dissection(body.basis.mesh, body.node_of_dof()))
+                inside = np.zeros(n, bool)
+                inside[dofs] = True
+                cache[key] = RegionSchur(body.K, order, inside)
+                while len(cache) > KEPT:
+                    cache.popitem(last=False)
+            self.schur = cache[key]
         self.scale = float(getattr(self.ground, "scale", 1.0))
 
     def points(self):
@@ -177,9 +176,7 @@ class Zone:
         the zone grows to cover the points at yield as committed; after it, where a point outside the zone has
         reached yield, it grows and the iteration goes on from there."""
         g, ground = self.gauss, self.ground
-        yielded = g.at_yield.any(axis=1) | (g.eqps > 0).any(axis=1)
-        if self.active and (dilate(self.model, yielded) & ~self.elements).any():
-            self._grow(yielded, GROWTH * LAYERS)  # grown by more than needed: each growth refactorizes
+        yielded = self._cover()
         used = 0
         while self.active:
             if used >= limit:
@@ -197,13 +194,27 @@ class Zone:
             q[d] = self.scale * self.schur.product(x - b[d])
             x_full = b + ground.backward(ground.forward(q, rows), rows)  # the answer on the whole ground
             state = g.state(x_full if offset is None else offset + x_full)
-            flags = state[4].any(axis=1)
-            if not (flags & ~self.elements).any():
+            if self._holds(state, yielded):
                 return x_full, plastic_load(g, state[-1]), state, used
-            self._grow(flags | yielded, GROWTH * LAYERS)
             guess = x_full
         raise GivenUp(guess, used)
 
+    def _cover(self) -> np.ndarray:
+        """Grow the zone to cover :data:`LAYERS` rings round the elements at yield as committed (by twice as many:
+        each growth refactorizes); those elements."""
+        g = self.gauss
+        yielded = g.at_yield.any(axis=1) | (g.eqps > 0).any(axis=1)
+        if self.active and (dilate(self.model, yielded) & ~self.elements).any():
+            self._grow(yielded, GROWTH * LAYERS)
+        return yielded
+
+    def _holds(self, state: tuple, yielded: np.ndarray) -> bool:
+        """Whether no point outside the zone is at yield in the whole ground's ``state``; else the zone grows."""
+        flags = state[4].any(axis=1)
+        if not (flags & ~self.elements).any():
+            return True
+        self._grow(flags | yielded, GROWTH * LAYERS)
+        return False
 
     def watch(self, plastic_load, make_G, guess: np.ndarray, K, limit: int, patience, atol: float,
               offset: np.ndarray):
@@ -211,9 +222,7 @@ class Zone:
         points alone (``make_G(points, dofs)`` gives its ``G``): the ground outside, elastic, adds nothing
         to the plastic load. Checked at the answer (its state at ``offset +`` it) as in :meth:`iterate`."""
         g = self.gauss
-        yielded = g.at_yield.any(axis=1) | (g.eqps > 0).any(axis=1)
-        if (dilate(self.model, yielded) & ~self.elements).any():
-            self._grow(yielded, GROWTH * LAYERS)
+        yielded = self._cover()
         used = 0
         while self.active:
             try:
@@ -222,10 +231,8 @@ class Zone:
                 raise Stalled(stall.force, stall.atol, stall.iterations + used) from None
             used += count
             state = g.state(offset + x)
-            flags = state[4].any(axis=1)
-            if not (flags & ~self.elements).any():
+            if self._holds(state, yielded):
                 return x, plastic_load(g, state[-1]), state, used
-            self._grow(flags | yielded, GROWTH * LAYERS)
             guess = x
         raise GivenUp(guess, used)
 
