@@ -30,11 +30,10 @@ class Tail:
     over those supernodes only. Below a trailing column there are only trailing rows, so ``L[c0:, c0:]`` is
     a Cholesky factor in itself (of the Schur complement of the leading columns).
 
-    The struct's integer arrays are shifted copies; its values are the factor's own (``chol`` is kept
-    alive with it)."""
+    The struct's arrays are copies (the integer ones shifted): the factor itself may be freed, and only the
+    trailing supernodes' values are kept (at the default mesh a zone's fifth of them)."""
 
     def __init__(self, chol: Cholesky, start: int):
-        self.chol = chol
         f = chol._struct
         ns, sup, pi, px, rows_of, x = chol._supernodes()
         s0 = int(np.searchsorted(sup, start, side="right")) - 1
@@ -48,7 +47,8 @@ class Tail:
         view.ssize = int(rows_of.size - pi[s0])
         view.xsize = int(x.size - px[s0])
         view.super, view.pi, view.px, view.s = (a.ctypes.data for a in self._arrays)
-        view.x = f.x + 8 * int(px[s0])
+        self._values = np.array(x[px[s0]:])
+        view.x = self._values.ctypes.data
         view.Perm = view.ColCount = view.IPerm = None
         self._view = view
         self.k = n - start
@@ -105,7 +105,6 @@ class RegionSchur:
             raise RuntimeError("CHOLMOD did not keep the region's unknowns last")
         self._tail = Tail(chol, start)
         self._L = trailing_factor(chol, start)
-        self._LT = self._L.T.tocsr()
         self.entries = self._L.nnz
         self.dofs = np.flatnonzero(inside)
         #: the position in ``dofs`` of each trailing factor position's unknown
@@ -120,7 +119,7 @@ class RegionSchur:
 
     def product(self, x: np.ndarray) -> np.ndarray:
         """``S x`` for ``x`` on the region's unknowns."""
-        y = self._L @ (self._LT @ x[self._at])
+        y = self._L @ (self._L.T @ x[self._at])  # (the transpose a CSR view of the same arrays)
         out = np.empty_like(y)
         out[self._at] = y
         return out
