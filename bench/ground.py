@@ -207,7 +207,7 @@ def zone_study(n: int) -> dict:
     from solver.stages import region
 
     cases = {"mohr-coulomb": CASES["mohr-coulomb"], "hoek-brown": CASES["hoek-brown"], "c 10 kPa": MC_DEFAULT}
-    for family, sampled in {**{f: sample_cases(n, f) for f in FAMILIES}, "rock": rock_cases(n)}.items():
+    for family, sampled in ({**{f: sample_cases(n, f) for f in FAMILIES}, "rock": rock_cases(n)} if n else {}).items():
         cases.update({f"{family} {i}": case for i, case in enumerate(sampled)})
     run_case(CaseSpec.model_validate({}))  # warm the imports
     rows = {}

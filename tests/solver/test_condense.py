@@ -125,3 +125,17 @@ def test_the_zones_answer_is_the_whole_grounds(name, monkeypatch):
     waited, grown = _solved(CASES[name], monkeypatch, EARLY=0.0, AMORTIZE=10)
     assert grown[0][2] and any(not waiting and not given_up for _, given_up, waiting in grown[1:]), grown
     _close(whole, waited, 0.05)
+
+
+@pytest.mark.slow
+def test_the_zone_benchmark_compares_like_with_like():
+    """``python -m bench.ground --zones 0``: issue 36's three default cases with and without zones, at the default
+    mesh; the answers agree (no timing is asserted) and zones are switched back on after it."""
+    from bench.ground import zone_study
+
+    study = zone_study(0)
+    assert set(study["cases"]) == {"mohr-coulomb", "hoek-brown", "c 10 kPa"}
+    for row in study["cases"].values():
+        assert row["largest_difference"] < 2e-3 and row["area_difference_m2"] < 0.05
+        assert row["whole_s"] > 0 and row["zone_s"] > 0
+    assert region.ENABLED
