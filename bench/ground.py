@@ -222,11 +222,11 @@ def zone_study(n: int) -> dict:
             t0 = time.perf_counter()
             try:
                 ds = run_case(spec)
+                got[enabled] = (time.perf_counter() - t0, {k: float(ds[k]) for k in _MEASURES + ("plastic_area",)})
             except SolverError as e:
                 got[enabled] = (time.perf_counter() - t0, str(e)[:80])
-                continue
-            got[enabled] = (time.perf_counter() - t0, {k: float(ds[k]) for k in _MEASURES + ("plastic_area",)})
-        region.ENABLED = True
+            finally:
+                region.ENABLED = True
         (t_whole, whole), (t_zone, zone) = got[False], got[True]
         row = {"whole_s": t_whole, "zone_s": t_zone, "speedup": t_whole / t_zone}
         if isinstance(whole, dict) and isinstance(zone, dict):

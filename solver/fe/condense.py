@@ -6,8 +6,9 @@ Where a load is non-zero only on the unknowns ``p`` of a region (the yielding gr
 With the region ordered last in a Cholesky factorization ``P K Pᵀ = L Lᵀ`` (the rest first, each part by
 nested dissection), the factor's trailing block ``L_pp`` is ``S``'s own factor (``K_pp = L_pe L_peᵀ +
 L_pp L_ppᵀ``). A solve on the region runs CHOLMOD's supernodal triangular solves over the trailing
-supernodes alone (:class:`Tail`: a factor struct over them, sharing the factor's memory): it sweeps a
-fraction of the body's factor where the region is a fraction of the body.
+supernodes alone (:class:`Tail`: a factor struct over copies of them, the rest of the factor freed): it
+sweeps a fraction of the body's factor where the region is a fraction of the body. Products with ``S``
+(a few per load step) take ``L_pp`` as a sparse matrix (:func:`trailing_factor`).
 """
 from __future__ import annotations
 
@@ -16,8 +17,7 @@ import ctypes
 import numpy as np
 import scipy.sparse as sp
 
-from .linalg import (_DOUBLE, _REAL, Cholesky, _common, _Dense, _dense_p, _factor_p, _failure, _Factor, _int,
-                     _lib, _view)
+from .linalg import _DOUBLE, _REAL, Cholesky, _common, _Dense, _dense_p, _factor_p, _failure, _Factor, _int, _lib
 
 for _name in ("cholmod_l_super_lsolve", "cholmod_l_super_ltsolve"):
     getattr(_lib, _name).restype = _int
@@ -51,7 +51,6 @@ class Tail:
         view.x = self._values.ctypes.data
         view.Perm = view.ColCount = view.IPerm = None
         self._view = view
-        self.k = n - start
         self._E = np.zeros(max(int(f.maxesize), 1))
 
     def solve(self, b: np.ndarray) -> np.ndarray:
@@ -92,7 +91,7 @@ class RegionSchur:
     ``order`` a fill-reducing ordering of all unknowns (:func:`~solver.fe.linalg.nested_dissection`):
     :meth:`solve` with the Schur complement ``S`` on them and :meth:`product` by it.
 
-    Attributes: ``dofs`` the region's unknowns (ascending), ``entries`` of ``S``'s factor."""
+    Attribute: ``dofs``, the region's unknowns (ascending)."""
 
     def __init__(self, K: sp.spmatrix, order: np.ndarray, inside: np.ndarray):
         inside = np.asarray(inside, bool)
@@ -105,7 +104,6 @@ class RegionSchur:
             raise RuntimeError("CHOLMOD did not keep the region's unknowns last")
         self._tail = Tail(chol, start)
         self._L = trailing_factor(chol, start)
-        self.entries = self._L.nnz
         self.dofs = np.flatnonzero(inside)
         #: the position in ``dofs`` of each trailing factor position's unknown
         self._at = np.searchsorted(self.dofs, perm[start:])

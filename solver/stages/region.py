@@ -67,11 +67,11 @@ def _adjacency(model) -> sp.csr_matrix:
     return model.built(("element adjacency",), build)
 
 
-def dilate(model, elements: np.ndarray, layers: int = LAYERS) -> np.ndarray:
-    """The (E,) mask ``elements`` and ``layers`` rings of elements around it."""
+def dilate(model, elements: np.ndarray, layers: int | None = None) -> np.ndarray:
+    """The (E,) mask ``elements`` and ``layers`` (default :data:`LAYERS`) rings of elements around it."""
     adj = _adjacency(model)
     out = elements.copy()
-    for _ in range(layers):
+    for _ in range(LAYERS if layers is None else layers):
         out = (adj @ out.astype(float)) > 0
     return out
 
@@ -106,7 +106,7 @@ class Zone:
         self.waiting = False
         self._grow(np.zeros_like(self.elements), 0)
 
-    def _grow(self, elements: np.ndarray, layers: int = LAYERS) -> None:
+    def _grow(self, elements: np.ndarray, layers: int) -> None:
         """Cover ``elements`` too (and ``layers`` rings around them)."""
         self.elements = want = self.elements | dilate(self.model, elements, layers)
         gauss = self.gauss
@@ -149,6 +149,8 @@ class Zone:
                     cache.popitem(last=False)
             self.schur = cache[key]
         self.scale = float(getattr(self.ground, "scale", 1.0))
+        if self.u_r is not None:  # the excavation load condensed onto the zone (stage 1: release_step)
+            self.g_r = self.scale * self.schur.product(self.u_r[dofs])
 
     def points(self):
         """The zone's points as :class:`~solver.stages.plastic._Points` (their history as committed)."""
@@ -241,23 +243,23 @@ def release_step(zone: Zone, plastic_load, rows, frac=None, arc=None):
     """Stage 1's ``setup`` for :meth:`Zone.iterate` (the plastic load and the excavation load's share ``λ``:
     ``G(x) = K⁻¹p + λ u_r``, at the load ``frac`` or on the arc's plane ``n·(x - x_s) = ds``, whose ``λ`` is
     affine in ``p``: ``n·K⁻¹p = (K⁻¹n)·p``) and the load it reached (``box["lam"]``)."""
-    box = {}
-    if arc is not None:
-        x_s, normal, ds = arc
-        w = zone.ground.backward(zone.ground.forward(normal, rows), rows)
-        along, start = float(normal @ zone.u_r), float(normal @ x_s)
+    box, plane = {}, {}
 
     def setup(sub, d):
-        u_r, g_r = zone.u_r[d], zone.scale * zone.schur.product(zone.u_r[d])  # the excavation load condensed
-        wp = w[d] if arc is not None else None
+        u_r = zone.u_r[d]
+        if arc is not None and not plane:  # on the first use: the zone may never be
+            x_s, normal, ds = arc
+            plane.update(w=zone.ground.backward(zone.ground.forward(normal, rows), rows),
+                         at=(ds + float(normal @ x_s)) / float(normal @ zone.u_r), along=float(normal @ zone.u_r))
+        wp = plane["w"][d] / plane["along"] if arc is not None else None
 
         def G(x):
             state = sub.state(x)
             p = plastic_load(sub, state[-1])
-            box["lam"] = frac if arc is None else (ds + start - wp @ p) / along
+            box["lam"] = frac if arc is None else plane["at"] - wp @ p
             return zone.solve(p) + box["lam"] * u_r, p, state
 
-        return G, (lambda p: box["lam"] * g_r + p), (lambda: box["lam"] * zone.u_r)
+        return G, (lambda p: box["lam"] * zone.g_r + p), (lambda: box["lam"] * zone.u_r)
 
     return setup, box
 
