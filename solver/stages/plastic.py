@@ -32,7 +32,7 @@ used: along these shear-band modes its Newton step leaves the region where its l
 (issue 25's measurements, docs/performance.md).
 
 Stages (SPEC §1.1): stage 1 releases λd of the excavation load in ``solver.load_steps``
-equal increments on the unsupported ground (those below the first yield, :func:`first_yield`,
+equal increments on the unsupported ground (those below the first yield, :func:`~solver.stages.points.elastic_increments`,
 in one elastic solve; each increment starts from the last one's displacement change, scaled
 to its length); the lining is placed on the ground as it stands; stage 2
 releases the rest (with the lining's weight, the water and a drained lining's seepage) in as
@@ -49,15 +49,12 @@ import logging
 import numpy as np
 
 from ..errors import GroundCollapseError, NotConvergedError
-from ..ground.loads import in_situ_stress, moduli
-from ..ground.laws import PointLaws
-from ..ground.mohr_coulomb import equivalent
-from ..ground.strata import strata
 from ..results.post import mean_convergence
 from ..spec.canonical import canonical_json
 from ..spec.case import PLASTIC_SOLVER_FIELDS
 from .contact import contact_tractions
 from .loads import stage_loads
+from .points import Points, elastic_increments, plastic_load
 from . import path
 from .path import advance, fixed_point
 from . import region
@@ -70,162 +67,6 @@ log = logging.getLogger(__name__)
 #: Where a case's plastic solve fails short of a collapse, it is solved once more at this fraction of
 #: ``solver.plastic_tolerance`` (:func:`tightened`).
 RETRY_TOLERANCE = 0.5
-#: The least distance from the yield surface (relative) at which a point is reported at yield:
-#: a tenth of ``solver.plastic_tolerance`` if coarser (the iteration leaves yielding points a hair inside).
-FLAG_TOLERANCE = 1e-3
-
-
-class _Points:
-    """The ground's stress history at one set of points (quadrature or output points)."""
-
-    def __init__(self, model, spec, where: str):
-        basis = model.ground.body.basis if where == "gauss" else model.point_basis("ground")
-        self.basis = basis
-        self.G = model.gradient_operator(where)
-        self.weights = basis.dx
-        layers = strata(spec)
-        self.layers = layers
-        band = model.band
-        y = np.asarray(basis.global_coordinates())[1]  # (E, Q)
-        self.shape = y.shape
-        young, poisson = moduli(layers, band, y)  # the case's (the model's may differ by a scale)
-        young = np.broadcast_to(young, y.shape)
-        poisson = np.broadcast_to(poisson, y.shape)
-        lam = young * poisson / ((1 + poisson) * (1 - 2 * poisson))
-        mu = young / (2 * (1 + poisson))
-        self.lam, self.mu, self.mu2 = lam, mu, 2 * mu
-        per = lambda name: np.broadcast_to(  # noqa: E731
-            np.array([getattr(s, name) for s in layers])[band][:, None], y.shape).ravel()
-        law = np.broadcast_to(np.array([s.model for s in layers])[band][:, None], y.shape).ravel()
-        self.yielding = law != "elastic"
-        sel = self.yielding
-        self.material = PointLaws.of(law[sel], lam.ravel()[sel], mu.ravel()[sel], lambda k: per(k)[sel])
-        self.sigma0 = (in_situ_stress(spec, layers, band, y)["effective"]  # (4, E, Q)
-                       if spec.excavation.method == "deconfinement" else np.zeros((4,) + y.shape))
-        self.sigma = self.sigma0.copy()  # at the last converged increment
-        self.grad = np.zeros((2, 2) + y.shape)
-        self.tau = np.zeros((4,) + y.shape)  # σ0′ + D ε - σ = D ε_p
-        self.eqps = np.zeros(y.shape)
-        self.at_yield = np.zeros(y.shape, bool)
-        #: the elements that have had a plastic strain so far, their points and those points'
-        #: rows of ``G``, transposed (:func:`_plastic_load`)
-        self.yielded = (np.zeros(y.shape[0], bool), None, None)
-        #: a point within this (relative) distance of the yield surface counts as at yield: the
-        #: equilibrium iteration's tolerance leaves yielding points a hair inside it
-        self.flag_tolerance = max(spec.solver.plastic_tolerance / 10, FLAG_TOLERANCE)
-
-    def hooke(self, grad: np.ndarray, onto: np.ndarray | None = None) -> np.ndarray:
-        """The elastic stress (4, E, Q) of a displacement gradient (2, 2, E, Q), plane strain;
-        added to a copy of ``onto`` (4, E, Q) if given (in place: the trial of every iterate)."""
-        out = np.zeros((4,) + grad.shape[2:]) if onto is None else onto.copy()
-        lt = grad[0, 0] + grad[1, 1]
-        lt *= self.lam
-        out[3] += lt
-        out[0] += lt
-        out[1] += lt
-        out[0] += self.mu2 * grad[0, 0]
-        out[1] += self.mu2 * grad[1, 1]
-        shear = grad[0, 1] + grad[1, 0]
-        shear *= self.mu
-        out[2] += shear
-        return out
-
-    def gradient(self, u_free: np.ndarray) -> np.ndarray:
-        """The displacement gradient (2, 2, E, Q) of the ground's unknowns ``u_free``."""
-        return (self.G @ u_free).reshape((2, 2) + self.shape)
-
-    def trial(self, grad: np.ndarray):
-        """Stress, plastic strain increment, yield flags and ``D ε_p`` of a displacement
-        gradient since excavation, from the last converged increment."""
-        trial = self.hooke(grad - self.grad, onto=self.sigma)
-        flat = trial.reshape(4, -1)
-        dep = np.zeros((3, flat.shape[1]))
-        flags = np.zeros(flat.shape[1], bool)
-        sel = self.yielding
-        if sel.all():
-            stress, dep, flags = self.material.return_stress(flat, self.flag_tolerance)
-        else:
-            stress = flat.copy()
-            if sel.any():
-                stress[:, sel], dep[:, sel], flags[sel] = self.material.return_stress(flat[:, sel],
-                                                                                     self.flag_tolerance)
-        # (a point flowing in this increment is at yield: return_stress flags every point it returns)
-        stress = stress.reshape(trial.shape)
-        return stress, dep, flags.reshape(self.shape), self.tau + (trial - stress)
-
-    def state(self, u_free: np.ndarray) -> tuple:
-        """The state at the ground's unknowns ``u_free`` as the equilibrium iteration carries it:
-        ``(u_free, grad, stress, plastic strain increment, flags, D ε_p)`` (:meth:`trial`)."""
-        grad = self.gradient(u_free)
-        return (u_free, grad) + self.trial(grad)
-
-    #: what a converged increment leaves at the points (:meth:`commit`, :meth:`history`)
-    HISTORY = ("grad", "sigma", "tau", "eqps", "at_yield", "yielded")
-
-    def history(self) -> dict:
-        """The points' history as it stands, read-only (:func:`_first_stage` keeps it on the model:
-        every later commit replaces these arrays, none writes into them)."""
-        kept = {name: getattr(self, name) for name in self.HISTORY}
-        for value in kept.values():
-            if isinstance(value, np.ndarray):
-                value.flags.writeable = False
-        return kept
-
-    def restore(self, history: dict) -> None:
-        self.__dict__.update(history)
-
-    def commit(self, grad, stress, dep, flags, tau) -> None:
-        self.grad, self.sigma, self.tau = grad, stress, tau
-        self.eqps = self.eqps + equivalent(dep).reshape(self.shape)
-        self.at_yield = flags
-
-
-def _plastic_load(points: _Points, tau: np.ndarray) -> np.ndarray:
-    """``∫Bᵀ(σ0′ + D ε(u) - σ)`` on the ground's unknowns, at the quadrature points of
-    ``points``, from ``tau`` = the bracket (4, E, Q): non-zero only where the ground has yielded,
-    so only the rows of the gradient operator at the points of the elements that have yielded
-    so far are used (:attr:`_Points.yielded`, grown when others yield)."""
-    elements, at, GT = points.yielded
-    now = (tau.reshape(4, -1) != 0).any(axis=0).reshape(points.shape).any(axis=1)  # (E,)
-    if (now & ~elements).any():
-        elements = elements | now
-        E, Q = points.shape
-        at = (np.flatnonzero(elements)[:, None] * Q + np.arange(Q)).ravel()  # their points
-        GT = points.G[(np.arange(4)[:, None] * (E * Q) + at[None, :]).ravel()].T
-        points.yielded = elements, at, GT
-    if GT is None:
-        return np.zeros(points.G.shape[1])
-    w = points.weights.reshape(-1)[at]
-    t = tau.reshape(4, -1)[:, at]
-    return GT @ np.concatenate([t[0] * w, t[2] * w, t[2] * w, t[1] * w])
-
-
-def first_yield(points: _Points, u_unit: np.ndarray, limit: float) -> float:
-    """The largest fraction ``f`` ≤ ``limit`` of the displacement ``u_unit`` (added to the last
-    converged state) for which every point's stress stays inside its yield surface. The stress
-    is linear in ``f`` and the yield function convex in the stress, so each point's admissible
-    fractions are an interval ``[0, f_i]``: a point inside at ``limit`` is inside all the way,
-    and the bisection (to 1e-4 of ``limit``, from below) looks only at the points that are not."""
-    if not points.yielding.any():
-        return limit
-    rate = points.hooke(points.gradient(u_unit)).reshape(4, -1)[:, points.yielding]
-    start = points.sigma.reshape(4, -1)[:, points.yielding]
-
-    def at_yield(f: float, where, material) -> np.ndarray:
-        return material.return_stress(start[:, where] + f * rate[:, where], points.flag_tolerance)[2]
-
-    everywhere = slice(None)
-    out = np.flatnonzero(at_yield(limit, everywhere, points.material))
-    if out.size == 0:
-        return limit
-    material = points.material.at(out)
-    low, high = 0.0, limit
-    while high - low > 1e-4 * limit:
-        mid = 0.5 * (low + high)
-        low, high = (low, mid) if at_yield(mid, out, material).any() else (mid, high)
-    return low
-
-
 #: What stage 1 does not depend on: the lining's weight (its stiffness is the model's), the interface, the
 #: design checks and the report (:func:`stage_one_key`).
 _STAGE_TWO = ("lining", "interface", "design", "settlement", "name")
@@ -260,11 +101,11 @@ def _first_stage(model, spec, rows, release, ld: float, tol: float, points: tupl
     return u1, p1, iterations, list(curve)
 
 
-def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "_Points", commit=None):
+def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "Points", commit=None):
     """Stage 1: λd r on the unsupported ground in ``steps`` equal increments; those the ground
     takes elastically in one solve (up to its first yield). Returns the free-DOF displacement,
     the plastic load, the iterations and the ground reaction curve [(released, convergence)].
-    ``commit(*state)`` stores a converged state (:meth:`_Points.state`; default: ``gauss``'s history)."""
+    ``commit(*state)`` stores a converged state (:meth:`Points.state`; default: ``gauss``'s history)."""
     commit = commit or (lambda u_free, *state: gauss.commit(*state))
     ground = model.ground
     body, iface = ground.body, model.mesh.interface
@@ -275,8 +116,7 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "
     if release is not None and ld > 0:
         y_r = ground.forward(release, rows)
         u_r = ground.backward(y_r, rows)
-        start = first_yield(gauss, u_r, ld)
-        elastic = int(np.floor(start / ld * steps * (1 + 1e-12)))
+        elastic = elastic_increments(gauss, ld * u_r, steps)
         if elastic:
             u1 = ld * elastic / steps * u_r
             commit(*gauss.state(u1))
@@ -296,15 +136,15 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "
             on the whole ground."""
             if not zones and not ground.pinned and region.ENABLED:  # where it yields at λd on the elastic ground
                 zones.append(Zone(model, gauss, u_r, gauss.trial(gauss.gradient(ld * u_r))[2].any(axis=1)))
-            setup, box = region.release_step(zones[0], _plastic_load, rows, frac, arc) if zones else (None, {})
+            setup, box = region.release_step(zones[0], plastic_load, rows, frac, arc) if zones else (None, {})
 
             def on_zone():
-                return zones[0].iterate(_plastic_load, rows, setup, guess, limit, patience, atol) + (box["lam"],)
+                return zones[0].iterate(plastic_load, rows, setup, guess, limit, patience, atol) + (box["lam"],)
 
             def on_whole(guess, limit):
                 def G(x):
                     state = gauss.state(x)
-                    p = _plastic_load(gauss, state[-1])
+                    p = plastic_load(gauss, state[-1])
                     g0 = ground.backward(ground.forward(p, rows), rows)
                     if arc is None:
                         box["lam"] = frac
@@ -355,12 +195,12 @@ def held(curve: list[tuple[float, float]], unit: float, collapse: bool = False) 
 def release_unsupported(model, spec, rows, fraction: float = 1.0):
     """Stage 1 alone: ``fraction`` of the excavation load released on the unsupported ground in
     ``solver.load_steps`` increments (as :func:`solve_staged` begins). Returns the ground reaction
-    curve [(released, convergence)] and the quadrature points' history (:class:`_Points`: where
+    curve [(released, convergence)] and the quadrature points' history (:class:`Points`: where
     the ground yielded). Raises :class:`NotConvergedError` where the ground collapses."""
     release = stage_loads(model, spec).release
 
     def attempt(tol: float):
-        gauss = _Points(model, spec, "gauss")
+        gauss = Points(model, spec, "gauss")
         return _stage_one(model, rows, release, fraction, spec.solver.load_steps, tol, gauss)[3], gauss
 
     return tightened(attempt, spec.solver.plastic_tolerance)[0]
@@ -388,6 +228,26 @@ def tightened(attempt, tol: float):
                               f"{first})") from None
 
 
+def _elastic_contact(model, spec, rows, gauss: Points, stage_of, p1, F2_full, steps: int, commit, u1):
+    """The contact stage's first increments that no point flows in, in one solve: how many, the displacement
+    at their end and one increment before it (zeros where none). With no gap (SPEC §1.2's ``gap`` 0) every
+    contact model is positively homogeneous (cone constraints: the tractions of ``a`` times the loads are ``a``
+    times theirs), so with no point flowing the stage's displacement is ``a x`` with ``x`` its elastic answer,
+    each point's stress is linear in ``a`` and, the yield function being convex, inside its surface all the way
+    to the first yield (:func:`~solver.stages.points.elastic_increments`): the increments below it are the incremental path's answer, exactly. (A gap
+    makes the contact's answer affine, not linear, in the load: all increments are then solved.)"""
+    zero = np.zeros(model.ground.body.n)
+    if spec.geometry.gap != 0:
+        return 0, zero, zero
+    _, stage, d = stage_of(p1, 1.0)
+    _, t = contact_tractions(model, spec, d, F2_full)
+    x = model.ground.backward(stage.ground, rows, model.w * t)
+    elastic = elastic_increments(gauss, x, steps)
+    if elastic:
+        commit(*gauss.state(u1 + elastic / steps * x))
+    return elastic, elastic / steps * x, (elastic - 1) / steps * x
+
+
 def solve_staged(model, spec, rows, t0: float):
     """Solve a case whose ground can yield (see the module's docstring): a
     :class:`~solver.model.Solution` with ``plastic`` results filled (:func:`tightened`: where the
@@ -400,8 +260,8 @@ def solve_staged(model, spec, rows, t0: float):
 def _staged(model, spec, rows, t0: float, tol: float):
     ground, lining = model.ground, model.lining
     body = ground.body
-    gauss = _Points(model, spec, "gauss")
-    out = _Points(model, spec, "points")
+    gauss = Points(model, spec, "gauss")
+    out = Points(model, spec, "points")
     loads = stage_loads(model, spec)
     steps = spec.solver.load_steps
     ld = spec.excavation.deconfinement if loads.release is not None else 0.0
@@ -419,7 +279,6 @@ def _staged(model, spec, rows, t0: float, tol: float):
     y_g = ground.forward(full.ground, rows)
     y_l = lining.forward(full.lining, rows)
     F2_full = model.mode_loads(full.lining)
-    u2 = u2_prev = np.zeros(body.n)
     p = p1
 
     def stage_of(p, a):
@@ -443,19 +302,20 @@ def _staged(model, spec, rows, t0: float, tol: float):
             def G(x):
                 state = points.state((u1 + x)[dofs])
                 p = np.zeros(body.n)
-                p[dofs] = _plastic_load(points, state[-1])
+                p[dofs] = plastic_load(points, state[-1])
                 _, stage, d = stage_of(p, frac)
                 _, t = contact_tractions(model, spec, d, frac * F2_full)
                 return ground.backward(stage.ground, rows, model.w * t), p, state
             return G
 
-        return region.watched(zones, model, gauss, _plastic_load, make_G, guess, K, limit, patience, atol, u1) + (frac,)
+        return region.watched(zones, model, gauss, plastic_load, make_G, guess, K, limit, patience, atol, u1) + (frac,)
 
-    a, a_prev, h, used = 0.0, -1.0 / steps, 1.0 / steps, 0
-    for k in range(1, steps + 1):
+    elastic, u2, u2_prev = _elastic_contact(model, spec, rows, gauss, stage_of, p1, F2_full, steps, commit, u1)
+    a, a_prev, h, used = elastic / steps, (elastic - 1) / steps, 1.0 / steps, 0
+    for k in range(elastic + 1, steps + 1):
         u2, p, its, u2_prev, a_prev, h = advance(solve2, commit, u2, u2_prev, a, a_prev, k / steps, 1.0 / steps, h,
                                                   f"stage 2, increment {k} of {steps}", arc_length=False,
-                                                  budget=path.share(k, used))
+                                                  budget=path.share(k - elastic, used))
         a = k / steps
         used += its
     iterations += used

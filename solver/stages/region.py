@@ -78,7 +78,7 @@ def dilate(model, elements: np.ndarray, layers: int | None = None) -> np.ndarray
 
 class Zone:
     """The yielding zone of one stage's solve: the elements it covers, their points' history (from the
-    whole ground's, ``gauss``: :class:`~solver.stages.plastic._Points`) and, if ``condensed`` (stage 1), the
+    whole ground's, ``gauss``: :class:`~solver.stages.points.Points`) and, if ``condensed`` (stage 1), the
     ground condensed onto its unknowns. ``u_r`` is the ground's displacement under the whole excavation load
     (stage 1)."""
 
@@ -153,7 +153,7 @@ class Zone:
             self.g_r = self.scale * self.schur.product(self.u_r[dofs])
 
     def points(self):
-        """The zone's points as :class:`~solver.stages.plastic._Points` (their history as committed)."""
+        """The zone's points as :class:`~solver.stages.points.Points` (their history as committed)."""
         g, at = self.gauss, self._at
         sub = copy.copy(g)
         sub.G, sub.shape = self._G, (at.size, g.shape[1])

@@ -17,6 +17,7 @@ from solver.errors import NotConvergedError
 from solver.ground.mohr_coulomb import principal, yield_values
 from solver.run import run_case
 import solver.stages.loads as stage_fns
+from solver.stages.points import Points, elastic_increments
 
 P0, C, PHI, E, NU = 1.0e6, 1.0e5, 30.0, 5.0e7, 0.3
 A = 2.8
@@ -123,7 +124,7 @@ def test_stage_1_is_elastic_up_to_the_first_yield_of_kirsch():
 
     rows = rows_of_model(spec.interface.model)
     u_r = ground.backward(ground.forward(stage_fns.stage_loads(model, spec).release, rows), rows)
-    f = plastic.first_yield(plastic._Points(model, spec, "gauss"), u_r, 1.0)
+    f = elastic_increments(Points(model, spec, "gauss"), u_r, 1000) / 1000
     exact = np.sin(np.radians(PHI)) + C / P0 * np.cos(np.radians(PHI))
     assert f == pytest.approx(exact, rel=0.03)  # the first points sit a little inside the wall
     curve = json.loads(run_case(spec).attrs["ground_reaction_curve"])
@@ -432,12 +433,12 @@ def test_a_stalling_increment_is_split_and_the_answer_holds_equilibrium_and_cons
 
     held = []
 
-    class Held(plastic._Points):
+    class Held(Points):
         def __init__(self, *args, **kwargs):
             super().__init__(*args, **kwargs)
             held.append(self)
 
-    monkeypatch.setattr(plastic, "_Points", Held)
+    monkeypatch.setattr(plastic, "Points", Held)
     spec = CaseSpec.model_validate(WEAK)
     model = TunnelModel(spec)
     with caplog.at_level(logging.DEBUG, logger="solver.stages.path"):
@@ -581,3 +582,46 @@ def test_a_stages_increments_share_its_iterations(monkeypatch):
     # and no increment more than twice its share: a case that fails does not run on for a stage's budget
     monkeypatch.setattr(path, "MAX_STEP_ITERATIONS", 2500)
     assert path.share(1, 0) == 2500 and path.share(3, 4000) == 3500 and path.share(9, 100) == 5000
+
+
+@pytest.mark.parametrize("case, elastic", [
+    # stage 1 elastic, the contact stage's first 8 increments too, then 2 plastic ones
+    ({"ground": {"model": "mohr-coulomb", "cohesion": 4.0e4, "friction_angle": 28.0, "dilatancy": 0.0},
+      "loads": {"lateral_ratio": 0.65}}, 8),
+    # issue 36's c 10 kPa case on a Coulomb interface: the zone that yielded in stage 1 unloads in the contact stage
+    ({"ground": {"model": "mohr-coulomb", "cohesion": 1.0e4, "friction_angle": 28.0, "dilatancy": 0.0},
+      "interface": {"model": "coulomb", "friction": 0.4}}, 10),
+])
+def test_the_contact_stages_increments_no_point_flows_in_are_one_solve_with_the_incremental_answer(
+        case, elastic, monkeypatch):
+    """With no gap every contact model is positively homogeneous in the load, so while no point flows the
+    contact stage's displacement is linear in its load and each point's stress too: by the yield function's
+    convexity the increments below the first yield are one elastic solve (:func:`plastic._elastic_contact`).
+    The answer is the increment-by-increment one's (each increment iterated, ``_elastic_contact`` switched
+    off) to a thousandth of the forces and displacements, and the same points yield."""
+    spec = CaseSpec.model_validate({**case, "mesh": COARSE})
+    taken = []
+    real = plastic._elastic_contact
+
+    def spy(*args):
+        out = real(*args)
+        taken.append(out[0])
+        return out
+
+    monkeypatch.setattr(plastic, "_elastic_contact", spy)
+    fast = run_case(spec)
+    assert taken == [elastic]
+    monkeypatch.setattr(plastic, "_elastic_contact", lambda model, *args: (0, np.zeros(model.ground.body.n),
+                                                                           np.zeros(model.ground.body.n)))
+    slow = run_case(spec)
+    assert fast.attrs["plastic_iterations"] < slow.attrs["plastic_iterations"]
+    for name in ("max_thrust", "max_abs_moment", "max_contact_pressure", "crown_settlement", "ground_loss"):
+        assert float(fast[name]) == pytest.approx(float(slow[name]), rel=1e-3), name
+    np.testing.assert_allclose(fast["displacement_y"].values, slow["displacement_y"].values,
+                               atol=1e-3 * float(np.abs(slow["displacement_y"]).max()))
+    assert float(fast["plastic_area"]) == pytest.approx(float(slow["plastic_area"]), rel=0.02, abs=1e-3)
+    # a gap makes the contact's answer affine in the load: every increment is iterated
+    taken.clear()
+    monkeypatch.setattr(plastic, "_elastic_contact", spy)
+    run_case(CaseSpec.model_validate({**case, "mesh": COARSE, "geometry": {"gap": 0.002}}))
+    assert taken == [0]

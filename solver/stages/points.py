@@ -1,0 +1,176 @@
+"""The ground's stress history at a set of points (quadrature points or the stored faces' points) and what
+it answers: the state at a displacement (:meth:`Points.state`: trial stress, return, plastic strain), the
+plastic load it makes (:func:`plastic_load`) and how far a stage's displacement takes it before any point
+yields (:func:`elastic_increments`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..ground.laws import PointLaws
+from ..ground.loads import in_situ_stress, moduli
+from ..ground.mohr_coulomb import equivalent
+from ..ground.strata import strata
+
+#: The least distance from the yield surface (relative) at which a point is reported at yield:
+#: a tenth of ``solver.plastic_tolerance`` if coarser (the iteration leaves yielding points a hair inside).
+FLAG_TOLERANCE = 1e-3
+
+
+class Points:
+    """The ground's stress history at one set of points (quadrature or output points)."""
+
+    def __init__(self, model, spec, where: str):
+        basis = model.ground.body.basis if where == "gauss" else model.point_basis("ground")
+        self.basis = basis
+        self.G = model.gradient_operator(where)
+        self.weights = basis.dx
+        layers = strata(spec)
+        self.layers = layers
+        band = model.band
+        y = np.asarray(basis.global_coordinates())[1]  # (E, Q)
+        self.shape = y.shape
+        young, poisson = moduli(layers, band, y)  # the case's (the model's may differ by a scale)
+        young = np.broadcast_to(young, y.shape)
+        poisson = np.broadcast_to(poisson, y.shape)
+        lam = young * poisson / ((1 + poisson) * (1 - 2 * poisson))
+        mu = young / (2 * (1 + poisson))
+        self.lam, self.mu, self.mu2 = lam, mu, 2 * mu
+        per = lambda name: np.broadcast_to(  # noqa: E731
+            np.array([getattr(s, name) for s in layers])[band][:, None], y.shape).ravel()
+        law = np.broadcast_to(np.array([s.model for s in layers])[band][:, None], y.shape).ravel()
+        self.yielding = law != "elastic"
+        sel = self.yielding
+        self.material = PointLaws.of(law[sel], lam.ravel()[sel], mu.ravel()[sel], lambda k: per(k)[sel])
+        self.sigma0 = (in_situ_stress(spec, layers, band, y)["effective"]  # (4, E, Q)
+                       if spec.excavation.method == "deconfinement" else np.zeros((4,) + y.shape))
+        self.sigma = self.sigma0.copy()  # at the last converged increment
+        self.grad = np.zeros((2, 2) + y.shape)
+        self.tau = np.zeros((4,) + y.shape)  # σ0′ + D ε - σ = D ε_p
+        self.eqps = np.zeros(y.shape)
+        self.at_yield = np.zeros(y.shape, bool)
+        #: the elements that have had a plastic strain so far, their points and those points'
+        #: rows of ``G``, transposed (:func:`plastic_load`)
+        self.yielded = (np.zeros(y.shape[0], bool), None, None)
+        #: a point within this (relative) distance of the yield surface counts as at yield: the
+        #: equilibrium iteration's tolerance leaves yielding points a hair inside it
+        self.flag_tolerance = max(spec.solver.plastic_tolerance / 10, FLAG_TOLERANCE)
+
+    def hooke(self, grad: np.ndarray, onto: np.ndarray | None = None) -> np.ndarray:
+        """The elastic stress (4, E, Q) of a displacement gradient (2, 2, E, Q), plane strain;
+        added to a copy of ``onto`` (4, E, Q) if given (in place: the trial of every iterate)."""
+        out = np.zeros((4,) + grad.shape[2:]) if onto is None else onto.copy()
+        lt = grad[0, 0] + grad[1, 1]
+        lt *= self.lam
+        out[3] += lt
+        out[0] += lt
+        out[1] += lt
+        out[0] += self.mu2 * grad[0, 0]
+        out[1] += self.mu2 * grad[1, 1]
+        shear = grad[0, 1] + grad[1, 0]
+        shear *= self.mu
+        out[2] += shear
+        return out
+
+    def gradient(self, u_free: np.ndarray) -> np.ndarray:
+        """The displacement gradient (2, 2, E, Q) of the ground's unknowns ``u_free``."""
+        return (self.G @ u_free).reshape((2, 2) + self.shape)
+
+    def trial(self, grad: np.ndarray):
+        """Stress, plastic strain increment, yield flags and ``D ε_p`` of a displacement
+        gradient since excavation, from the last converged increment."""
+        trial = self.hooke(grad - self.grad, onto=self.sigma)
+        flat = trial.reshape(4, -1)
+        dep = np.zeros((3, flat.shape[1]))
+        flags = np.zeros(flat.shape[1], bool)
+        sel = self.yielding
+        if sel.all():
+            stress, dep, flags = self.material.return_stress(flat, self.flag_tolerance)
+        else:
+            stress = flat.copy()
+            if sel.any():
+                stress[:, sel], dep[:, sel], flags[sel] = self.material.return_stress(flat[:, sel],
+                                                                                     self.flag_tolerance)
+        # (a point flowing in this increment is at yield: return_stress flags every point it returns)
+        stress = stress.reshape(trial.shape)
+        return stress, dep, flags.reshape(self.shape), self.tau + (trial - stress)
+
+    def state(self, u_free: np.ndarray) -> tuple:
+        """The state at the ground's unknowns ``u_free`` as the equilibrium iteration carries it:
+        ``(u_free, grad, stress, plastic strain increment, flags, D ε_p)`` (:meth:`trial`)."""
+        grad = self.gradient(u_free)
+        return (u_free, grad) + self.trial(grad)
+
+    #: what a converged increment leaves at the points (:meth:`commit`, :meth:`history`)
+    HISTORY = ("grad", "sigma", "tau", "eqps", "at_yield", "yielded")
+
+    def history(self) -> dict:
+        """The points' history as it stands, read-only (:func:`_first_stage` keeps it on the model:
+        every later commit replaces these arrays, none writes into them)."""
+        kept = {name: getattr(self, name) for name in self.HISTORY}
+        for value in kept.values():
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
+        return kept
+
+    def restore(self, history: dict) -> None:
+        self.__dict__.update(history)
+
+    def commit(self, grad, stress, dep, flags, tau) -> None:
+        self.grad, self.sigma, self.tau = grad, stress, tau
+        self.eqps = self.eqps + equivalent(dep).reshape(self.shape)
+        self.at_yield = flags
+
+
+def plastic_load(points: Points, tau: np.ndarray) -> np.ndarray:
+    """``∫Bᵀ(σ0′ + D ε(u) - σ)`` on the ground's unknowns, at the quadrature points of
+    ``points``, from ``tau`` = the bracket (4, E, Q): non-zero only where the ground has yielded,
+    so only the rows of the gradient operator at the points of the elements that have yielded
+    so far are used (:attr:`Points.yielded`, grown when others yield)."""
+    elements, at, GT = points.yielded
+    now = (tau.reshape(4, -1) != 0).any(axis=0).reshape(points.shape).any(axis=1)  # (E,)
+    if (now & ~elements).any():
+        elements = elements | now
+        E, Q = points.shape
+        at = (np.flatnonzero(elements)[:, None] * Q + np.arange(Q)).ravel()  # their points
+        GT = points.G[(np.arange(4)[:, None] * (E * Q) + at[None, :]).ravel()].T
+        points.yielded = elements, at, GT
+    if GT is None:
+        return np.zeros(points.G.shape[1])
+    w = points.weights.reshape(-1)[at]
+    t = tau.reshape(4, -1)[:, at]
+    return GT @ np.concatenate([t[0] * w, t[2] * w, t[2] * w, t[1] * w])
+
+
+def _yield_along(points: Points, u_unit: np.ndarray):
+    """``at_yield(f, where, material)``: the yield flags of the yielding points ``where`` (their law
+    ``material``) at the fraction ``f`` of the displacement ``u_unit`` added to the last converged state."""
+    rate = points.hooke(points.gradient(u_unit)).reshape(4, -1)[:, points.yielding]
+    start = points.sigma.reshape(4, -1)[:, points.yielding]
+
+    def at_yield(f: float, where, material) -> np.ndarray:
+        return material.return_stress(start[:, where] + f * rate[:, where], points.flag_tolerance)[2]
+
+    return at_yield
+
+
+def elastic_increments(points: Points, u_stage: np.ndarray, steps: int) -> int:
+    """How many of a stage's ``steps`` equal increments of the displacement ``u_stage`` (linear in the stage's
+    load, added to the last converged state) the ``points`` take with none at yield: those the stage solves in
+    one step. Each point's stress is linear in the fraction and its yield function convex in the stress, so
+    its admissible fractions are an interval ``[0, f_i]``: a point inside at the stage's end is inside all the
+    way, and the bisection over the increments' ends looks only at the points that are not (a few returns).
+    Stage 1's increments below the first yield are one elastic solve; so are the contact stage's
+    (:func:`solver.stages.plastic._elastic_contact`)."""
+    if not points.yielding.any():
+        return steps
+    at_yield = _yield_along(points, u_stage)
+    out = np.flatnonzero(at_yield(1.0, slice(None), points.material))
+    if out.size == 0:
+        return steps
+    material = points.material.at(out)
+    low, high = 0, steps  # every point inside at low / steps, some at yield at high / steps
+    while high - low > 1:
+        mid = (low + high) // 2
+        low, high = (low, mid) if at_yield(mid / steps, out, material).any() else (mid, high)
+    return low
