@@ -333,18 +333,26 @@ def point_basis(body: Body, points: np.ndarray = SUBTRIANGLE_CENTROIDS) -> Basis
     return Basis(body.basis.mesh, body.basis.elem, quadrature=(points, W))
 
 
-def _gradient_entries(basis: Basis):
-    """``(rows, dofs, values)`` of the displacement gradient at the points of ``basis`` on the full
-    DOF vector: row ``(i, j, e, q)`` of ``du_i/dx_j`` (flattened), each vector basis function moving
-    one component and so filling that component's two rows."""
+def _gradient_rows(basis: Basis) -> tuple[np.ndarray, np.ndarray]:
+    """``(values, dofs)`` (4 E Q, w) of the displacement gradient at the points of ``basis`` on the full
+    DOF vector, row by row: row ``(i, j, e, q)`` of ``du_i/dx_j`` (flattened) holds the ``w`` basis functions
+    of element ``e`` that move component ``i`` (each vector basis function moves one)."""
     dofs = basis.element_dofs  # (Nbfun, E)
     E, Q = basis.dx.shape
-    index = np.arange(4 * E * Q).reshape(2, 2, E, Q)
-    grads = [basis.basis[i][0].grad for i in range(basis.Nbfun)]  # (2, 2, E, Q): one component non-zero
-    comp = [0 if np.any(g[0]) else 1 for g in grads]
-    vals = np.stack([g[c] for g, c in zip(grads, comp)])           # (Nbfun, 2, E, Q)
-    rows = index[comp]                                               # (Nbfun, 2, E, Q)
-    return rows, np.broadcast_to(dofs[:, None, :, None], rows.shape), vals
+    grads = [basis.basis[k][0].grad for k in range(basis.Nbfun)]  # (2, 2, E, Q): one component non-zero
+    comp = np.array([0 if np.any(g[0]) else 1 for g in grads])
+    values, at = [], []
+    for c in (0, 1):
+        ks = np.flatnonzero(comp == c)
+        values.append(np.stack([grads[k][c] for k in ks], axis=-1))  # (2, E, Q, w)
+        at.append(np.broadcast_to(dofs[ks].T[None, :, None, :], (2, E, Q, ks.size)))
+    return np.stack(values).reshape(4 * E * Q, -1), np.stack(at).reshape(4 * E * Q, -1)
+
+
+def _rows_to_csr(values: np.ndarray, columns: np.ndarray, width: int) -> sp.csr_matrix:
+    """A CSR matrix of ``w`` entries a row (``values``, ``columns``: (rows, w)), built as it is stored."""
+    r, w = values.shape
+    return sp.csr_matrix((values.ravel(), columns.ravel(), np.arange(0, r * w + 1, w)), shape=(r, width))
 
 
 def nodal_gradient_operator(basis: Basis) -> sp.csr_matrix:
@@ -352,9 +360,8 @@ def nodal_gradient_operator(basis: Basis) -> sp.csr_matrix:
     vector (:meth:`Body.full` of the nodal displacements): ``(G @ x).reshape(2, 2, E, P)`` is
     scikit-fem's ``basis.interpolate(x).grad`` at a tenth of its cost once built (a model's stored
     stresses, :func:`stress_at`)."""
-    rows, cols, vals = _gradient_entries(basis)
-    E, P = basis.dx.shape
-    return sp.csr_matrix((vals.ravel(), (rows.ravel(), cols.ravel())), shape=(4 * E * P, basis.N))
+    values, dofs = _gradient_rows(basis)
+    return _rows_to_csr(values, dofs, basis.N)
 
 
 def gradient_operator(body: Body, basis: Basis) -> sp.csr_matrix:
@@ -363,29 +370,15 @@ def gradient_operator(body: Body, basis: Basis) -> sp.csr_matrix:
     ``x`` (in the unknowns' basis). Its transpose integrates: ``Gᵀ w`` with ``w`` a gradient-shaped
     field times the points' weights is ``∫ w : ∇v`` for every test function ``v``.
 
-    Built as one COO in the unknowns' numbering (:func:`_gradient_entries`); a skew node's x and y
-    columns are turned into its pair of unknowns entry by entry (``G T`` without a product)."""
-    rows, full, vals = _gradient_entries(basis)
+    Built row by row in the unknowns' numbering (:func:`_gradient_rows`; a constrained DOF's entries
+    dropped), then times ``T`` where some nodes' unknowns are turned (``u_xy = T u``)."""
+    values, dofs = _gradient_rows(basis)
     unknown = np.full(basis.N, -1, np.int64)
     unknown[body.free] = np.arange(body.free.size)
-    cols = unknown[full]
-    keep = cols >= 0
-    rows, cols, vals = rows[keep], cols[keep], vals[keep]
-    if body.skew is not None:  # (G T)[:, a] = c G[:, a] + s G[:, b], (G T)[:, b] = -s G[:, a] + c G[:, b]
-        t = body.skew
-        pair = np.full(body.free.size, -1, np.int64)
-        pair[t.a] = pair[t.b] = np.arange(t.a.size)
-        on = pair[cols] >= 0
-        k = pair[cols[on]]
-        is_a = cols[on] == t.a[k]
-        v = vals[on]
-        to_a = np.where(is_a, t.c[k], t.s[k]) * v
-        to_b = np.where(is_a, -t.s[k], t.c[k]) * v
-        r = rows[on]
-        rows = np.r_[rows[~on], r, r]
-        cols = np.r_[cols[~on], t.a[k], t.b[k]]
-        vals = np.r_[vals[~on], to_a, to_b]
-    return sp.csr_matrix((vals, (rows, cols)), shape=(4 * basis.dx.size, body.free.size))
+    cols = unknown[dofs]
+    G = _rows_to_csr(np.where(cols >= 0, values, 0.0), np.maximum(cols, 0), body.free.size)
+    G.eliminate_zeros()
+    return G if body.skew is None else (G @ body.skew.matrix()).tocsr()
 
 
 def stress_at(body: Body, young, poisson, u_nodes: np.ndarray, points: tuple[int, int],

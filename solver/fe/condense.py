@@ -69,21 +69,24 @@ class Tail:
 
 def trailing_factor(chol: Cholesky, start: int) -> sp.csc_matrix:
     """The columns ``start:`` of a supernodal factor ``L`` (rows ``start:`` too) as a sparse
-    lower-triangular (k, k) matrix in factor order: for products with the Schur complement."""
+    lower-triangular (k, k) matrix in factor order: for products with the Schur complement.
+
+    Column ``c`` of supernode ``s`` (its ``j``-th) is the block's column-major column ``j`` from its
+    diagonal down: values ``x[px[s] + j (nr + 1) :][: nr - j]`` at the rows ``s[pi[s] + j :]`` (``nr`` the
+    supernode's rows), gathered for every trailing column at once."""
     ns, sup, pi, px, rows_of, x = chol._supernodes()
-    rows, cols, vals = [], [], []
-    for s in np.flatnonzero(sup[1:] > start):
-        c0, c1 = int(sup[s]), int(sup[s + 1])
-        nr, nc = int(pi[s + 1] - pi[s]), c1 - c0
-        block = x[px[s]: px[s] + nr * nc].reshape(nc, nr).T  # column-major (nr, nc)
-        r = rows_of[pi[s]: pi[s + 1]]
-        j0 = max(start - c0, 0)
-        rr, jj = np.nonzero(np.arange(nr)[:, None] >= np.arange(j0, nc)[None, :])
-        rows.append(r[rr] - start)
-        cols.append(c0 + j0 + jj - start)
-        vals.append(block[:, j0:][rr, jj])
+    cols = np.arange(start, chol.n)
+    s = np.searchsorted(sup, cols, side="right") - 1  # each column's supernode
+    j = cols - sup[s]
+    nr = pi[s + 1] - pi[s]
+    counts = nr - j
+    indptr = np.zeros(cols.size + 1, np.int64)
+    np.cumsum(counts, out=indptr[1:])
+    within = np.arange(indptr[-1]) - np.repeat(indptr[:-1], counts)  # position down each column
+    data = x[np.repeat(px[s] + j * (nr + 1), counts) + within]
+    rows = rows_of[np.repeat(pi[s] + j, counts) + within] - start
     k = chol.n - start
-    return sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(k, k))
+    return sp.csc_matrix((data, rows, indptr), shape=(k, k))
 
 
 class RegionSchur:

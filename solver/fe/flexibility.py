@@ -92,6 +92,7 @@ class FactoredBody:
         self.body, self.B, self.m = body, B, m
         #: per ``Rows``: the factorization and ``B``'s rows it serves, on its ``last`` unknowns
         self._factors: dict[str, tuple[InterfaceFactor, sp.csr_matrix]] = {}
+        self._order = None
         n = body.n
         self._keep = None
         if pin is not None:
@@ -128,10 +129,16 @@ class FactoredBody:
 
     def matrix(self) -> tuple[sp.spmatrix, np.ndarray]:
         """The matrix every factorization of this body is of (``K`` without the pinned DOF)
-        and its fill-reducing ordering (computed on each call)."""
-        nodes = self.body.node_of_dof()
-        nodes = nodes if self._keep is None else nodes[self._keep]
-        return self._restrict(self.body.K), nested_dissection(self.body.basis.mesh, nodes)
+        and its fill-reducing ordering (:meth:`order`)."""
+        return self._restrict(self.body.K), self.order()
+
+    def order(self) -> np.ndarray:
+        """The fill-reducing ordering of :meth:`matrix`'s unknowns (found once: the yielding zone's
+        factorizations reorder it, :mod:`solver.stages.region`)."""
+        if self._order is None:
+            nodes = self.body.node_of_dof()
+            self._order = nested_dissection(self.body.basis.mesh, nodes if self._keep is None else nodes[self._keep])
+        return self._order
 
     def factor(self, rows: Rows) -> tuple[InterfaceFactor, sp.csr_matrix]:
         """The factorization serving ``rows`` and those rows of ``B`` in its unknowns, as

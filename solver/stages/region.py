@@ -25,7 +25,6 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..fe.condense import RegionSchur
-from ..fe.linalg import nested_dissection
 from .path import Stalled, fixed_point
 
 #: Rings of elements kept around the elements at yield.
@@ -141,7 +140,7 @@ class Zone:
         key = dofs.tobytes()
         with model._lock:  # a model shared by threads (:func:`solver.model.shared_model`)
             if key not in cache:
-                order = model.built(("ground order",), lambda: nested_dissection(body.basis.mesh, body.node_of_dof()))
+                order = self.ground.base.order()  # (the ground's own: no DOF is pinned where zones are made)
                 inside = np.zeros(n, bool)
                 inside[dofs] = True
                 cache[key] = RegionSchur(body.K, order, inside)
