@@ -49,12 +49,15 @@ from solver.stages.loads import seepage as seepage_of  # noqa: E402
 
 LAYERS = [{"thickness": 6.0, "young": 2.0e7, "density": 1900.0, "lateral_ratio": 0.6},
           {"thickness": 0.0, "young": 1.2e8, "density": 2100.0, "lateral_ratio": 0.45}]
+#: issue 36's default Mohr–Coulomb case (≤ 3 times its elastic twin, the default)
+MC_DEFAULT = {"ground": {"model": "mohr-coulomb", "cohesion": 1.0e4, "friction_angle": 28.0, "dilatancy": 0.0}}
 CASES = {
     "default": {},
     "layered-watertight": {"ground": {"layers": LAYERS}, "water": {"table": 3.0}},
     "layered-drained": {"ground": {"layers": LAYERS}, "water": {"table": 3.0, "lining": "drained"}},
     "mohr-coulomb": {"ground": {"model": "mohr-coulomb", "cohesion": 3.0e4, "friction_angle": 28.0,
                                 "tensile_strength": 1.0e4}},
+    "mohr-coulomb-c10": MC_DEFAULT,
     # the README's default tunnel in weak rock (issue 36: ≤ 3.5 times its elastic twin, the next row)
     "hoek-brown": {"ground": {"model": "hoek-brown", "young": 5.0e8, "ucs": 1.0e6, "gsi": 30.0, "mi": 8.0,
                               "dilatancy": 5.0}},
@@ -74,8 +77,6 @@ def _least(fn, repeat: int) -> float:
     return best
 
 
-#: issue 36's default Mohr–Coulomb case
-MC_DEFAULT = {"ground": {"model": "mohr-coulomb", "cohesion": 1.0e4, "friction_angle": 28.0, "dilatancy": 0.0}}
 #: the sampled families: (c′ kPa, φ′ deg) ranges; ψ 0–5°, λd 0.2–0.6, K0 0.4–0.7, E 30–150 MPa for both
 FAMILIES = {"weak": ((1.0, 15.0), (20.0, 32.0)), "wide": ((5.0, 50.0), (20.0, 38.0))}
 

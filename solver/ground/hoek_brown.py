@@ -28,7 +28,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .mohr_coulomb import from_principal, principal
+from .principal import descending, from_principal, order_of, principal, unsorted
 from .tangent import active_set_jacobian, elastic_matrix, full_tangent, unsort
 
 #: Relative tolerance of "on or inside a surface" (to the stresses' scale).
@@ -241,9 +241,8 @@ def _return(trial, m: HBMaterial, scale, jacobian: bool):
     (k, 3, 3) in those axes."""
     k = trial.shape[1]
     major, minor, angle, szz = principal(trial)
-    vals = np.stack([major, minor, szz])
-    order = np.argsort(-vals, axis=0, kind="stable")
-    st = np.take_along_axis(vals, order, axis=0).T  # (k, 3) sorted σ1 ≥ σ2 ≥ σ3
+    st, perm = descending(major, minor, szz)
+    st = st.T  # (k, 3) sorted σ1 ≥ σ2 ≥ σ3
     lam, mu, sq = m.lam, m.mu, m.sin_psi
     res = np.full((k, 3), np.nan)
     strain = np.zeros((k, 3))
@@ -300,13 +299,10 @@ def _return(trial, m: HBMaterial, scale, jacobian: bool):
         _corner_returns(st, m, scale, left, res, strain, J)
     if left.any():
         raise ArithmeticError(f"Hoek-Brown return mapping found no admissible stress at {left.sum()} points")
-    back = np.empty((3, k))
-    np.put_along_axis(back, order, res.T, axis=0)
-    dep = np.empty((3, k))
-    np.put_along_axis(dep, order, strain.T, axis=0)
+    back = unsorted(res.T, perm)
     if jacobian:
-        J = unsort(J, order)
-    return from_principal(back[0], back[1], angle, back[2]), dep, J
+        J = unsort(J, order_of(perm))
+    return from_principal(back[0], back[1], angle, back[2]), unsorted(strain.T, perm), J
 
 
 def _hb_normal(i: int, j: int, sig, m: HBMaterial) -> np.ndarray:

@@ -24,7 +24,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .principal import from_principal, principal
+from .principal import descending, from_principal, order_of, principal, unsorted
 from .tangent import active_set_jacobian, full_tangent, unsort
 
 #: Relative tolerance of "on or inside a surface" (to the stresses' scale).
@@ -180,24 +180,20 @@ def _main_plane(trial, m: Material):
     """The return onto the main plane (σ1, σ3) whatever the multiplier's sign (a frozen active
     set): stress (4, r) and principal plastic strain increments (3, r) in the trial's axes."""
     major, minor, angle, szz = principal(trial)
-    vals = np.stack([major, minor, szz])
-    order = np.argsort(-vals, axis=0, kind="stable")
-    st = np.take_along_axis(vals, order, axis=0)  # (3, r) sorted
+    st, perm = descending(major, minor, szz)  # (3, r) sorted
     sp, sq = m.sin_phi, m.sin_psi
     b = np.stack([1.0 + sq, np.zeros_like(sq), -(1.0 - sq)])  # (3, r)
     Db = 2.0 * m.lam * sq + 2.0 * m.mu * b
     gam = ((1.0 + sp) * st[0] - (1.0 - sp) * st[2] - 2.0 * m.c * m.cos_phi) / ((1.0 + sp) * Db[0] - (1.0 - sp) * Db[2])
-    back, dep = np.empty_like(st), np.empty_like(st)
-    np.put_along_axis(back, order, st - gam * Db, axis=0)
-    np.put_along_axis(dep, order, gam * b, axis=0)
-    return from_principal(back[0], back[1], angle, back[2]), dep
+    back = unsorted(st - gam * Db, perm)
+    return from_principal(back[0], back[1], angle, back[2]), unsorted(gam * b, perm)
 
 
 def _tangent(trial, stress, active, m: Material, scale):
     """The algorithmic tangent (r, 4, 4) of returns onto the candidate sets ``active`` (r,) (indices
     into :data:`CANDIDATES`, in sorted principal axes; ``order`` of the trial's)."""
     major, minor, _, szz = principal(trial)
-    order = np.argsort(-np.stack([major, minor, szz]), axis=0, kind="stable")  # as _return sorted them
+    order = order_of(descending(major, minor, szz)[1])  # as _return sorted them
     r = trial.shape[1]
     J = np.empty((r, 3, 3))
     a_all, b_all = np.empty((r, 6, 3)), np.empty((r, 6, 3))
@@ -218,9 +214,8 @@ def _return(trial, lam, mu, c, sp, cp, sq, t, scale):
     principal plastic strain increments (3, m) in the trial's axes."""
     m = trial.shape[1]
     major, minor, angle, szz = principal(trial)
-    vals = np.stack([major, minor, szz])  # (3, m)
-    order = np.argsort(-vals, axis=0, kind="stable")
-    st = np.take_along_axis(vals, order, axis=0).T  # (m, 3) sorted σ1 ≥ σ2 ≥ σ3
+    st, perm = descending(major, minor, szz)
+    st = st.T  # (m, 3) sorted σ1 ≥ σ2 ≥ σ3
     res = np.empty((m, 3))
     gam_strain = np.zeros((m, 3))
     active = np.zeros(m, np.int64)  # the candidate set each point returned onto
@@ -277,11 +272,8 @@ def _return(trial, lam, mu, c, sp, cp, sq, t, scale):
     if pending.any():
         raise ArithmeticError(f"Mohr-Coulomb return mapping found no admissible stress at {pending.sum()} points")
     # back to the trial's axes: undo the sort, then the in-plane directions
-    back = np.empty((3, m))
-    np.put_along_axis(back, order, res.T, axis=0)
-    dep = np.empty((3, m))
-    np.put_along_axis(dep, order, gam_strain.T, axis=0)
-    return from_principal(back[0], back[1], angle, back[2]), dep, active
+    back = unsorted(res.T, perm)
+    return from_principal(back[0], back[1], angle, back[2]), unsorted(gam_strain.T, perm), active
 
 
 def _admissible(gam, sig, c, sp, cp, t, scale) -> np.ndarray:

@@ -18,3 +18,26 @@ def from_principal(major, minor, angle, szz) -> np.ndarray:
     """Plane-strain stress components (4, ...) from in-plane principal values along ``angle``."""
     c, s = np.cos(angle), np.sin(angle)
     return np.stack([major * c * c + minor * s * s, major * s * s + minor * c * c, (major - minor) * s * c, szz])
+
+
+def descending(major, minor, szz):
+    """The principal values sorted σ1 ≥ σ2 ≥ σ3, (3, m), and the permutation ``(top, mid)``: where σzz
+    is the largest, where it is the intermediate (``major ≥ minor`` always; ties keep the order major,
+    minor, zz, as a stable sort would). Three cases, so a few selections instead of a sort."""
+    top = szz > major
+    mid = (szz > minor) & ~top
+    return np.stack([np.where(top, szz, major), np.where(top, major, np.where(mid, szz, minor)),
+                     np.where(top | mid, minor, szz)]), (top, mid)
+
+
+def unsorted(x: np.ndarray, perm) -> np.ndarray:
+    """Rows (3, m) in :func:`descending`'s order back in the slots (major, minor, zz)."""
+    top, mid = perm
+    return np.stack([np.where(top, x[1], x[0]), np.where(top | mid, x[2], x[1]),
+                     np.where(top, x[0], np.where(mid, x[1], x[2]))])
+
+
+def order_of(perm) -> np.ndarray:
+    """:func:`descending`'s permutation as indices (3, m): the slot (0 major, 1 minor, 2 zz) of each sorted row."""
+    top, mid = perm
+    return np.stack([np.where(top, 2, 0), np.where(top, 0, np.where(mid, 2, 1)), np.where(top | mid, 1, 2)])
