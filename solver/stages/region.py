@@ -116,8 +116,10 @@ class Zone:
         points = (at[:, None] * Q + np.arange(Q)).ravel()
         rows = (np.arange(4)[:, None] * (E * Q) + points[None, :]).ravel()
         G = gauss.G[rows].tocsr()
-        self.dofs = dofs = np.unique(G.indices)
         n = gauss.G.shape[1]
+        touched = np.zeros(n, bool)
+        touched[G.indices] = True
+        self.dofs = dofs = np.flatnonzero(touched)
         if dofs.size == 0:
             self.given_up = True
         if self.given_up or self._too_big(dofs.size / n):
@@ -128,6 +130,8 @@ class Zone:
         local[dofs] = np.arange(dofs.size)
         G = sp.csr_matrix((G.data, local[G.indices], G.indptr), shape=(G.shape[0], dofs.size))
         self._at, self._G = at, G
+        #: what :meth:`points` takes from the whole ground's points that no commit changes
+        self._fixed = {name: getattr(gauss, name)[at] for name in ("lam", "mu", "mu2", "weights")}
         rank = np.cumsum(gauss.yielding) - 1
         self._yielding = gauss.yielding[points]
         self._material = gauss.material.at(rank[points][self._yielding])
@@ -157,8 +161,8 @@ class Zone:
         sub = copy.copy(g)
         sub.G, sub.shape = self._G, (at.size, g.shape[1])
         sub.yielding, sub.material = self._yielding, self._material
-        for name in ("lam", "mu", "mu2", "weights", "eqps", "at_yield"):
-            setattr(sub, name, getattr(g, name)[at])
+        sub.__dict__.update(self._fixed)
+        sub.eqps, sub.at_yield = g.eqps[at], g.at_yield[at]
         sub.sigma, sub.tau = g.sigma[:, at], g.tau[:, at]
         sub.grad = g.grad[:, :, at]
         sub.yielded = (np.zeros(at.size, bool), None, None)
