@@ -116,7 +116,7 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "
     if release is not None and ld > 0:
         y_r = ground.forward(release, rows)
         u_r = ground.backward(y_r, rows)
-        elastic = elastic_increments(gauss, ld * u_r, steps)
+        elastic, at_end = elastic_increments(gauss, ld * u_r, steps)
         if elastic:
             u1 = ld * elastic / steps * u_r
             commit(*gauss.state(u1))
@@ -135,7 +135,7 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "
             answer and its load: on the yielding zone (:mod:`solver.stages.region`) while it is small, else
             on the whole ground."""
             if not zones and not ground.pinned and region.ENABLED:  # where it yields at λd on the elastic ground
-                zones.append(Zone(model, gauss, u_r, gauss.trial(gauss.gradient(ld * u_r))[2].any(axis=1)))
+                zones.append(Zone(model, gauss, u_r, at_end))  # where the elastic ground yields at λd
             setup, box = region.release_step(zones[0], plastic_load, rows, frac, arc) if zones else (None, {})
 
             def on_zone():
@@ -242,7 +242,7 @@ def _elastic_contact(model, spec, rows, gauss: Points, stage_of, p1, F2_full, st
     _, stage, d = stage_of(p1, 1.0)
     _, t = contact_tractions(model, spec, d, F2_full)
     x = model.ground.backward(stage.ground, rows, model.w * t)
-    elastic = elastic_increments(gauss, x, steps)
+    elastic, _ = elastic_increments(gauss, x, steps)
     if elastic:
         commit(*gauss.state(u1 + elastic / steps * x))
     return elastic, elastic / steps * x, (elastic - 1) / steps * x

@@ -154,23 +154,26 @@ def _yield_along(points: Points, u_unit: np.ndarray):
     return at_yield
 
 
-def elastic_increments(points: Points, u_stage: np.ndarray, steps: int) -> int:
+def elastic_increments(points: Points, u_stage: np.ndarray, steps: int) -> tuple[int, np.ndarray]:
     """How many of a stage's ``steps`` equal increments of the displacement ``u_stage`` (linear in the stage's
-    load, added to the last converged state) the ``points`` take with none at yield: those the stage solves in
-    one step. Each point's stress is linear in the fraction and its yield function convex in the stress, so
-    its admissible fractions are an interval ``[0, f_i]``: a point inside at the stage's end is inside all the
-    way, and the bisection over the increments' ends looks only at the points that are not (a few returns).
-    Stage 1's increments below the first yield are one elastic solve; so are the contact stage's
-    (:func:`solver.stages.plastic._elastic_contact`)."""
+    load, added to the last converged state) the ``points`` take with none at yield (those the stage solves in
+    one step), and the elements (E,) with a point at yield at the stage's end so (where the stage will yield,
+    as the elastic ground sees it: a yielding zone's start, :mod:`solver.stages.region`). Each point's stress is
+    linear in the fraction and its yield function convex in the stress, so its admissible fractions are an
+    interval ``[0, f_i]``: a point inside at the stage's end is inside all the way, and the bisection over the
+    increments' ends looks only at the points that are not (a few returns). Stage 1's increments below the
+    first yield are one elastic solve; so are the contact stage's (:func:`solver.stages.plastic._elastic_contact`)."""
+    at_end = np.zeros(points.shape, bool)
     if not points.yielding.any():
-        return steps
+        return steps, at_end.any(axis=1)
     at_yield = _yield_along(points, u_stage)
     out = np.flatnonzero(at_yield(1.0, slice(None), points.material))
+    at_end.reshape(-1)[np.flatnonzero(points.yielding)[out]] = True
     if out.size == 0:
-        return steps
+        return steps, at_end.any(axis=1)
     material = points.material.at(out)
     low, high = 0, steps  # every point inside at low / steps, some at yield at high / steps
     while high - low > 1:
         mid = (low + high) // 2
         low, high = (low, mid) if at_yield(mid / steps, out, material).any() else (mid, high)
-    return low
+    return low, at_end.any(axis=1)

@@ -129,7 +129,7 @@ class Zone:
         local = np.full(n, -1, np.int64)
         local[dofs] = np.arange(dofs.size)
         G = sp.csr_matrix((G.data, local[G.indices], G.indptr), shape=(G.shape[0], dofs.size))
-        self._at, self._G = at, G
+        self._at, self._G, self._last = at, G, None
         #: what :meth:`points` takes from the whole ground's points that no commit changes
         self._fixed = {name: getattr(gauss, name)[at] for name in ("lam", "mu", "mu2", "weights")}
         rank = np.cumsum(gauss.yielding) - 1
@@ -165,7 +165,10 @@ class Zone:
         sub.eqps, sub.at_yield = g.eqps[at], g.at_yield[at]
         sub.sigma, sub.tau = g.sigma[:, at], g.tau[:, at]
         sub.grad = g.grad[:, :, at]
-        sub.yielded = (np.zeros(at.size, bool), None, None)
+        # the elements that have had a plastic strain and their rows of the zone's gradient operator, as the last
+        # points made found them (rows once gathered serve every later iteration while the zone does not grow)
+        sub.yielded = (np.zeros(at.size, bool), None, None) if self._last is None else self._last.yielded
+        self._last = sub
         return sub
 
     def solve(self, b: np.ndarray) -> np.ndarray:

@@ -124,9 +124,18 @@ def test_stage_1_is_elastic_up_to_the_first_yield_of_kirsch():
 
     rows = rows_of_model(spec.interface.model)
     u_r = ground.backward(ground.forward(stage_fns.stage_loads(model, spec).release, rows), rows)
-    f = elastic_increments(Points(model, spec, "gauss"), u_r, 1000) / 1000
+    gauss = Points(model, spec, "gauss")
+    count, at_end = elastic_increments(gauss, u_r, 1000)
+    f = count / 1000
     exact = np.sin(np.radians(PHI)) + C / P0 * np.cos(np.radians(PHI))
     assert f == pytest.approx(exact, rel=0.03)  # the first points sit a little inside the wall
+    # released in full on the elastic ground, Kirsch's hole is at yield where a²/r² ≥ f*: the elements said to
+    # be at yield at the stage's end are those with a point within r = a / √f* (to 2 % of it)
+    x, y = np.asarray(gauss.basis.global_coordinates())
+    r = np.hypot(x, y + spec.geometry.depth)
+    edge = A / np.sqrt(exact)
+    assert at_end[(r < 0.98 * edge).any(axis=1)].all() and not at_end[(r > 1.02 * edge).all(axis=1)].any()
+    assert 0 < at_end.sum() < at_end.size
     curve = json.loads(run_case(spec).attrs["ground_reaction_curve"])
     released = [c["released"] for c in curve]
     assert released == pytest.approx([k / 10 for k in range(1, 11)])
