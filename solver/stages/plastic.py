@@ -36,7 +36,8 @@ equal increments on the unsupported ground (those below the first yield, :func:`
 in one elastic solve; each increment starts from the last one's displacement change, scaled
 to its length); the lining is placed on the ground as it stands; stage 2
 releases the rest (with the lining's weight, the water and a drained lining's seepage) in as
-many increments, each with its contact solve. The stress history lives at the quadrature
+many increments, each with its contact solve (those below the first yield again in one solve where
+there is no gap: :func:`_elastic_contact`). The stress history lives at the quadrature
 points (degree 4, six per triangle); the stored face stresses are followed, with the same
 history, at the sub-triangle centroids. Strains come from one sparse gradient operator per
 set of points (:meth:`~solver.model.TunnelModel.gradient_operator`), whose transpose
