@@ -6,15 +6,16 @@ displacement is ``λ u_r + K⁻¹ p`` with ``p`` on their unknowns. Around them 
 (where the elastic ground yields at λd and ``GROWTH * LAYERS`` rings around it, grown as the ground
 yields). In stage 1 the rest of the ground is eliminated exactly (its Schur complement,
 :class:`~solver.fe.condense.RegionSchur`), so each iteration computes strains, returns stresses, mixes and
-solves on the zone's points and unknowns only (:meth:`Zone.iterate`): the same iterates as on the whole
-ground, to rounding, at a fraction of the cost. In stage 2 the whole ground is solved (the contact acts all
-round the lining) but stresses are returned at the zone's points alone (:meth:`Zone.watch`). What the zone
-assumes, that the ground outside it stays elastic, is checked on the whole ground at each answer: where a
-point outside has reached yield, the zone grows and the iteration goes on from there. The zone never
-shrinks within a stage; one of more than :data:`MOST` of the ground's unknowns is given up for the whole
-ground's iteration (its factor would cost more), one of more than :data:`EARLY` waits until the stage's
-iterations are many enough to pay for its factor. Zones are kept on the model (:data:`KEPT` of them): a
-sweep's cases whose ground yields alike share them.
+solves on the zone's points and unknowns only (:meth:`Zone.iterate`): the stresses at the points of the
+elements it watches (where it started and :data:`LAYERS` rings round what has yielded), its further rings a
+margin to watch more in without refactorizing. In stage 2 the whole ground is solved (the contact acts all
+round the lining) but stresses are returned at the watched points alone (:meth:`Zone.watch`). What the zone
+assumes, that the ground outside what it watches stays elastic, is checked on the whole ground at each answer:
+where a point outside has reached yield, it watches more (the zone grown where they would leave it) and the
+iteration goes on from there. The zone never shrinks within a stage; one of more than :data:`MOST` of the
+ground's unknowns is given up for the whole ground's iteration (its factor would cost more), one of more than
+:data:`EARLY` waits until the stage's iterations are many enough to pay for its factor. Zones are kept on the
+model (:data:`KEPT` of them): a sweep's cases whose ground yields alike share them.
 """
 from __future__ import annotations
 
@@ -44,6 +45,13 @@ KEPT = 3
 #: Off: no zone (:mod:`solver.stages.plastic` iterates on the whole ground in both stages, as before zones):
 #: what ``python -m bench.ground --zones`` and the tests measure zones against.
 ENABLED = True
+
+
+def _rows(gauss, elements: np.ndarray) -> np.ndarray:
+    """The rows of ``gauss``' gradient operator at the points of ``elements`` (indices), in the points' order."""
+    E, Q = gauss.shape
+    points = (elements[:, None] * Q + np.arange(Q)).ravel()
+    return (np.arange(4)[:, None] * (E * Q) + points[None, :]).ravel()
 
 
 class _Product:
@@ -76,16 +84,19 @@ def dilate(model, elements: np.ndarray, layers: int | None = None) -> np.ndarray
 
 
 class Zone:
-    """The yielding zone of one stage's solve: the elements it covers, their points' history (from the
-    whole ground's, ``gauss``: :class:`~solver.stages.points.Points`) and, if ``condensed`` (stage 1), the
-    ground condensed onto its unknowns. ``u_r`` is the ground's displacement under the whole excavation load
-    (stage 1)."""
+    """The yielding zone of one stage's solve: the elements it covers and, if ``condensed`` (stage 1), the ground
+    condensed onto their unknowns; the elements whose points' stresses each iteration returns (``watched``: those
+    it started from, where the elastic ground yields at λd in stage 1, and :data:`LAYERS` rings round what has
+    yielded), their history from the whole ground's (``gauss``: :class:`~solver.stages.points.Points`). The
+    zone's rings beyond them (``GROWTH * LAYERS`` round what has yielded) are the margin they grow in without a
+    refactorization. ``u_r`` is the ground's displacement under the whole excavation load (stage 1)."""
 
     def __init__(self, model, gauss, u_r: np.ndarray | None, elements: np.ndarray, layers: int | None = None,
                  condensed: bool = True):
         self.model, self.gauss, self.u_r = model, gauss, u_r
         self.ground, self.condensed = model.ground, condensed
         self.elements = np.zeros(gauss.shape[0], bool)
+        self.watched = np.array(elements, bool)  # (and LAYERS rings round what has yielded: :meth:`_cover`)
         self.given_up = self.waiting = False
         self.spent = 0  # iterations of the stage so far (on the zone or the whole ground)
         self._grow(elements, GROWTH * LAYERS if layers is None else layers)
@@ -106,19 +117,14 @@ class Zone:
         self._grow(np.zeros_like(self.elements), 0)
 
     def _grow(self, elements: np.ndarray, layers: int) -> None:
-        """Cover ``elements`` too (and ``layers`` rings around them)."""
+        """Cover ``elements`` too (and ``layers`` rings around them): the unknowns the ground is condensed onto."""
         self.elements = want = self.elements | dilate(self.model, elements, layers)
         gauss = self.gauss
-        E, Q = gauss.shape
-        if self._too_big(want.sum() / E):  # (of elements and unknowns alike: about the same share)
-            return
-        at = np.flatnonzero(want)
-        points = (at[:, None] * Q + np.arange(Q)).ravel()
-        rows = (np.arange(4)[:, None] * (E * Q) + points[None, :]).ravel()
-        G = gauss.G[rows].tocsr()
         n = gauss.G.shape[1]
+        if self._too_big(want.sum() / want.size):  # (of elements and unknowns alike: about the same share)
+            return
         touched = np.zeros(n, bool)
-        touched[G.indices] = True
+        touched[gauss.G[_rows(gauss, np.flatnonzero(want))].indices] = True
         self.dofs = dofs = np.flatnonzero(touched)
         if dofs.size == 0:
             self.given_up = True
@@ -126,12 +132,22 @@ class Zone:
             return
         if self.condensed:
             self._condense(dofs)
-        local = np.full(n, -1, np.int64)
-        local[dofs] = np.arange(dofs.size)
-        G = sp.csr_matrix((G.data, local[G.indices], G.indptr), shape=(G.shape[0], dofs.size))
-        self._at, self._G, self._last = at, G, None
+        self._local = np.full(n, -1, np.int64)
+        self._local[dofs] = np.arange(dofs.size)
+        self._watch(self.watched & want)
+
+    def _watch(self, elements: np.ndarray) -> None:
+        """Return the stresses at the points of ``elements`` (within the zone) at each iteration: the zone's rings
+        beyond them are the margin its growth needs no refactorization for (:meth:`_holds`)."""
+        self.watched = elements
+        gauss = self.gauss
+        at = np.flatnonzero(elements)
+        G = gauss.G[_rows(gauss, at)].tocsr()
+        self._G = sp.csr_matrix((G.data, self._local[G.indices], G.indptr), shape=(G.shape[0], self.dofs.size))
+        self._at, self._last = at, None
         #: what :meth:`points` takes from the whole ground's points that no commit changes
         self._fixed = {name: getattr(gauss, name)[at] for name in ("lam", "mu", "mu2", "weights")}
+        points = (at[:, None] * gauss.shape[1] + np.arange(gauss.shape[1])).ravel()
         rank = np.cumsum(gauss.yielding) - 1
         self._yielding = gauss.yielding[points]
         self._material = gauss.material.at(rank[points][self._yielding])
@@ -208,20 +224,28 @@ class Zone:
         raise GivenUp(guess, used)
 
     def _cover(self) -> np.ndarray:
-        """Grow the zone to cover :data:`LAYERS` rings round the elements at yield as committed (by twice as many:
-        each growth refactorizes); those elements."""
+        """Watch :data:`LAYERS` rings round the elements at yield as committed, the zone grown to cover them (by
+        twice as many: each growth refactorizes); those elements."""
         g = self.gauss
         yielded = g.at_yield.any(axis=1) | (g.eqps > 0).any(axis=1)
-        if self.active and (dilate(self.model, yielded) & ~self.elements).any():
+        need = dilate(self.model, yielded)
+        if self.active and (need & ~self.elements).any():
             self._grow(yielded, GROWTH * LAYERS)
+        if self.active and (need & ~self.watched).any():
+            self._watch(self.watched | need)
         return yielded
 
     def _holds(self, state: tuple, yielded: np.ndarray) -> bool:
-        """Whether no point outside the zone is at yield in the whole ground's ``state``; else the zone grows."""
+        """Whether no point outside the watched elements is at yield in the whole ground's ``state``; else they
+        take :data:`LAYERS` rings round those at yield (the zone grown where they leave it) and it is False."""
         flags = state[4].any(axis=1)
-        if not (flags & ~self.elements).any():
+        if not (flags & ~self.watched).any():
             return True
-        self._grow(flags | yielded, GROWTH * LAYERS)
+        need = dilate(self.model, flags | yielded)
+        if (need & ~self.elements).any():
+            self._grow(flags | yielded, GROWTH * LAYERS)
+        if self.active:
+            self._watch(self.watched | need)
         return False
 
     def watch(self, plastic_load, make_G, guess: np.ndarray, K, limit: int, patience, atol: float,

@@ -127,6 +127,30 @@ def test_the_zones_answer_is_the_whole_grounds(name, monkeypatch):
     _close(whole, waited, 0.05)
 
 
+def test_the_points_returned_grow_within_the_zone_without_a_refactorization(monkeypatch):
+    """A zone returns the stresses only at the points of its watched elements (where the elastic ground yields at
+    λd, and two rings round what has yielded); the rings of the zone beyond them are the margin in which they grow
+    with no new factorization. On issue 36's c 10 kPa case (coarse mesh) the watched elements stay within the zone,
+    grow at least once without a refactorization, and the answer is the whole ground's (the test above)."""
+    builds, watched = [], []
+    real_watch, real_schur = region.Zone._watch, region.RegionSchur
+
+    def watch(self, elements):
+        real_watch(self, elements)
+        if self.condensed:  # stage 1's zone (the contact stage's is not condensed: it never refactorizes)
+            watched.append((int(self.watched.sum()), bool((self.watched & ~self.elements).any()), len(builds)))
+
+    def schur(*args):
+        builds.append(1)
+        return real_schur(*args)
+
+    monkeypatch.setattr(region.Zone, "_watch", watch)
+    monkeypatch.setattr(region, "RegionSchur", schur)
+    run_case(CaseSpec.model_validate(CASES["mohr-coulomb"]))
+    assert watched and not any(outside for _, outside, _ in watched)
+    assert any(after[0] > before[0] and after[2] == before[2] for before, after in zip(watched, watched[1:]))
+
+
 @pytest.mark.slow
 def test_the_zone_benchmark_compares_like_with_like():
     """``python -m bench.ground --zones 0``: issue 36's three default cases with and without zones, at the default
