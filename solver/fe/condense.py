@@ -24,47 +24,134 @@ for _name in ("cholmod_l_super_lsolve", "cholmod_l_super_ltsolve"):
     getattr(_lib, _name).argtypes = [_factor_p, _dense_p, _dense_p, ctypes.c_void_p]
 
 
-class Tail:
-    """The trailing columns ``c0:`` of a supernodal factor ``L`` (``c0`` the first column of the supernode
-    holding column ``start``) as a factor of their own: CHOLMOD's supernodal forward and backward solves
-    over those supernodes only. Below a trailing column there are only trailing rows, so ``L[c0:, c0:]`` is
-    a Cholesky factor in itself (of the Schur complement of the leading columns).
+def _ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """The concatenated ``arange(start, start + count)`` of each pair."""
+    ends = np.cumsum(counts)
+    return np.repeat(starts - (ends - counts), counts) + np.arange(int(ends[-1]) if ends.size else 0)
 
-    The struct's arrays are copies (the integer ones shifted): the factor itself may be freed, and only the
-    trailing supernodes' values are kept (at the default mesh a zone's fifth of them)."""
 
-    def __init__(self, chol: Cholesky, start: int):
+class _SubFactor:
+    """The supernodes ``keep`` (a mask closed under the elimination tree: each one's rows are columns of kept
+    supernodes) of a supernodal factor ``L`` as a factor of their own, their columns numbered in order
+    (``columns``: their positions in ``L``): CHOLMOD's supernodal forward and backward solves over them alone.
+    The struct's arrays are copies (the integer ones renumbered), so the factor itself may be freed."""
+
+    def __init__(self, chol: Cholesky, keep: np.ndarray):
         f = chol._struct
         ns, sup, pi, px, rows_of, x = chol._supernodes()
-        s0 = int(np.searchsorted(sup, start, side="right")) - 1
-        self.c0, self.start, n = int(sup[s0]), start, chol.n
+        S = np.flatnonzero(keep)
+        ncol, nr = np.diff(sup)[S], np.diff(pi)[S]
+        kept = np.repeat(keep, np.diff(sup))
+        self.columns = np.flatnonzero(kept)
+        compact = np.cumsum(kept) - 1
+        rows = rows_of[_ranges(pi[S], nr)]
+        if not kept[rows].all():
+            raise RuntimeError("the supernodes kept are not closed under the elimination tree")
         self._arrays = [np.ascontiguousarray(a, dtype=np.int64) for a in (
-            sup[s0:] - self.c0, pi[s0:] - pi[s0], px[s0:] - px[s0], rows_of[pi[s0]:] - self.c0)]
+            np.r_[0, np.cumsum(ncol)], np.r_[0, np.cumsum(nr)], np.r_[0, np.cumsum(nr * ncol)], compact[rows])]
+        self._values = np.ascontiguousarray(x[_ranges(px[S], nr * ncol)])
         view = _Factor()
-        ctypes.pointer(view)[0] = f  # a copy of the struct, then its supernodes moved
-        view.n = n - self.c0
-        view.nsuper = ns - s0
-        view.ssize = int(rows_of.size - pi[s0])
-        view.xsize = int(x.size - px[s0])
+        ctypes.pointer(view)[0] = f  # a copy of the struct, then its supernodes replaced
+        view.n, view.nsuper = self.columns.size, S.size
+        view.ssize, view.xsize = int(rows.size), int(self._values.size)
         view.super, view.pi, view.px, view.s = (a.ctypes.data for a in self._arrays)
-        self._values = np.array(x[px[s0]:])
         view.x = self._values.ctypes.data
         view.Perm = view.ColCount = view.IPerm = None
-        self._view = view
+        self._view, self.n = view, self.columns.size
         self._E = np.zeros(max(int(f.maxesize), 1))
 
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        """``(L_pp L_ppᵀ)⁻¹ b`` for ``b`` (k,) on the trailing positions ``start:`` in factor order."""
-        m = self._view.n
-        X = np.zeros(m)
-        X[self.start - self.c0:] = b
+    def _sweep(self, X: np.ndarray, routines) -> np.ndarray:
+        m = self.n
         xd = _Dense(m, 1, m, m, X.ctypes.data, None, _REAL, _DOUBLE)
         ed = _Dense(self._E.size, 1, self._E.size, self._E.size, self._E.ctypes.data, None, _REAL, _DOUBLE)
         c = _common()
-        for routine in (_lib.cholmod_l_super_lsolve, _lib.cholmod_l_super_ltsolve):
+        for routine in routines:
             if not routine(ctypes.byref(self._view), ctypes.byref(xd), ctypes.byref(ed), ctypes.byref(c)):
-                raise _failure(c, "region solve")
-        return X[self.start - self.c0:]
+                raise _failure(c, "partial solve")
+        return X
+
+    def lsolve(self, b: np.ndarray) -> np.ndarray:
+        """``L⁻¹ b`` over the kept columns (``b`` on them, in order)."""
+        return self._sweep(np.array(b, dtype=float), (_lib.cholmod_l_super_lsolve,))
+
+    def ltsolve(self, y: np.ndarray) -> np.ndarray:
+        """``L⁻ᵀ y`` over the kept columns."""
+        return self._sweep(np.array(y, dtype=float), (_lib.cholmod_l_super_ltsolve,))
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        return self._sweep(np.array(b, dtype=float), (_lib.cholmod_l_super_lsolve, _lib.cholmod_l_super_ltsolve))
+
+
+class Tail:
+    """The trailing columns ``c0:`` of a supernodal factor ``L`` (``c0`` the first column of the supernode
+    holding column ``start``) as a factor of their own (:class:`_SubFactor`). Below a trailing column there are
+    only trailing rows, so ``L[c0:, c0:]`` is a Cholesky factor in itself (of the Schur complement of the
+    leading columns); only the trailing supernodes' values are kept (at the default mesh a zone's fifth of them)."""
+
+    def __init__(self, chol: Cholesky, start: int):
+        ns, sup = chol._supernodes()[:2]
+        s0 = int(np.searchsorted(sup, start, side="right")) - 1
+        self._sub = _SubFactor(chol, np.arange(ns) >= s0)
+        self.c0, self.start = int(sup[s0]), start
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """``(L_pp L_ppᵀ)⁻¹ b`` for ``b`` (k,) on the trailing positions ``start:`` in factor order."""
+        X = np.zeros(self._sub.n)
+        X[self.start - self.c0:] = b
+        return self._sub.solve(X)[self.start - self.c0:]
+
+
+def _etree(chol: Cholesky) -> tuple[np.ndarray, np.ndarray]:
+    """Each column's supernode and each supernode's parent in the elimination tree (-1 at a root), found once."""
+    if getattr(chol, "_etree", None) is None:
+        ns, sup, pi, _, rows_of, _ = chol._supernodes()
+        ncol, nr = np.diff(sup), np.diff(pi)
+        of = np.repeat(np.arange(ns), ncol)
+        parent = np.full(ns, -1, np.int64)
+        has = nr > ncol
+        parent[has] = of[rows_of[pi[:-1][has] + ncol[has]]]
+        chol._etree = (of, parent)
+    return chol._etree
+
+
+class Reach:
+    """Solves of a factorized ``K`` (:class:`~solver.fe.linalg.InterfaceFactor`) for loads on some of its
+    unknowns (and the interface's: they are the factor's last), read there: a load on them moves the forward
+    solve only along the elimination tree's ancestors of their columns, and their displacements need the
+    backward solve only there, so both sweep those supernodes alone (:class:`_SubFactor`; at the default mesh
+    a yielding zone's reach is about 40 % of the factor). Vectors are on the reached columns, in factor order
+    (``columns``): :meth:`forward` takes a load on ``unknowns``, :meth:`backward` gives every reached column's
+    value, :meth:`at` reads ``unknowns``' among them; the interface's ``k`` are the last."""
+
+    def __init__(self, factor, unknowns: np.ndarray):
+        chol = factor.cholesky
+        of, parent = _etree(chol)
+        keep = np.zeros(parent.size, bool)
+        frontier = np.unique(of[factor.positions(unknowns)])
+        while frontier.size:
+            keep[frontier] = True
+            frontier = np.unique(parent[frontier])
+            frontier = frontier[frontier >= 0]
+            frontier = frontier[~keep[frontier]]
+        self._sub = _SubFactor(chol, keep)
+        self.columns = self._sub.columns
+        local = np.full(chol.n, -1, np.int64)
+        local[self.columns] = np.arange(self.columns.size)
+        self._at = local[factor.positions(unknowns)]
+
+    def forward(self, b: np.ndarray) -> np.ndarray:
+        """``L⁻¹ P b`` on the reached columns for ``b`` on ``unknowns`` (zero elsewhere: it is zero beyond them)."""
+        X = np.zeros(self.columns.size)
+        X[self._at] = b
+        return self._sub.lsolve(X)
+
+    def backward(self, y: np.ndarray) -> np.ndarray:
+        """``L⁻ᵀ y`` on the reached columns: there, ``K⁻¹ b`` of the load whose forward solve gave ``y``."""
+        return self._sub.ltsolve(y)
+
+    def at(self, v: np.ndarray) -> np.ndarray:
+        """``unknowns``' values of a vector on the reached columns."""
+        return v[self._at]
 
 
 def trailing_factor(chol: Cholesky, start: int) -> sp.csc_matrix:

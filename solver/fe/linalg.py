@@ -420,18 +420,34 @@ class InterfaceFactor:
     def interface(self, y: np.ndarray) -> np.ndarray:
         """The ``last`` unknowns of ``K⁻¹ b`` from ``y = forward(b)``:
         ``L_ΓΓ⁻ᵀ y_Γ``, dense and small."""
-        x = la.solve_triangular(self._Ltt, y[self.n - self.k:], lower=True, trans="T", check_finite=False)
-        return x[self._pos]
+        return self.interface_of(y[self.n - self.k:])
+
+    def interface_of(self, tail: np.ndarray) -> np.ndarray:
+        """:meth:`interface` from ``y``'s trailing ``k`` entries ``tail`` alone."""
+        return la.solve_triangular(self._Ltt, tail, lower=True, trans="T", check_finite=False)[self._pos]
 
     def lift(self, g: np.ndarray) -> np.ndarray:
         """``forward`` of a load on the ``last`` unknowns alone, given as its (k,) or (k, j)
         values there: ``[0; L_ΓΓ⁻¹ g]``, dense and small."""
         g = np.asarray(g, dtype=float)
+        y = np.zeros((self.n,) + g.shape[1:])
+        y[self.n - self.k:] = self.lift_of(g)
+        return y
+
+    def lift_of(self, g: np.ndarray) -> np.ndarray:
+        """:meth:`lift`'s trailing ``k`` entries (the others are zero)."""
+        g = np.asarray(g, dtype=float)
         gt = np.zeros_like(g)
         gt[self._pos] = g
-        y = np.zeros((self.n,) + g.shape[1:])
-        y[self.n - self.k:] = la.solve_triangular(self._Ltt, gt, lower=True, check_finite=False)
-        return y
+        return la.solve_triangular(self._Ltt, gt, lower=True, check_finite=False)
+
+    @property
+    def cholesky(self) -> Cholesky:
+        return self._chol
+
+    def positions(self, unknowns: np.ndarray) -> np.ndarray:
+        """The factor position of each of ``unknowns``."""
+        return self._where[unknowns]
 
     def backward(self, y: np.ndarray) -> np.ndarray:
         """``x = Pᵀ L⁻ᵀ y``: with ``y = forward(b)``, ``x = K⁻¹ b``."""

@@ -22,13 +22,14 @@ class Anderson:
              residual: np.ndarray | None = None):
         """The next iterate from ``x`` and ``G(x)``; with a ``companion`` (``K G(x)``: the load ``G``
         solved for) also the same mix of companions: ``K`` times the next iterate, without a product.
-        The mix makes the least combination of ``residual`` (default ``G(x) - x``)."""
+        The mix makes the least combination of ``residual`` (default ``G(x) - x``; its size and the
+        companion's may differ from the iterate's)."""
         r = gx - x if residual is None else residual
         last, self.last = self.last, (gx, r, companion)
         if last is None or self.m == 0:
             return gx if companion is None else (gx, companion)
         if self.dR is None:
-            self.dG, self.dR = np.empty((self.m, r.size)), np.empty((self.m, r.size))
+            self.dG, self.dR = np.empty((self.m, gx.size)), np.empty((self.m, r.size))
             if companion is not None:
                 self.dB = np.empty((self.m, companion.size))
         row = self.count % self.m

@@ -73,8 +73,9 @@ def fixed_point(G, x0: np.ndarray, K, atol: float, patience: int | None = STAGNA
     ``G(x) - x = K⁻¹(load(p) - K x)``: as right-preconditioned GMRES minimizes the true residual, the
     mix then minimizes what the stop test measures (stage 1's iterations: issue 36's c 10 kPa,
     ψ 0 case 430 → 215, issue 25's weak ground 940 → 709; docs/performance.md). Without ``load``
-    (stage 2, a contact solve in every ``G``) the mix keeps the displacement changes: its forces
-    measured no better there."""
+    (stage 2 on the whole ground, a contact solve in every ``G``) the mix keeps the displacement changes: its forces
+    measured no better there; on its yielding zone stage 2 carries its loads, their forward solves
+    the iterate: :class:`solver.stages.plastic._ContactReach`)."""
     if limit < 1:
         raise Stalled(float("inf"), atol, 0)
     acc = Anderson(DEPTH)

@@ -14,8 +14,8 @@ geometry. The stop test is the equilibrium residual: the out-of-balance force
 where larger); the plastic consistency holds at every point by the return
 mapping (:mod:`solver.ground.mohr_coulomb`, :mod:`solver.ground.hoek_brown`). The iteration runs on the
 yielding zone (:mod:`solver.stages.region`): in stage 1 on its unknowns alone, the elastic rest of the ground
-condensed out exactly; in stage 2 on the whole ground with the stresses returned at the zone's points; the
-whole ground checked at every answer.
+condensed out exactly; in stage 2 on the loads of the zone's and the interface's unknowns, the solves over the
+factor's columns such loads reach (:class:`_ContactReach`); the whole ground checked at every answer.
 
 Where a load step stalls (:data:`~solver.stages.path.STAGNATION`) it is halved, and the steps grow again as they
 converge (:func:`~solver.stages.path.advance`; the automatic step control of commercial codes). Where a stage-1 step
@@ -53,6 +53,7 @@ from ..errors import GroundCollapseError, NotConvergedError
 from ..results.post import mean_convergence
 from ..spec.canonical import canonical_json
 from ..spec.case import PLASTIC_SOLVER_FIELDS
+from ..fe.condense import Reach
 from .contact import contact_tractions
 from .loads import stage_loads
 from .points import Points, elastic_increments, plastic_load
@@ -140,7 +141,7 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "
             setup, box = region.release_step(zones[0], plastic_load, rows, frac, arc) if zones else (None, {})
 
             def on_zone():
-                return zones[0].iterate(plastic_load, rows, setup, guess, limit, patience, atol) + (box["lam"],)
+                return zones[0].iterate(plastic_load, setup, guess, limit, patience, atol) + (box["lam"],)
 
             def on_whole(guess, limit):
                 def G(x):
@@ -249,6 +250,83 @@ def _elastic_contact(model, spec, rows, gauss: Points, stage_of, p1, F2_full, st
     return elastic, elastic / steps * x, (elastic - 1) / steps * x
 
 
+class _Carried:
+    """The load an iteration's start carries (what :func:`~solver.stages.path.fixed_point` asks ``K @ x0`` for)."""
+
+    def __init__(self, load: np.ndarray):
+        self.load = load
+
+    def __matmul__(self, x: np.ndarray) -> np.ndarray:
+        return self.load
+
+
+class _ContactReach:
+    """The contact stage's iteration on a yielding zone (:meth:`~solver.stages.region.Zone.iterate`'s ``setup``),
+    on the loads: at the load's fraction ``a`` the ground's displacement is ``a u_f + K⁻¹ l`` (``u_f`` of the
+    stage's loads) with ``l = p_x - p1 - Bᵀ W t`` on the zone's and the interface's unknowns (the stage's plastic
+    load and the contact's tractions), so each iterate is that load and its forward solve ``y = L⁻¹ P l``, which
+    the mix carries alike: the zone's displacements are ``y``'s backward solve, its plastic load's jumps its
+    forward solve, both over the factor's columns a load on those unknowns reaches alone
+    (:class:`~solver.fe.condense.Reach`), and the out-of-balance force is the change of ``l``: the whole
+    ground's iteration (:func:`_staged`'s ``G``) to rounding. At an answer one backward solve over the whole
+    factor gives the whole ground's displacement."""
+
+    def __init__(self, model, spec, rows, f_full, y_g, y_l, F2_full, u1, p1):
+        self.model, self.spec, self.rows, self.F2, self.u1, self.p1 = model, spec, rows, F2_full, u1, p1
+        self.factor, self.on_last = model.ground.factor(rows)
+        self.last = np.asarray(self.factor.last)
+        self._f, self._y = f_full, (y_g, y_l)
+        self._fixed = self._reach = None
+
+    def fixed(self):
+        """``u_f`` and the jumps of the stage's loads, ground's and lining's (at the first use)."""
+        if self._fixed is None:
+            (y_g, y_l), ground, rows = self._y, self.model.ground, self.rows
+            self._fixed = ground.backward(y_g, rows), ground.jumps(y_g, rows) + self.model.lining.jumps(y_l, rows)
+        return self._fixed
+
+    def reach(self, d: np.ndarray):
+        """The zone's unknowns ``d`` with the interface's, where they sit among them, and their :class:`Reach`
+        (kept while ``d`` does not change)."""
+        if self._reach is None or not np.array_equal(self._reach[0], d):
+            D = np.union1d(d, self.last)
+            self._reach = (d, D, np.searchsorted(D, d), np.searchsorted(D, self.last), Reach(self.factor, D))
+        return self._reach[1:]
+
+    def setup(self, frac: float):
+        u_f, jumps_f = self.fixed()
+        model, on_last, ground = self.model, self.on_last, self.model.ground
+        served, scale = on_last.shape[0], float(getattr(ground, "scale", 1.0))
+        k = self.factor.k
+
+        def setup(sub, d, guess):
+            D, at_d, at_last, reach = self.reach(d)
+            load0 = (ground.stiffness() @ guess - frac * self._f)[D]  # the start's (exact for the path's answers)
+            start, base, p1 = self.u1[d] + frac * u_f[d], frac * u_f, self.p1[d]
+
+            def G(y):
+                state = sub.state(start + reach.at(reach.backward(y))[at_d] / scale)
+                extra = plastic_load(sub, state[-1]) - p1
+                load = np.zeros(D.size)
+                load[at_d] = extra
+                y_new = reach.forward(load)
+                _, t = contact_tractions(model, self.spec, frac * jumps_f + on_last @ self.factor.interface_of(
+                    y_new[-k:]) / scale, frac * self.F2)
+                g = on_last.T @ (model.w * t)[:served]  # the tractions' load on the interface's unknowns, less
+                load[at_last] -= g
+                y_new[-k:] -= self.factor.lift_of(g)
+                return y_new, load, state
+
+            def extend(y):
+                full = np.zeros(self.factor.n)
+                full[reach.columns] = y
+                return base + ground.backward(full, self.rows)
+
+            return G, reach.forward(load0), _Carried(load0), (lambda load: load), extend
+
+        return setup
+
+
 def solve_staged(model, spec, rows, t0: float):
     """Solve a case whose ground can yield (see the module's docstring): a
     :class:`~solver.model.Solution` with ``plastic`` results filled (:func:`tightened`: where the
@@ -295,21 +373,19 @@ def _staged(model, spec, rows, t0: float, tol: float):
     first = ld * float(np.linalg.norm(loads.release)) if loads.release is not None else 0.0
     atol = tol * max(own, first) / steps
 
-    zones = []  # the points whose stresses are returned (:meth:`solver.stages.region.Zone.watch`)
+    zones = []  # the points whose stresses are returned (:meth:`solver.stages.region.Zone.iterate`)
+    contact = _ContactReach(model, spec, rows, full.ground, y_g, y_l, F2_full, u1, p1)
 
     def solve2(guess, limit, patience, frac):
+        def G(x):  # on the whole ground, where the zone is given up
+            state = gauss.state(u1 + x)
+            p = plastic_load(gauss, state[-1])
+            _, stage, d = stage_of(p, frac)
+            _, t = contact_tractions(model, spec, d, frac * F2_full)
+            return ground.backward(stage.ground, rows, model.w * t), p, state
 
-        def make_G(points, dofs):
-            def G(x):
-                state = points.state((u1 + x)[dofs])
-                p = np.zeros(body.n)
-                p[dofs] = plastic_load(points, state[-1])
-                _, stage, d = stage_of(p, frac)
-                _, t = contact_tractions(model, spec, d, frac * F2_full)
-                return ground.backward(stage.ground, rows, model.w * t), p, state
-            return G
-
-        return region.watched(zones, model, gauss, plastic_load, make_G, guess, K, limit, patience, atol, u1) + (frac,)
+        return region.watched(zones, model, gauss, plastic_load, contact.setup(frac), G, guess, K, limit, patience,
+                              atol, u1) + (frac,)
 
     elastic, u2, u2_prev = _elastic_contact(model, spec, rows, gauss, stage_of, p1, F2_full, steps, commit, u1)
     a, a_prev, h, used = elastic / steps, (elastic - 1) / steps, 1.0 / steps, 0

@@ -8,8 +8,10 @@ yields). In stage 1 the rest of the ground is eliminated exactly (its Schur comp
 :class:`~solver.fe.condense.RegionSchur`), so each iteration computes strains, returns stresses, mixes and
 solves on the zone's points and unknowns only (:meth:`Zone.iterate`): the stresses at the points of the
 elements it watches (where it started and :data:`LAYERS` rings round what has yielded), its further rings a
-margin to watch more in without refactorizing. In stage 2 the whole ground is solved (the contact acts all
-round the lining) but stresses are returned at the watched points alone (:meth:`Zone.watch`). What the zone
+margin to watch more in without refactorizing. In stage 2 the contact acts all round the lining, so the ground
+is not condensed: the iteration carries the loads on the zone's and the interface's unknowns, and its solves
+sweep only the factor's columns such loads reach (:class:`~solver.stages.plastic._ContactReach`); the stresses
+are returned at the watched points alone. What the zone
 assumes, that the ground outside what it watches stays elastic, is checked on the whole ground at each answer:
 where a point outside has reached yield, it watches more (the zone grown where they would leave it) and the
 iteration goes on from there. The zone never shrinks within a stage; one of more than :data:`MOST` of the
@@ -84,8 +86,8 @@ def dilate(model, elements: np.ndarray, layers: int | None = None) -> np.ndarray
 
 
 class Zone:
-    """The yielding zone of one stage's solve: the elements it covers and, if ``condensed`` (stage 1), the ground
-    condensed onto their unknowns; the elements whose points' stresses each iteration returns (``watched``: those
+    """The yielding zone of one stage's solve: the elements it covers (their unknowns: ``dofs``) and, if
+    ``condensed`` (stage 1), the ground condensed onto those unknowns; the elements whose points' stresses each iteration returns (``watched``: those
     it started from, where the elastic ground yields at λd in stage 1, and :data:`LAYERS` rings round what has
     yielded), their history from the whole ground's (``gauss``: :class:`~solver.stages.points.Points`). The
     zone's rings beyond them (``GROWTH * LAYERS`` round what has yielded) are the margin they grow in without a
@@ -191,32 +193,27 @@ class Zone:
         """``K⁻¹ b`` on the zone's unknowns for a load ``b`` on them alone."""
         return self.schur.solve(b) / self.scale
 
-    def iterate(self, plastic_load, rows, setup, guess: np.ndarray, limit: int, patience, atol: float,
+    def iterate(self, plastic_load, setup, guess: np.ndarray, limit: int, patience, atol: float,
                 offset: np.ndarray | None = None):
-        """:func:`~solver.stages.path.fixed_point` on the zone: ``setup(points, dofs)`` gives its ``G`` and
-        ``load`` on the zone's unknowns and ``base()``, the whole ground's displacement the zone's answer differs
-        from by ``K⁻¹`` of a load on the zone (read after the iteration). Returns the whole ground's
-        displacement, plastic load and state (at ``offset +`` it) at the answer, and the iterations. Before it,
-        the zone grows to cover the points at yield as committed; after it, where a point outside the zone has
-        reached yield, it grows and the iteration goes on from there."""
-        g, ground = self.gauss, self.ground
+        """:func:`~solver.stages.path.fixed_point` on the zone: ``setup(points, dofs, guess)`` gives the
+        iteration's ``G``, start, the stiffness (or the start's load) its mix carries, ``load`` and ``extend`` (its
+        answer's displacement on the whole ground). Returns the whole ground's displacement, plastic load and
+        state (at ``offset +`` it) at the answer, and the iterations. Before it, the zone watches the points at
+        yield as committed; after it, where a point it does not watch has reached yield, it watches more (grows
+        where they would leave it) and the iteration goes on from there."""
+        g = self.gauss
         yielded = self._cover()
         used = 0
         while self.active:
             if used >= limit:
                 raise Stalled(float("inf"), atol, used)
-            sub, d = self.points(), self.dofs
-            G, load, base = setup(sub, d)
+            G, start, K, load, extend = setup(self.points(), self.dofs, guess)
             try:
-                x, _, _, count = fixed_point(G, guess[d], _Product(self.schur, self.scale), atol, patience,
-                                             limit - used, load)
+                x, _, _, count = fixed_point(G, start, K, atol, patience, limit - used, load)
             except Stalled as stall:
                 raise Stalled(stall.force, stall.atol, stall.iterations + used) from None
             used += count
-            b = base()
-            q = np.zeros(b.size)
-            q[d] = self.scale * self.schur.product(x - b[d])
-            x_full = b + ground.backward(ground.forward(q, rows), rows)  # the answer on the whole ground
+            x_full = extend(x)
             state = g.state(x_full if offset is None else offset + x_full)
             if self._holds(state, yielded):
                 return x_full, plastic_load(g, state[-1]), state, used
@@ -248,26 +245,6 @@ class Zone:
             self._watch(self.watched | need)
         return False
 
-    def watch(self, plastic_load, make_G, guess: np.ndarray, K, limit: int, patience, atol: float,
-              offset: np.ndarray):
-        """:func:`~solver.stages.path.fixed_point` on the whole ground with the stresses returned at the zone's
-        points alone (``make_G(points, dofs)`` gives its ``G``): the ground outside, elastic, adds nothing
-        to the plastic load. Checked at the answer (its state at ``offset +`` it) as in :meth:`iterate`."""
-        g = self.gauss
-        yielded = self._cover()
-        used = 0
-        while self.active:
-            try:
-                x, _, _, count = fixed_point(make_G(self.points(), self.dofs), guess, K, atol, patience, limit - used)
-            except Stalled as stall:
-                raise Stalled(stall.force, stall.atol, stall.iterations + used) from None
-            used += count
-            state = g.state(offset + x)
-            if self._holds(state, yielded):
-                return x, plastic_load(g, state[-1]), state, used
-            guess = x
-        raise GivenUp(guess, used)
-
 
 def release_step(zone: Zone, plastic_load, rows, frac=None, arc=None):
     """Stage 1's ``setup`` for :meth:`Zone.iterate` (the plastic load and the excavation load's share ``λ``:
@@ -275,11 +252,13 @@ def release_step(zone: Zone, plastic_load, rows, frac=None, arc=None):
     affine in ``p``: ``n·K⁻¹p = (K⁻¹n)·p``) and the load it reached (``box["lam"]``)."""
     box, plane = {}, {}
 
-    def setup(sub, d):
+    ground = zone.ground
+
+    def setup(sub, d, guess):
         u_r = zone.u_r[d]
         if arc is not None and not plane:  # on the first use: the zone may never be
             x_s, normal, ds = arc
-            plane.update(w=zone.ground.backward(zone.ground.forward(normal, rows), rows),
+            plane.update(w=ground.backward(ground.forward(normal, rows), rows),
                          at=(ds + float(normal @ x_s)) / float(normal @ zone.u_r), along=float(normal @ zone.u_r))
         wp = plane["w"][d] / plane["along"] if arc is not None else None
 
@@ -289,7 +268,14 @@ def release_step(zone: Zone, plastic_load, rows, frac=None, arc=None):
             box["lam"] = frac if arc is None else plane["at"] - wp @ p
             return zone.solve(p) + box["lam"] * u_r, p, state
 
-        return G, (lambda p: box["lam"] * zone.g_r + p), (lambda: box["lam"] * zone.u_r)
+        def extend(x):
+            """The whole ground's displacement with ``x`` on the zone: ``λ u_r`` and ``K⁻¹`` of a load on it."""
+            base = box["lam"] * zone.u_r
+            q = np.zeros(base.size)
+            q[d] = zone.scale * zone.schur.product(x - base[d])
+            return base + ground.backward(ground.forward(q, rows), rows)
+
+        return G, guess[d], _Product(zone.schur, zone.scale), (lambda p: box["lam"] * zone.g_r + p), extend
 
     return setup, box
 
@@ -321,17 +307,18 @@ def attempt(zone: Zone | None, on_zone, on_whole, guess: np.ndarray, limit: int)
     return out[:3] + (out[3] + used,) + out[4:]
 
 
-def watched(zones: list, model, gauss, plastic_load, make_G, guess: np.ndarray, K, limit: int, patience, atol: float,
-            offset: np.ndarray):
-    """Stage 2's equilibrium (:func:`~solver.stages.path.fixed_point` of ``make_G(points, dofs)``'s ``G``) with the
-    stresses returned at the zone's points (:meth:`Zone.watch`; ``zones`` holds the stage's, made at the first
-    call) while it is small, else at every point: the answer, its plastic load, state and the iterations."""
-    if not zones and ENABLED:
+def watched(zones: list, model, gauss, plastic_load, setup, whole_G, guess: np.ndarray, K, limit: int, patience,
+            atol: float, offset: np.ndarray):
+    """Stage 2's equilibrium: on the zone (``setup``, for :meth:`Zone.iterate`: the stresses returned at its
+    points, the ground's solves over the factor's columns a load there reaches; ``zones`` holds the stage's, made
+    at the first call) while it is small, else :func:`~solver.stages.path.fixed_point` of ``whole_G`` on the whole
+    ground: the answer, its plastic load, state and the iterations."""
+    if not zones and ENABLED and not model.ground.pinned:  # (a pinned DOF: the factor's unknowns are not the body's)
         yielded = gauss.at_yield.any(axis=1) | (gauss.eqps > 0).any(axis=1)
         zones.append(Zone(model, gauss, None, yielded, condensed=False))
     return attempt(zones[0] if zones else None,
-                   lambda: zones[0].watch(plastic_load, make_G, guess, K, limit, patience, atol, offset),
-                   lambda guess, limit: fixed_point(make_G(gauss, slice(None)), guess, K, atol, patience, limit),
+                   lambda: zones[0].iterate(plastic_load, setup, guess, limit, patience, atol, offset),
+                   lambda guess, limit: fixed_point(whole_G, guess, K, atol, patience, limit),
                    guess, limit)
 
 

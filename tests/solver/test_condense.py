@@ -8,8 +8,8 @@ import scipy.sparse as sp
 
 import solver.stages.region as region
 from solver import CaseSpec, run_case
-from solver.fe.condense import RegionSchur
-
+from solver.fe.condense import Reach, RegionSchur
+from solver.fe.linalg import InterfaceFactor
 
 
 def laplacian_2d(n: int) -> sp.csr_matrix:
@@ -57,6 +57,33 @@ def test_a_region_of_one_block_and_of_everything():
 
 
 COARSE = {"interface_size": 0.15, "far_size": 6.0}
+@pytest.mark.parametrize("size, seed", [(16, 4), (24, 5)])
+def test_the_reached_columns_solve_a_load_on_some_unknowns_as_the_whole_factor(size, seed):
+    """A load on a few unknowns scattered through a nested-dissection ordering (with an interface of unknowns
+    last): :class:`Reach`'s forward solve is the whole factor's on the columns it reaches and the whole factor's
+    is zero on the others; its backward solve gives ``K⁻¹ b`` at the loaded unknowns; its last ``k`` entries give
+    the interface's; and it reaches less than the whole factor."""
+    K = laplacian_2d(size)
+    n = K.shape[0]
+    rng = np.random.default_rng(seed)
+    grid = np.arange(n).reshape(size, size)
+    last = grid[0, :]  # one edge: the interface, factorized last
+    factor = InterfaceFactor(K, last, rng.permutation(n) if seed % 2 else None)
+    loaded = np.union1d(rng.choice(grid[size // 2:, size // 2:].ravel(), 12, replace=False), last)
+    reach = Reach(factor, loaded)
+    b = rng.standard_normal(loaded.size)
+    full = np.zeros(n)
+    full[loaded] = b
+    y_whole = factor.forward(full)
+    y = reach.forward(b)
+    np.testing.assert_allclose(y, y_whole[reach.columns], rtol=1e-12, atol=1e-12)
+    assert not np.delete(y_whole, reach.columns).any()
+    x = np.linalg.solve(K.toarray(), full)
+    np.testing.assert_allclose(reach.at(reach.backward(y)), x[loaded], rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(factor.interface_of(y[-last.size:]), x[last], rtol=1e-10, atol=1e-12)
+    assert reach.columns.size < n
+
+
 #: issue 36's default Mohr–Coulomb ground; the weak sample's case 1 (split and arc-length steps)
 CASES = {
     "mohr-coulomb": {"mesh": COARSE, "ground": {"model": "mohr-coulomb", "cohesion": 1.0e4, "friction_angle": 28.0,
