@@ -240,7 +240,7 @@ def _return(trial, m: HBMaterial, scale, jacobian: bool):
     plastic strain increments (3, k) in the trial's axes and, if asked, the principal Jacobian
     (k, 3, 3) in those axes."""
     k = trial.shape[1]
-    major, minor, angle, szz = principal(trial)
+    major, minor, direction, szz = principal(trial)
     st, perm = descending(major, minor, szz)
     st = st.T  # (k, 3) sorted σ1 ≥ σ2 ≥ σ3
     lam, mu, sq = m.lam, m.mu, m.sin_psi
@@ -302,7 +302,7 @@ def _return(trial, m: HBMaterial, scale, jacobian: bool):
     back = unsorted(res.T, perm)
     if jacobian:
         J = unsort(J, order_of(perm))
-    return from_principal(back[0], back[1], angle, back[2]), unsorted(strain.T, perm), J
+    return from_principal(back[0], back[1], direction, back[2]), unsorted(strain.T, perm), J
 
 
 def _hb_normal(i: int, j: int, sig, m: HBMaterial) -> np.ndarray:

@@ -179,14 +179,14 @@ def _stress(trial: np.ndarray, mat: Material, flag_tolerance: float, tangent: bo
 def _main_plane(trial, m: Material):
     """The return onto the main plane (σ1, σ3) whatever the multiplier's sign (a frozen active
     set): stress (4, r) and principal plastic strain increments (3, r) in the trial's axes."""
-    major, minor, angle, szz = principal(trial)
+    major, minor, direction, szz = principal(trial)
     st, perm = descending(major, minor, szz)  # (3, r) sorted
     sp, sq = m.sin_phi, m.sin_psi
     b = np.stack([1.0 + sq, np.zeros_like(sq), -(1.0 - sq)])  # (3, r)
     Db = 2.0 * m.lam * sq + 2.0 * m.mu * b
     gam = ((1.0 + sp) * st[0] - (1.0 - sp) * st[2] - 2.0 * m.c * m.cos_phi) / ((1.0 + sp) * Db[0] - (1.0 - sp) * Db[2])
     back = unsorted(st - gam * Db, perm)
-    return from_principal(back[0], back[1], angle, back[2]), unsorted(gam * b, perm)
+    return from_principal(back[0], back[1], direction, back[2]), unsorted(gam * b, perm)
 
 
 def _tangent(trial, stress, active, m: Material, scale):
@@ -213,7 +213,7 @@ def _return(trial, lam, mu, c, sp, cp, sq, t, scale):
     """The multi-surface return of trial states (4, m) that lie outside: stress (4, m) and
     principal plastic strain increments (3, m) in the trial's axes."""
     m = trial.shape[1]
-    major, minor, angle, szz = principal(trial)
+    major, minor, direction, szz = principal(trial)
     st, perm = descending(major, minor, szz)
     st = st.T  # (m, 3) sorted σ1 ≥ σ2 ≥ σ3
     res = np.empty((m, 3))
@@ -273,7 +273,7 @@ def _return(trial, lam, mu, c, sp, cp, sq, t, scale):
         raise ArithmeticError(f"Mohr-Coulomb return mapping found no admissible stress at {pending.sum()} points")
     # back to the trial's axes: undo the sort, then the in-plane directions
     back = unsorted(res.T, perm)
-    return from_principal(back[0], back[1], angle, back[2]), unsorted(gam_strain.T, perm), active
+    return from_principal(back[0], back[1], direction, back[2]), unsorted(gam_strain.T, perm), active
 
 
 def _admissible(gam, sig, c, sp, cp, t, scale) -> np.ndarray:

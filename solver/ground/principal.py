@@ -6,18 +6,25 @@ import numpy as np
 
 def principal(stress: np.ndarray):
     """Principal values of plane-strain stresses (4, ...) = (xx, yy, xy, zz): the in-plane pair
-    (major, minor), the angle of the major direction and σzz."""
+    (major, minor), the major direction as ``(cos 2θ, sin 2θ)`` (θ from x; (1, 0) where the in-plane
+    stress is isotropic) and σzz. No angle is formed: :func:`from_principal` needs only these."""
     sxx, syy, sxy, szz = stress
     c = 0.5 * (sxx + syy)
-    r = np.hypot(0.5 * (sxx - syy), sxy)
-    angle = 0.5 * np.arctan2(2.0 * sxy, sxx - syy)
-    return c + r, c - r, angle, szz
+    d = 0.5 * (sxx - syy)
+    r = np.hypot(d, sxy)
+    some = r > 0.0
+    c2 = np.divide(d, r, out=np.ones_like(r), where=some)
+    s2 = np.divide(sxy, r, out=np.zeros_like(r), where=some)
+    return c + r, c - r, (c2, s2), szz
 
 
-def from_principal(major, minor, angle, szz) -> np.ndarray:
-    """Plane-strain stress components (4, ...) from in-plane principal values along ``angle``."""
-    c, s = np.cos(angle), np.sin(angle)
-    return np.stack([major * c * c + minor * s * s, major * s * s + minor * c * c, (major - minor) * s * c, szz])
+def from_principal(major, minor, direction, szz) -> np.ndarray:
+    """Plane-strain stress components (4, ...) from in-plane principal values along ``direction``
+    (``(cos 2θ, sin 2θ)`` of the major one, as :func:`principal` gives it)."""
+    c2, s2 = direction
+    mid = 0.5 * (major + minor)
+    rad = 0.5 * (major - minor)
+    return np.stack(np.broadcast_arrays(mid + rad * c2, mid - rad * c2, rad * s2, szz))
 
 
 def descending(major, minor, szz):

@@ -69,9 +69,8 @@ def full_tangent(trial: np.ndarray, stress: np.ndarray, J: np.ndarray, lam, mu,
     """The consistent tangent (m, 4, 4) (layout in the module's docstring) of a return with
     principal Jacobian ``J`` (m, 3, 3) in the axes (major in-plane, minor in-plane, zz) of the trial
     (4, m), whose returned stress (4, m) has the trial's in-plane directions."""
-    ta, tb, angle, _ = principal(trial)
+    ta, tb, (c2, s2), _ = principal(trial)
     sa, sb, _, _ = principal(stress)
-    c2, s2 = np.cos(2.0 * angle), np.sin(2.0 * angle)
     m = trial.shape[1]
     # d(τa, τb, τzz) and r d(2θ) as rows acting on dτ = (xx, yy, xy, zz)
     T = np.zeros((m, 4, 4))

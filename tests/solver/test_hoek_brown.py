@@ -107,10 +107,10 @@ def test_koiter_multipliers_are_non_negative_on_the_active_surfaces(psi, tensile
     major, minor, _, zz = mc.principal(trial)
     order = np.argsort(-np.stack([major, minor, zz]), axis=0, kind="stable")
     ds = np.take_along_axis(dep, order, axis=0)  # in the trial's sorted axes
-    ta, tb, angle, _ = mc.principal(trial)
-    c, s_ = np.cos(angle), np.sin(angle)
-    ret = np.stack([stress[0] * c * c + stress[1] * s_ * s_ + 2 * stress[2] * s_ * c,
-                    stress[0] * s_ * s_ + stress[1] * c * c - 2 * stress[2] * s_ * c, stress[3]])
+    ta, tb, (c2, s2), _ = mc.principal(trial)
+    cc, ss, sc = 0.5 * (1 + c2), 0.5 * (1 - c2), 0.5 * s2  # cos², sin², sin cos of the major direction
+    ret = np.stack([stress[0] * cc + stress[1] * ss + 2 * stress[2] * sc,
+                    stress[0] * ss + stress[1] * cc - 2 * stress[2] * sc, stress[3]])
     ret = np.take_along_axis(ret, order, axis=0)
     fv = yield_values(ret, mat)
     sq = np.sin(np.radians(psi))
@@ -140,7 +140,7 @@ def test_the_return_holds_across_the_admissible_inputs(gsi, mi, D, psi, nu, scal
 def test_hydrostatic_tension_returns_to_the_cut_off():
     mb, s, _ = constants(GSI, MI, 0.0)
     apex = s * UCS / mb
-    trial = mc.from_principal(np.full(3, 5e6), np.full(3, 5e6), np.zeros(3), np.full(3, 5e6))
+    trial = mc.from_principal(np.full(3, 5e6), np.full(3, 5e6), (np.ones(3), np.zeros(3)), np.full(3, 5e6))
     for t in (None, 0.5 * apex, 0.0):
         stress, dep, _ = return_map(trial, LAM, MU, UCS, GSI, MI, 0.0, 10.0, t)
         expected = apex if t is None else t
@@ -179,7 +179,8 @@ def test_a_equal_one_is_mohr_coulomb(psi, tensile_fraction):
 def test_the_main_surface_return_converges_to_machine_precision():
     """The Newton return of one point: the stress on the curved surface to 1e-12 relative."""
     mat = HBMaterial.of(1, LAM, MU, UCS, 20.0, 15.0, 0.5, 5.0)
-    trial = mc.from_principal(np.array([-1e6]), np.array([-3e7]), np.array([0.3]), np.array([-1.2e7]))
+    trial = mc.from_principal(np.array([-1e6]), np.array([-3e7]), (np.cos([0.6]), np.sin([0.6])),  # θ 0.3
+                              np.array([-1.2e7]))
     stress, _, _ = return_stress(trial, mat)
     s = _sorted_principal(stress)
     assert abs(yield_values(s, mat)[0, 0]) <= 1e-12 * 3e7

@@ -48,7 +48,7 @@ def test_consistency_and_flow_rule_at_random_states(c, phi, psi, t):
 def test_hydrostatic_tension_returns_to_the_apex_or_the_cut_off():
     c, phi = 1e4, 30
     apex = c / np.tan(np.radians(phi))
-    trial = from_principal(np.full(3, 5e5), np.full(3, 5e5), np.zeros(3), np.full(3, 5e5))
+    trial = from_principal(np.full(3, 5e5), np.full(3, 5e5), (np.ones(3), np.zeros(3)), np.full(3, 5e5))
     for t, expected in ((apex, apex), (2e3, 2e3), (0.0, 0.0)):
         stress, _, _ = return_map(trial, LAM, MU, c, phi, 0, t)
         np.testing.assert_allclose(stress[[0, 1, 3]], expected, rtol=1e-12, atol=1e-6)
