@@ -223,13 +223,16 @@ def _line_root(A, B, P, Q, m: HBMaterial):
     t = np.maximum(m.s - m.mb * P / m.ucs, 0.0) ** m.a  # at γ = 0
     live = np.flatnonzero(exists)
     tref = np.maximum(m.s**m.a, 1e-300)
+    Bk = B * k
     for _ in range(NEWTON_ITERATIONS):
         if live.size == 0:
             break
         tl, ia = t[live], inv_a[live]
-        h = A[live] - B[live] * (c0[live] + k[live] * tl**ia) - m.ucs[live] * tl
-        dh = -B[live] * k[live] * ia * tl ** (ia - 1.0) - m.ucs[live]
-        new = np.maximum(tl - h / dh, 0.0)
+        power = tl**ia  # t^(1/a); its derivative (1/a) t^(1/a - 1) from it (0 at t = 0: 1/a > 1)
+        slope = np.divide(power, tl, out=np.zeros_like(tl), where=tl > 0.0)
+        ucs, bk = m.ucs[live], Bk[live]
+        h = A[live] - B[live] * c0[live] - bk * power - ucs * tl
+        new = np.maximum(tl + h / (bk * ia * slope + ucs), 0.0)
         t[live] = new
         live = live[np.abs(new - tl) > NEWTON_TOL * np.maximum(new, tref[live])]
     return np.where(exists, c0 + k * t**inv_a, np.nan)
