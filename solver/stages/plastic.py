@@ -56,7 +56,7 @@ from ..spec.case import PLASTIC_SOLVER_FIELDS
 from ..fe.condense import Reach
 from .contact import contact_tractions
 from .loads import stage_loads
-from .points import Points, elastic_increments, plastic_load
+from .points import Points, affine_elements, elastic_increments, follows, plastic_load
 from . import path
 from .path import advance, fixed_point
 from . import region
@@ -346,10 +346,13 @@ def _staged(model, spec, rows, t0: float, tol: float):
     ld = spec.excavation.deconfinement if loads.release is not None else 0.0
     K = ground.stiffness()
 
+    # the stored faces' points follow where the ground may yield (elsewhere elastic: exact, :func:`follows`; with
+    # water the in-situ pore pressure kinks at the table within a triangle: all followed), all at the end
+    affine = affine_elements(model) if spec.water.table is None else None
+
     def commit(u_free, grad, stress, dep, flags, tau):
         gauss.commit(grad, stress, dep, flags, tau)
-        og = out.gradient(u_free)
-        out.commit(og, *out.trial(og))
+        out.follow(u_free, None if affine is None else follows(gauss, out, affine))
 
     u1, p1, iterations, curve = _first_stage(model, spec, rows, loads.release, ld, tol, (gauss, out), commit)
     stage1 = out.at_yield.reshape(-1).copy()  # the ground that yielded before the lining was placed
@@ -396,6 +399,7 @@ def _staged(model, spec, rows, t0: float, tol: float):
         a = k / steps
         used += its
     iterations += used
+    out.follow(u1 + u2)  # every stored face's point at the end
     # the whole contact stage (both bodies, the checks) of the last increment's converged iterate
     sol = finish(model, spec, rows, *stage_of(p, 1.0), F2_full, t0, u1=u1)
     E = out.shape[0]

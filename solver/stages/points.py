@@ -5,6 +5,8 @@ yields (:func:`elastic_increments`).
 """
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 from ..ground.laws import PointLaws
@@ -55,6 +57,7 @@ class Points:
         #: a point within this (relative) distance of the yield surface counts as at yield: the
         #: equilibrium iteration's tolerance leaves yielding points a hair inside it
         self.flag_tolerance = max(spec.solver.plastic_tolerance / 10, FLAG_TOLERANCE)
+        self._part = None  # the last elements :meth:`follow` followed, and their :meth:`part`
 
     def hooke(self, grad: np.ndarray, onto: np.ndarray | None = None) -> np.ndarray:
         """The elastic stress (4, E, Q) of a displacement gradient (2, 2, E, Q), plane strain;
@@ -120,6 +123,71 @@ class Points:
         self.grad, self.sigma, self.tau = grad, stress, tau
         self.eqps = self.eqps + equivalent(dep).reshape(self.shape)
         self.at_yield = flags
+
+    def part(self, at: np.ndarray, G) -> "Points":
+        """The points of the elements ``at`` (indices) as points of their own, ``G`` their rows of the gradient
+        operator (on whatever unknowns the caller reads them): what no commit changes; :meth:`as_committed`
+        gives them their history."""
+        sub = copy.copy(self)
+        E, Q = self.shape
+        points = (at[:, None] * Q + np.arange(Q)).ravel()
+        sub.G, sub.shape = G, (at.size, Q)
+        sub.yielding = self.yielding[points]
+        sub.material = self.material.at((np.cumsum(self.yielding) - 1)[points][sub.yielding])
+        for name in ("lam", "mu", "mu2", "weights"):
+            setattr(sub, name, getattr(self, name)[at])
+        return sub
+
+    def as_committed(self, part: "Points", at: np.ndarray) -> "Points":
+        """A copy of ``part`` (:meth:`part` of the elements ``at``) with their history as committed."""
+        sub = copy.copy(part)
+        sub.eqps, sub.at_yield = self.eqps[at], self.at_yield[at]
+        sub.sigma, sub.tau, sub.grad = self.sigma[:, at], self.tau[:, at], self.grad[:, :, at]
+        sub.yielded = (np.zeros(at.size, bool), None, None)
+        return sub
+
+    def follow(self, u_free: np.ndarray, elements: np.ndarray | None = None) -> None:
+        """Commit the state at the ground's unknowns ``u_free`` at the points of ``elements`` ((E,) mask; all if
+        None), the others' history left as it stands: exact where they are elastic now and were at every commit
+        they missed (their stress is then their trial from any of those states: :func:`follows`)."""
+        if elements is None or elements.all():
+            grad = self.gradient(u_free)
+            self.commit(grad, *self.trial(grad))
+            return
+        at = np.flatnonzero(elements)
+        if self._part is None or not np.array_equal(self._part[0], at):
+            E, Q = self.shape
+            rows = (np.arange(4)[:, None] * (E * Q) + (at[:, None] * Q + np.arange(Q)).ravel()[None, :]).ravel()
+            self._part = (at, self.part(at, self.G[rows]))
+        sub = self.as_committed(self._part[1], at)
+        grad = sub.gradient(u_free)
+        stress, dep, flags, tau = sub.trial(grad)
+        for name in ("grad", "sigma", "tau", "eqps", "at_yield"):  # (kept histories are read-only: copied once)
+            if not getattr(self, name).flags.writeable:
+                setattr(self, name, getattr(self, name).copy())
+        self.grad[:, :, at], self.sigma[:, at], self.tau[:, at], self.at_yield[at] = grad, stress, tau, flags
+        self.eqps[at] += equivalent(dep).reshape(sub.shape)
+
+
+def affine_elements(model) -> np.ndarray:
+    """The ground's triangles (E,) whose map is affine (straight-sided: its Jacobian the same at every
+    quadrature point; the curved ones border the excavation), found once per model."""
+    def find():
+        basis = model.ground.body.basis
+        detJ = basis.dx / basis.quadrature[1][None, :]
+        return np.abs(detJ - detJ[:, :1]).max(axis=1) <= 1e-9 * np.abs(detJ[:, :1]).ravel()
+    return model.built(("affine elements",), find)
+
+
+def follows(gauss: Points, out: Points, affine: np.ndarray) -> np.ndarray:
+    """The elements (E,) whose ``out`` points a commit must follow: those with a ``gauss`` point at yield (within
+    the flag tolerance) or that has yielded, with an ``out`` point that has, and those whose map is not ``affine``.
+    In the others the stress has been elastic throughout, so it is affine on a straight triangle (the in-situ
+    stress linear in depth within a layer, the strain linear for P2), the ``out`` points (sub-triangle centroids)
+    lie in the convex hull of the quadrature points, and the yield function being convex, they are inside the
+    surface where every quadrature point is."""
+    return (gauss.at_yield.any(axis=1) | (gauss.eqps > 0).any(axis=1) | out.at_yield.any(axis=1)
+            | (out.eqps > 0).any(axis=1) | ~affine)
 
 
 def plastic_load(points: Points, tau: np.ndarray) -> np.ndarray:

@@ -21,7 +21,6 @@ model (:data:`KEPT` of them): a sweep's cases whose ground yields alike share th
 """
 from __future__ import annotations
 
-import copy
 from collections import OrderedDict
 
 import numpy as np
@@ -145,14 +144,8 @@ class Zone:
         gauss = self.gauss
         at = np.flatnonzero(elements)
         G = gauss.G[_rows(gauss, at)].tocsr()
-        self._G = sp.csr_matrix((G.data, self._local[G.indices], G.indptr), shape=(G.shape[0], self.dofs.size))
-        self._at, self._last = at, None
-        #: what :meth:`points` takes from the whole ground's points that no commit changes
-        self._fixed = {name: getattr(gauss, name)[at] for name in ("lam", "mu", "mu2", "weights")}
-        points = (at[:, None] * gauss.shape[1] + np.arange(gauss.shape[1])).ravel()
-        rank = np.cumsum(gauss.yielding) - 1
-        self._yielding = gauss.yielding[points]
-        self._material = gauss.material.at(rank[points][self._yielding])
+        G = sp.csr_matrix((G.data, self._local[G.indices], G.indptr), shape=(G.shape[0], self.dofs.size))
+        self._at, self._part, self._last = at, gauss.part(at, G), None
 
     def _condense(self, dofs: np.ndarray) -> None:
         """The ground condensed onto ``dofs`` (kept on the model: :data:`KEPT` zones)."""
@@ -175,17 +168,11 @@ class Zone:
 
     def points(self):
         """The zone's points as :class:`~solver.stages.points.Points` (their history as committed)."""
-        g, at = self.gauss, self._at
-        sub = copy.copy(g)
-        sub.G, sub.shape = self._G, (at.size, g.shape[1])
-        sub.yielding, sub.material = self._yielding, self._material
-        sub.__dict__.update(self._fixed)
-        sub.eqps, sub.at_yield = g.eqps[at], g.at_yield[at]
-        sub.sigma, sub.tau = g.sigma[:, at], g.tau[:, at]
-        sub.grad = g.grad[:, :, at]
+        sub = self.gauss.as_committed(self._part, self._at)
         # the elements that have had a plastic strain and their rows of the zone's gradient operator, as the last
         # points made found them (rows once gathered serve every later iteration while the zone does not grow)
-        sub.yielded = (np.zeros(at.size, bool), None, None) if self._last is None else self._last.yielded
+        if self._last is not None:
+            sub.yielded = self._last.yielded
         self._last = sub
         return sub
 

@@ -634,3 +634,45 @@ def test_the_contact_stages_increments_no_point_flows_in_are_one_solve_with_the_
     monkeypatch.setattr(plastic, "_elastic_contact", spy)
     run_case(CaseSpec.model_validate({**case, "mesh": COARSE, "geometry": {"gap": 0.002}}))
     assert taken == [0]
+
+
+def test_the_faces_points_followed_only_where_the_ground_may_yield_store_what_following_all_stores(monkeypatch):
+    """A commit follows the stored faces' points only in triangles with a quadrature point at or past yield, a
+    face point that has yielded, or a curved side (:func:`solver.stages.points.follows`): elsewhere the stress
+    has been elastic, affine on the triangle, and the face points (sub-triangle centroids) lie in the convex
+    hull of the quadrature points, inside the surface where they all are. The stored stresses, plastic strains
+    and yield flags are those of following every point at every commit, for Mohr-Coulomb and Hoek-Brown ground;
+    the curved triangles are the excavation's border."""
+    from scipy.optimize import nnls
+
+    from solver.model import TunnelModel
+    from solver.fe.assembly import SUBTRIANGLE_CENTROIDS
+    from solver.stages import points as points_module
+
+    spec = CaseSpec.model_validate({"ground": {"model": "mohr-coulomb", "cohesion": 1.0e4, "friction_angle": 28.0},
+                                    "mesh": COARSE})
+    basis = TunnelModel(spec).ground.body.basis
+    gauss = np.asarray(basis.quadrature[0])  # (2, Q) reference points
+    for centroid in SUBTRIANGLE_CENTROIDS.T:  # each a convex combination of the quadrature points
+        weights, residual = nnls(np.vstack([gauss, np.ones(gauss.shape[1])]), np.r_[centroid, 1.0])
+        assert residual < 1e-12
+    for case in ({"ground": {"model": "mohr-coulomb", "cohesion": 1.0e4, "friction_angle": 28.0}},
+                 {"ground": {"model": "hoek-brown", "young": 5.0e8, "ucs": 1.0e6, "gsi": 30.0, "mi": 8.0}}):
+        spec = CaseSpec.model_validate({**case, "mesh": COARSE})
+        followed = []
+        real = points_module.follows
+
+        def spy(*args):
+            out = real(*args)
+            followed.append(out.mean())
+            return out
+
+        monkeypatch.setattr(plastic, "follows", spy)
+        some = run_case(spec)
+        assert followed and max(followed) < 0.5  # most triangles are left alone
+        monkeypatch.setattr(plastic, "follows", lambda gauss, out, affine: np.ones(gauss.shape[0], bool))
+        every = run_case(spec)
+        for name in ("stress_xx", "stress_yy", "stress_xy", "equivalent_plastic_strain", "plastic"):
+            np.testing.assert_allclose(some[name].values, every[name].values, rtol=1e-12, atol=1e-9, err_msg=name)
+    affine = points_module.affine_elements(TunnelModel(spec))
+    assert 0 < (~affine).sum() < 0.2 * affine.size
