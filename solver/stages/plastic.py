@@ -32,14 +32,15 @@ used: along these shear-band modes its Newton step leaves the region where its l
 (issue 25's measurements, docs/performance.md).
 
 Stages (SPEC §1.1): stage 1 releases λd of the excavation load in ``solver.load_steps``
-equal increments on the unsupported ground (those below the first yield, :func:`~solver.stages.points.elastic_increments`,
-in one elastic solve; each increment starts from the last one's displacement change, scaled
-to its length); the lining is placed on the ground as it stands; stage 2
+equal increments on the unsupported ground (those below the first yield,
+:func:`~solver.stages.points.elastic_increments`, in one elastic solve; each increment starts from the last
+one's displacement change, scaled to its length); the lining is placed on the ground as it stands; stage 2
 releases the rest (with the lining's weight, the water and a drained lining's seepage) in as
 many increments, each with its contact solve (those below the first yield again in one solve where
 there is no gap: :func:`_elastic_contact`). The stress history lives at the quadrature
 points (degree 4, six per triangle); the stored face stresses are followed, with the same
-history, at the sub-triangle centroids. Strains come from one sparse gradient operator per
+history, at the sub-triangle centroids (at each step where the ground may yield:
+:func:`~solver.stages.points.follows`; everywhere at the end). Strains come from one sparse gradient operator per
 set of points (:meth:`~solver.model.TunnelModel.gradient_operator`), whose transpose
 integrates the plastic load.
 """
@@ -236,8 +237,9 @@ def _elastic_contact(model, spec, rows, gauss: Points, stage_of, p1, F2_full, st
     contact model is positively homogeneous (cone constraints: the tractions of ``a`` times the loads are ``a``
     times theirs), so with no point flowing the stage's displacement is ``a x`` with ``x`` its elastic answer,
     each point's stress is linear in ``a`` and, the yield function being convex, inside its surface all the way
-    to the first yield (:func:`~solver.stages.points.elastic_increments`): the increments below it are the incremental path's answer, exactly. (A gap
-    makes the contact's answer affine, not linear, in the load: all increments are then solved.)"""
+    to the first yield (:func:`~solver.stages.points.elastic_increments`): the increments below it are the
+    incremental path's answer, exactly. (A gap makes the contact's answer affine, not linear, in the load: all
+    increments are then solved.)"""
     zero = np.zeros(model.ground.body.n)
     if spec.geometry.gap != 0:
         return 0, zero, zero
@@ -312,7 +314,7 @@ class _ContactReach:
                 y_new = reach.forward(load)
                 _, t = contact_tractions(model, self.spec, frac * jumps_f + on_last @ self.factor.interface_of(
                     y_new[-k:]) / scale, frac * self.F2)
-                g = on_last.T @ (model.w * t)[:served]  # the tractions' load on the interface's unknowns, less
+                g = on_last.T @ (model.w * t)[:served]  # Bᵀ W t on the interface's unknowns (their load: -g)
                 load[at_last] -= g
                 y_new[-k:] -= self.factor.lift_of(g)
                 return y_new, load, state

@@ -86,11 +86,12 @@ def dilate(model, elements: np.ndarray, layers: int | None = None) -> np.ndarray
 
 class Zone:
     """The yielding zone of one stage's solve: the elements it covers (their unknowns: ``dofs``) and, if
-    ``condensed`` (stage 1), the ground condensed onto those unknowns; the elements whose points' stresses each iteration returns (``watched``: those
-    it started from, where the elastic ground yields at λd in stage 1, and :data:`LAYERS` rings round what has
-    yielded), their history from the whole ground's (``gauss``: :class:`~solver.stages.points.Points`). The
-    zone's rings beyond them (``GROWTH * LAYERS`` round what has yielded) are the margin they grow in without a
-    refactorization. ``u_r`` is the ground's displacement under the whole excavation load (stage 1)."""
+    ``condensed`` (stage 1), the ground condensed onto those unknowns; the elements whose points' stresses each
+    iteration returns (``watched``: those it started from, where the elastic ground yields at λd in stage 1,
+    and :data:`LAYERS` rings round what has yielded), their history from the whole ground's (``gauss``:
+    :class:`~solver.stages.points.Points`). The zone's rings beyond them (``GROWTH * LAYERS`` round what has
+    yielded) are the margin they grow in without a refactorization. ``u_r`` is the ground's displacement under
+    the whole excavation load (stage 1)."""
 
     def __init__(self, model, gauss, u_r: np.ndarray | None, elements: np.ndarray, layers: int | None = None,
                  condensed: bool = True):
