@@ -329,6 +329,26 @@ class _ContactReach:
         return setup
 
 
+def _committing(model, spec, gauss: Points, out: Points):
+    """``commit(*state)`` of a converged state: the quadrature points' history, and the stored faces' points' where
+    the ground may yield (elsewhere elastic: exact, :func:`~solver.stages.points.follows`; with water the in-situ
+    pore pressure kinks at the table within a triangle: all followed), with a margin of rings grown only when they
+    yield beyond it (each new set gathers its rows of the gradient operator). All are followed at the end."""
+    affine = affine_elements(model) if spec.water.table is None else None
+    followed = np.zeros(gauss.shape[0], bool)
+
+    def commit(u_free, grad, stress, dep, flags, tau):
+        nonlocal followed
+        gauss.commit(grad, stress, dep, flags, tau)
+        if affine is not None:
+            need = follows(gauss, out, affine)
+            if (need & ~followed).any():
+                followed = followed | region.dilate(model, need)
+        out.follow(u_free, None if affine is None else followed)
+
+    return commit
+
+
 def solve_staged(model, spec, rows, t0: float):
     """Solve a case whose ground can yield (see the module's docstring): a
     :class:`~solver.model.Solution` with ``plastic`` results filled (:func:`tightened`: where the
@@ -348,13 +368,7 @@ def _staged(model, spec, rows, t0: float, tol: float):
     ld = spec.excavation.deconfinement if loads.release is not None else 0.0
     K = ground.stiffness()
 
-    # the stored faces' points follow where the ground may yield (elsewhere elastic: exact, :func:`follows`; with
-    # water the in-situ pore pressure kinks at the table within a triangle: all followed), all at the end
-    affine = affine_elements(model) if spec.water.table is None else None
-
-    def commit(u_free, grad, stress, dep, flags, tau):
-        gauss.commit(grad, stress, dep, flags, tau)
-        out.follow(u_free, None if affine is None else follows(gauss, out, affine))
+    commit = _committing(model, spec, gauss, out)
 
     u1, p1, iterations, curve = _first_stage(model, spec, rows, loads.release, ld, tol, (gauss, out), commit)
     stage1 = out.at_yield.reshape(-1).copy()  # the ground that yielded before the lining was placed
