@@ -155,6 +155,8 @@ class Points:
             self.commit(grad, *self.trial(grad))
             return
         at = np.flatnonzero(elements)
+        if at.size == 0:  # (nothing can yield yet: no history changes)
+            return
         if self._part is None or not np.array_equal(self._part[0], at):
             E, Q = self.shape
             rows = (np.arange(4)[:, None] * (E * Q) + (at[:, None] * Q + np.arange(Q)).ravel()[None, :]).ravel()
