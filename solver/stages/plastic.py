@@ -273,8 +273,9 @@ class _ContactReach:
     ground's iteration (:func:`_staged`'s ``G``) to rounding. At an answer one backward solve over the whole
     factor gives the whole ground's displacement."""
 
-    def __init__(self, model, spec, rows, f_full, y_g, y_l, F2_full, u1, p1):
+    def __init__(self, model, spec, rows, K, f_full, y_g, y_l, F2_full, u1, p1):
         self.model, self.spec, self.rows, self.F2, self.u1, self.p1 = model, spec, rows, F2_full, u1, p1
+        self.K = K  # the ground's stiffness (a scaled body's a scaled copy: made once)
         self.factor, self.on_last = model.ground.factor(rows)
         self.last = np.asarray(self.factor.last)
         self._f, self._y = f_full, (y_g, y_l)
@@ -303,7 +304,7 @@ class _ContactReach:
 
         def setup(sub, d, guess):
             D, at_d, at_last, reach = self.reach(d)
-            load0 = (ground.stiffness() @ guess - frac * self._f)[D]  # the start's (exact for the path's answers)
+            load0 = (self.K @ guess - frac * self._f)[D]  # the start's (exact for the path's answers)
             start, base, p1 = self.u1[d] + frac * u_f[d], frac * u_f, self.p1[d]
 
             def G(y):
@@ -382,7 +383,8 @@ def _staged(model, spec, rows, t0: float, tol: float):
     def stage_of(p, a):
         """The contact stage's loads at the fraction ``a``, their forward halves and interface jumps."""
         extra = p - p1
-        stage = Forward(ground=a * y_g + ground.forward(extra, rows), lining=a * y_l)
+        moved = ground.forward(extra, rows) if extra.any() else 0.0  # (none where no point has flowed since)
+        stage = Forward(ground=a * y_g + moved, lining=a * y_l)
         jumps = ground.jumps(stage.ground, rows) + lining.jumps(stage.lining, rows)
         return StageLoads(a * full.ground + extra, a * full.lining, None), stage, jumps
 
@@ -393,7 +395,7 @@ def _staged(model, spec, rows, t0: float, tol: float):
     atol = tol * max(own, first) / steps
 
     zones = []  # the points whose stresses are returned (:meth:`solver.stages.region.Zone.iterate`)
-    contact = _ContactReach(model, spec, rows, full.ground, y_g, y_l, F2_full, u1, p1)
+    contact = _ContactReach(model, spec, rows, K, full.ground, y_g, y_l, F2_full, u1, p1)
 
     def solve2(guess, limit, patience, frac):
         def G(x):  # on the whole ground, where the zone is given up

@@ -124,6 +124,11 @@ class Points:
         self.eqps = self.eqps + equivalent(dep).reshape(self.shape)
         self.at_yield = flags
 
+    def rows(self, at: np.ndarray) -> np.ndarray:
+        """The rows of the gradient operator at the points of the elements ``at`` (indices), in their order."""
+        E, Q = self.shape
+        return (np.arange(4)[:, None] * (E * Q) + (at[:, None] * Q + np.arange(Q)).ravel()[None, :]).ravel()
+
     def part(self, at: np.ndarray, G) -> "Points":
         """The points of the elements ``at`` (indices) as points of their own, ``G`` their rows of the gradient
         operator (on whatever unknowns the caller reads them): what no commit changes; :meth:`as_committed`
@@ -158,9 +163,7 @@ class Points:
         if at.size == 0:  # (nothing can yield yet: no history changes)
             return
         if self._part is None or not np.array_equal(self._part[0], at):
-            E, Q = self.shape
-            rows = (np.arange(4)[:, None] * (E * Q) + (at[:, None] * Q + np.arange(Q)).ravel()[None, :]).ravel()
-            self._part = (at, self.part(at, self.G[rows]))
+            self._part = (at, self.part(at, self.G[self.rows(at)]))
         sub = self.as_committed(self._part[1], at)
         grad = sub.gradient(u_free)
         stress, dep, flags, tau = sub.trial(grad)
@@ -203,7 +206,7 @@ def plastic_load(points: Points, tau: np.ndarray) -> np.ndarray:
         elements = elements | now
         E, Q = points.shape
         at = (np.flatnonzero(elements)[:, None] * Q + np.arange(Q)).ravel()  # their points
-        GT = points.G[(np.arange(4)[:, None] * (E * Q) + at[None, :]).ravel()].T
+        GT = points.G[points.rows(np.flatnonzero(elements))].T
         points.yielded = elements, at, GT
     if GT is None:
         return np.zeros(points.G.shape[1])

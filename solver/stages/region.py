@@ -48,13 +48,6 @@ KEPT = 3
 ENABLED = True
 
 
-def _rows(gauss, elements: np.ndarray) -> np.ndarray:
-    """The rows of ``gauss``' gradient operator at the points of ``elements`` (indices), in the points' order."""
-    E, Q = gauss.shape
-    points = (elements[:, None] * Q + np.arange(Q)).ravel()
-    return (np.arange(4)[:, None] * (E * Q) + points[None, :]).ravel()
-
-
 class _Product:
     """``S @ x`` for :func:`~solver.stages.path.fixed_point` (its only use of the stiffness)."""
 
@@ -126,7 +119,7 @@ class Zone:
         if self._too_big(want.sum() / want.size):  # (of elements and unknowns alike: about the same share)
             return
         touched = np.zeros(n, bool)
-        touched[gauss.G[_rows(gauss, np.flatnonzero(want))].indices] = True
+        touched[gauss.G[gauss.rows(np.flatnonzero(want))].indices] = True
         self.dofs = dofs = np.flatnonzero(touched)
         if dofs.size == 0:
             self.given_up = True
@@ -144,7 +137,7 @@ class Zone:
         self.watched = elements
         gauss = self.gauss
         at = np.flatnonzero(elements)
-        G = gauss.G[_rows(gauss, at)].tocsr()
+        G = gauss.G[gauss.rows(at)].tocsr()
         G = sp.csr_matrix((G.data, self._local[G.indices], G.indptr), shape=(G.shape[0], self.dofs.size))
         self._at, self._part, self._last = at, gauss.part(at, G), None
 
