@@ -27,8 +27,9 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
-from .principal import descending, from_principal, order_of, principal, unsorted
+from .principal import descending, extremes, from_principal, order_of, principal, put_back, sorted_at, unsorted
 from .tangent import active_set_jacobian, elastic_matrix, full_tangent, unsort
 
 #: Relative tolerance of "on or inside a surface" (to the stresses' scale).
@@ -114,7 +115,8 @@ class HBMaterial(NamedTuple):
     def of(cls, n: int, lam, mu, ucs, gsi, mi, disturbance, dilatancy, tensile=None) -> "HBMaterial":
         """From the SPEC's fields (scalars or (n,) arrays; angles in degrees; ``tensile`` None or
         NaN: the apex s σci / m_b)."""
-        bc = lambda v: np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float), (n,)))  # noqa: E731
+        # (writable copies: the compiled return is specialized on its arrays' flags, one kind)
+        bc = lambda v: np.array(np.broadcast_to(np.asarray(v, dtype=float), (n,)))  # noqa: E731
         mb, s, a = constants(bc(gsi), bc(mi), bc(disturbance))
         ucs = bc(ucs)
         apex = s * ucs / mb
@@ -171,36 +173,122 @@ def consistent_tangent(trial: np.ndarray, mat: HBMaterial, flag_tolerance: float
     return stress, dep, at_yield, tangent
 
 
-def _screen(trial, mat):
-    """Largest and least principal stresses, the stress scale and the largest yield value of every
-    point, without sorting or directions (most of the ground is elastic at any iterate)."""
-    sxx, syy, sxy, szz = trial
-    mid = 0.5 * (sxx + syy)
-    rad = np.hypot(0.5 * (sxx - syy), sxy)
-    s1 = np.maximum(mid + rad, szz)
-    s3 = np.minimum(mid - rad, szz)
-    scale = np.maximum(np.maximum(s1, -s3), mat.ucs * mat.s**mat.a)
-    np.maximum(scale, 1.0, out=scale)
-    fmax = np.maximum(s1 - s3 - strength(s1, mat), s1 - mat.tensile)
-    return fmax, scale
-
-
 def _stress_and_jacobian(trial, mat, flag_tolerance, jacobian: bool):
     n = trial.shape[1]
-    fmax, scale = _screen(trial, mat)
-    at_yield = fmax > -flag_tolerance * scale
-    todo = np.flatnonzero(fmax > YIELD_TOL * scale)
-    stress = np.array(trial, dtype=float)
-    dep = np.zeros((3, n))
+    stress, dep, ordered = np.empty((4, n)), np.empty((3, n)), np.empty((3, n))
+    at_yield, state, scale = np.empty(n, bool), np.empty(n, np.int64), np.empty(n)
+    _main_returns(np.ascontiguousarray(trial, float), *mat, float(flag_tolerance), stress, dep, at_yield, state,
+                  scale, ordered)
+    rest = np.flatnonzero(state == REST)
     tangent = elastic_matrix(mat.lam, mat.mu) if jacobian else None
-    if todo.size:
-        m = mat.at(todo)
-        ret, dep_t, J = _return(trial[:, todo], m, scale[todo], jacobian)
-        stress[:, todo], dep[:, todo] = ret, dep_t
-        at_yield[todo] = True
+    if rest.size:
+        m = mat.at(rest)
+        ret, dep_t, J = _return(trial[:, rest], m, scale[rest], jacobian)
+        stress[:, rest], dep[:, rest] = ret, dep_t
         if jacobian:
-            tangent[todo] = full_tangent(trial[:, todo], ret, J, m.lam, m.mu, scale[todo])
+            tangent[rest] = full_tangent(trial[:, rest], ret, J, m.lam, m.mu, scale[rest])
+    main = np.flatnonzero(state == MAIN)
+    if jacobian and main.size:
+        m = mat.at(main)
+        major, minor, _, szz = principal(trial[:, main])
+        J = active_set_jacobian(_hb_normal(0, 2, ordered[:, main].T, m)[:, None], _flow(0, 2, m.sin_psi)[:, None],
+                                m.lam, m.mu)
+        J = unsort(J, order_of(descending(major, minor, szz)[1]))
+        tangent[main] = full_tangent(trial[:, main], stress[:, main], J, m.lam, m.mu, scale[main])
     return stress, dep, at_yield, tangent
+
+
+#: :func:`_main_returns`' ``state`` of a point: inside, returned onto f13 alone, outside and left to the other
+#: candidates (:func:`_return`)
+INSIDE, MAIN, REST = -1, 0, 1
+
+
+@njit(cache=True)
+def _strength(sigma, ucs, mb, s, a):
+    """:func:`strength` at one point."""
+    return ucs * max(s - mb * sigma / ucs, 0.0) ** a
+
+
+@njit(cache=True)
+def _main_returns(trial, lam, mu, ucs, mb, s, a, sin_psi, tensile, flag, stress, dep, at_yield, state, scale,
+                  ordered):
+    """Every point of ``trial`` (4, n) screened on its largest and least principal stresses and, where outside,
+    returned onto f13 alone when that return is admissible (Koiter's conditions); compiled, one pass. Fills
+    ``stress`` (4, n), ``dep`` (3, n) (principal plastic strain increments in the trial's axes), ``at_yield``,
+    ``state`` (:data:`INSIDE`, :data:`MAIN`, :data:`REST`), the stress scale ``max(|σ1|, |σ3|, σci s^a, 1 Pa)``
+    (where the point is near yield or outside) and, where returned, the sorted principal stresses ``ordered``
+    (3, n)."""
+    st, ep = np.empty(3), np.empty(3)
+    for i in range(trial.shape[1]):
+        s1, s3 = extremes(trial, i)
+        u, m_b, s_, a_ = ucs[i], mb[i], s[i], a[i]
+        f = max(s1 - s3 - _strength(s1, u, m_b, s_, a_), s1 - tensile[i])
+        for x in range(4):
+            stress[x, i] = trial[x, i]
+        dep[0, i] = dep[1, i] = dep[2, i] = 0.0
+        state[i] = INSIDE
+        sc = max(max(s1, -s3), 1.0)
+        if f <= -flag * max(sc, u * max(s_, 1.0)):  # well inside, whatever σci s^a ≤ σci max(s, 1) (a ≤ 1)
+            at_yield[i] = False
+            continue
+        scale[i] = sc = max(sc, u * s_ ** a_)
+        at_yield[i] = f > -flag * sc
+        if not f > YIELD_TOL * sc:
+            continue
+        at_yield[i] = True
+        state[i] = REST
+        top, middle = sorted_at(trial, i, st)
+        sq = sin_psi[i]
+        b0, b2 = 1.0 + sq, -(1.0 - sq)  # f13's flow b13 and D b13
+        d0, d1, d2 = 2.0 * lam[i] * sq + 2.0 * mu[i] * b0, 2.0 * lam[i] * sq, 2.0 * lam[i] * sq + 2.0 * mu[i] * b2
+        gam = _line_root(st[0] - st[2], d0 - d2, st[0], d0, u, m_b, s_, a_)
+        r0, r1, r2 = st[0] - gam * d0, st[1] - gam * d1, st[2] - gam * d2
+        t, lim = tensile[i], YIELD_TOL * sc
+        if not (gam >= -YIELD_TOL and np.isfinite(gam) and np.isfinite(r0) and np.isfinite(r1) and np.isfinite(r2)
+                and r0 >= r1 - lim and r1 >= r2 - lim and max(r0, max(r1, r2)) - t <= lim
+                and r0 - r2 - _strength(r0, u, m_b, s_, a_) <= lim and r1 - r2 - _strength(r1, u, m_b, s_, a_) <= lim
+                and r0 - r1 - _strength(r0, u, m_b, s_, a_) <= lim):
+            continue
+        state[i] = MAIN
+        ordered[0, i], ordered[1, i], ordered[2, i] = r0, r1, r2
+        ep[0], ep[1], ep[2] = gam * b0, 0.0, gam * b2
+        put_back(trial, i, top, middle, ordered[:, i], ep, stress, dep)
+    return 0
+
+
+@njit(cache=True)
+def _line_root(A, B, P, Q, ucs, mb, s, a):
+    """The multiplier γ where the line σi = P - Q γ, σi - σj = A - B γ meets the surface
+    ``σi - σj = σci x(σi)^a`` (B > 0, Q > 0), by Newton in t = x^a ∈ [0, ∞): with
+    γ(t) = (P - σci (s - t^(1/a)) / m_b) / Q the equation h(t) = A - B γ(t) - σci t = 0 is concave
+    and decreasing in t, so Newton converges from any start (from the right of the root after
+    at most one step, monotonically). NaN where no root with x ≥ 0 exists."""
+    inv_a = 1.0 / a
+    c0 = (P - ucs * s / mb) / Q  # γ at the apex, t = 0
+    k = ucs / (mb * Q)  # γ(t) = c0 + k t^(1/a)
+    if not A - B * c0 >= 0.0:  # h(0) < 0: no root in t ≥ 0
+        return np.nan
+    t = max(s - mb * P / ucs, 0.0) ** a  # at γ = 0
+    tref, bk = max(s ** a, 1e-300), B * k
+    for _ in range(NEWTON_ITERATIONS):
+        power = t ** inv_a  # t^(1/a); its derivative (1/a) t^(1/a - 1) from it (0 at t = 0: 1/a > 1)
+        slope = power / t if t > 0.0 else 0.0
+        h = A - B * c0 - bk * power - ucs * t
+        new = max(t + h / (bk * inv_a * slope + ucs), 0.0)
+        done = abs(new - t) <= NEWTON_TOL * max(new, tref)
+        t = new
+        if done:
+            break
+    return c0 + k * t ** inv_a
+
+
+@njit(cache=True)
+def _line_roots(A, B, P, Q, ucs, mb, s, a):
+    """:func:`_line_root` at every point (arrays (m,))."""
+    out = np.empty(A.size)
+    for i in range(A.size):
+        out[i] = _line_root(A[i], B[i], P[i], Q[i], ucs[i], mb[i], s[i], a[i])
+    return out
 
 
 def _flow(i: int, j: int, sq: np.ndarray) -> np.ndarray:
@@ -210,38 +298,10 @@ def _flow(i: int, j: int, sq: np.ndarray) -> np.ndarray:
     return b
 
 
-def _line_root(A, B, P, Q, m: HBMaterial):
-    """The multiplier γ where the line σi = P - Q γ, σi - σj = A - B γ meets the surface
-    ``σi - σj = σci x(σi)^a`` (B > 0, Q > 0), by Newton in t = x^a ∈ [0, ∞): with
-    γ(t) = (P - σci (s - t^(1/a)) / m_b) / Q the equation h(t) = A - B γ(t) - σci t = 0 is concave
-    and decreasing in t, so Newton converges from any start (from the right of the root after
-    at most one step, monotonically). γ is NaN where no root with x ≥ 0 exists."""
-    inv_a = 1.0 / m.a
-    c0 = (P - m.ucs * m.s / m.mb) / Q  # γ at the apex, t = 0
-    k = m.ucs / (m.mb * Q)  # γ(t) = c0 + k t^(1/a)
-    exists = A - B * c0 >= 0.0  # h(0) ≥ 0: a root in t ≥ 0
-    t = np.maximum(m.s - m.mb * P / m.ucs, 0.0) ** m.a  # at γ = 0
-    live = np.flatnonzero(exists)
-    tref = np.maximum(m.s**m.a, 1e-300)
-    Bk = B * k
-    for _ in range(NEWTON_ITERATIONS):
-        if live.size == 0:
-            break
-        tl, ia = t[live], inv_a[live]
-        power = tl**ia  # t^(1/a); its derivative (1/a) t^(1/a - 1) from it (0 at t = 0: 1/a > 1)
-        slope = np.divide(power, tl, out=np.zeros_like(tl), where=tl > 0.0)
-        ucs, bk = m.ucs[live], Bk[live]
-        h = A[live] - B[live] * c0[live] - bk * power - ucs * tl
-        new = np.maximum(tl + h / (bk * ia * slope + ucs), 0.0)
-        t[live] = new
-        live = live[np.abs(new - tl) > NEWTON_TOL * np.maximum(new, tref[live])]
-    return np.where(exists, c0 + k * t**inv_a, np.nan)
-
-
 def _return(trial, m: HBMaterial, scale, jacobian: bool):
-    """The multi-surface return of trial states (4, k) that lie outside: stress (4, k), principal
-    plastic strain increments (3, k) in the trial's axes and, if asked, the principal Jacobian
-    (k, 3, 3) in those axes."""
+    """The multi-surface return of trial states (4, k) that lie outside and whose return onto f13 alone
+    is not admissible (:func:`_main_returns`): stress (4, k), principal plastic strain increments (3, k) in
+    the trial's axes and, if asked, the principal Jacobian (k, 3, 3) in those axes."""
     k = trial.shape[1]
     major, minor, direction, szz = principal(trial)
     st, perm = descending(major, minor, szz)
@@ -255,18 +315,15 @@ def _return(trial, m: HBMaterial, scale, jacobian: bool):
     def Dv(b):  # isotropic elasticity on principal vectors (P, 3)
         return lam_p[:, None] * b.sum(axis=1, keepdims=True) + 2.0 * mu_p[:, None] * b
 
-    # the three Hoek–Brown candidates: main (1, 3); right edge (1, 3) + (2, 3), σ1 = σ2; left edge
-    # (1, 3) + (1, 2), σ2 = σ3. The edge multipliers are γ + δ (on (1, 3)) and γ.
-    for cand in ("main", "right", "left"):
+    # the Hoek–Brown edges: right (1, 3) + (2, 3), σ1 = σ2; left (1, 3) + (1, 2), σ2 = σ3. Their
+    # multipliers are γ + δ (on (1, 3)) and γ.
+    for cand in ("right", "left"):
         p = np.flatnonzero(left)
         if p.size == 0:
             break
         lam_p, mu_p, sq_p, mp, tr = lam[p], mu[p], sq[p], m.at(p), st[p]
         b13 = _flow(0, 2, sq_p)
-        if cand == "main":
-            delta = np.zeros(p.size)
-            start, d, other = tr, Dv(b13), None
-        elif cand == "right":
+        if cand == "right":
             other = _flow(1, 2, sq_p)
             delta = (tr[:, 0] - tr[:, 1]) / (2.0 * mu_p * (1.0 + sq_p))
             start, d = tr - delta[:, None] * Dv(b13), Dv(b13 + other)
@@ -274,27 +331,20 @@ def _return(trial, m: HBMaterial, scale, jacobian: bool):
             other = _flow(0, 1, sq_p)
             delta = (tr[:, 1] - tr[:, 2]) / (2.0 * mu_p * (1.0 - sq_p))
             start, d = tr - delta[:, None] * Dv(b13), Dv(b13 + other)
-        gam = _line_root(start[:, 0] - start[:, 2], d[:, 0] - d[:, 2], start[:, 0], d[:, 0], mp)
+        gam = _line_roots(start[:, 0] - start[:, 2], d[:, 0] - d[:, 2], start[:, 0], d[:, 0], mp.ucs, mp.mb, mp.s,
+                          mp.a)
         with np.errstate(invalid="ignore"):
             sig = start - gam[:, None] * d
-        if cand == "right":  # σ1 = σ2 exactly on the edge (rounding apart)
-            sig[:, 1] = sig[:, 0]
-        elif cand == "left":
-            sig[:, 1] = sig[:, 2]
-        gams = gam[:, None] if other is None else np.stack([gam + delta, gam], axis=1)
+        sig[:, 1] = sig[:, 0] if cand == "right" else sig[:, 2]  # exactly on the edge (rounding apart)
+        gams = np.stack([gam + delta, gam], axis=1)
         ok = _admissible(gams, sig, mp, scale[p])
         hit = p[ok]
         res[hit] = sig[ok]
-        plastic = (gam + delta)[ok, None] * b13[ok] + (0.0 if other is None else gam[ok, None] * other[ok])
-        strain[hit] = plastic
+        strain[hit] = (gam + delta)[ok, None] * b13[ok] + gam[ok, None] * other[ok]
         if jacobian and hit.size:
-            normals = [_hb_normal(0, 2, sig[ok], mp.at(ok))]
-            flows = [b13[ok]]
-            if cand != "main":
-                normals.append(_hb_normal(1, 2, sig[ok], mp.at(ok)) if cand == "right"
-                               else _hb_normal(0, 1, sig[ok], mp.at(ok)))
-                flows.append(other[ok])
-            J[hit] = active_set_jacobian(np.stack(normals, axis=1), np.stack(flows, axis=1), lam_p[ok], mu_p[ok])
+            edge = _hb_normal(1, 2, sig[ok], mp.at(ok)) if cand == "right" else _hb_normal(0, 1, sig[ok], mp.at(ok))
+            normals = np.stack([_hb_normal(0, 2, sig[ok], mp.at(ok)), edge], axis=1)
+            J[hit] = active_set_jacobian(normals, np.stack([b13[ok], other[ok]], axis=1), lam_p[ok], mu_p[ok])
         left[hit] = False
     if left.any():
         _linear_returns(st, m, scale, left, res, strain, J)

@@ -23,8 +23,9 @@ import itertools
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
-from .principal import descending, from_principal, order_of, principal, unsorted
+from .principal import descending, extremes, from_principal, order_of, principal, put_back, sorted_at, unsorted
 from .tangent import active_set_jacobian, full_tangent, unsort
 
 #: Relative tolerance of "on or inside a surface" (to the stresses' scale).
@@ -36,19 +37,6 @@ def yield_values(s: np.ndarray, cohesion, sin_phi, cos_phi, tensile) -> np.ndarr
     principal stresses ``s`` (3, n); ≤ 0 inside."""
     main = (s[0] - s[2]) + (s[0] + s[2]) * sin_phi - 2.0 * cohesion * cos_phi
     return np.vstack([main, s - tensile])
-
-
-def _surfaces(sin_phi, sin_psi):
-    """Normals ``a`` and flow directions ``b`` (3,) of: 0 main, 1 right edge, 2 left edge,
-    3-5 tension cut-offs of σ1, σ2, σ3; and which constant each compares with."""
-    def plane(i, j, s):
-        v = np.zeros(3)
-        v[i], v[j] = 1.0 + s, -(1.0 - s)
-        return v
-
-    a = [plane(0, 2, sin_phi), plane(1, 2, sin_phi), plane(0, 1, sin_phi), *np.eye(3)]
-    b = [plane(0, 2, sin_psi), plane(1, 2, sin_psi), plane(0, 1, sin_psi), *np.eye(3)]
-    return np.array(a), np.array(b)
 
 
 #: Candidate active sets, tried in order, fewest surfaces first (indices: 0 main, 1 right edge,
@@ -86,7 +74,8 @@ class Material(NamedTuple):
 
     @classmethod
     def of(cls, n: int, lam, mu, cohesion, friction_angle, dilatancy, tensile) -> "Material":
-        bc = lambda v: np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float), (n,)))  # noqa: E731
+        # (writable copies: the compiled return is specialized on its arrays' flags, one kind)
+        bc = lambda v: np.array(np.broadcast_to(np.asarray(v, dtype=float), (n,)))  # noqa: E731
         phi, psi = np.radians(bc(friction_angle)), np.radians(bc(dilatancy))
         return cls(bc(lam), bc(mu), bc(cohesion), np.sin(phi), np.cos(phi), np.sin(psi), bc(tensile))
 
@@ -118,59 +107,29 @@ def consistent_tangent(trial: np.ndarray, mat: Material, flag_tolerance: float =
 
 def _stress(trial: np.ndarray, mat: Material, flag_tolerance: float, tangent: bool, frozen=None):
     n = trial.shape[1]
-    c, sp, cp, t = mat.c, mat.sin_phi, mat.cos_phi, mat.tensile
-    # a cheap screen of every point: the largest and least principal stresses without sorting
-    # or directions (most of the ground is elastic at any iterate)
-    # (in place: this runs at every point of every iterate)
-    sxx, syy, sxy, szz = trial
-    mid = sxx + syy
-    mid *= 0.5
-    rad = sxx - syy
-    rad *= 0.5
-    rad *= rad
-    rad += sxy * sxy
-    np.sqrt(rad, out=rad)
-    s1 = mid + rad
-    np.maximum(s1, szz, out=s1)
-    s3 = mid
-    s3 -= rad
-    np.minimum(s3, szz, out=s3)
-    scale = np.maximum(s1, -s3)  # max(|σ1|, |σ3|), as σ1 ≥ σ3
-    np.maximum(scale, c, out=scale)
-    np.maximum(scale, 1.0, out=scale)
-    fmax = s1 - s3
-    s3 += s1
-    s3 *= sp
-    fmax += s3
-    fmax -= 2.0 * c * cp
-    s1 -= t
-    np.maximum(fmax, s1, out=fmax)
-    at_yield = fmax > -flag_tolerance * scale
-    outside = fmax > YIELD_TOL * scale
-    forced = np.zeros(0, np.int64)
-    if frozen is not None:
-        forced = np.flatnonzero(frozen & ~outside)
-        outside &= frozen
-    todo = np.flatnonzero(outside)
-    stress = np.array(trial, dtype=float)  # a state inside stays exactly as it was
-    dep = np.zeros((3, n))
+    stress, dep = np.empty((4, n)), np.empty((3, n))
+    at_yield, active, scale = np.empty(n, bool), np.empty(n, np.int64), np.empty(n)
+    may = np.ones(n, bool) if frozen is None else np.asarray(frozen, bool)
+    failed = _returns(np.ascontiguousarray(trial, float), *mat, float(flag_tolerance), may, stress, dep, at_yield,
+                      active, scale)
+    if failed:
+        raise ArithmeticError(f"Mohr-Coulomb return mapping found no admissible stress at {failed} points")
+    if not tangent and frozen is None:
+        return stress, dep, at_yield
+    todo = np.flatnonzero(active >= 0)
     C = np.zeros((0, 4, 4))
-    if todo.size:
-        m = mat.at(todo)
-        ret, dep_t, active = _return(trial[:, todo], m.lam, m.mu, m.c, m.sin_phi, m.cos_phi, m.sin_psi,
-                                     m.tensile, scale[todo])
-        stress[:, todo], dep[:, todo] = ret, dep_t
-        at_yield[todo] = True
-        if tangent:
-            C = _tangent(trial[:, todo], ret, active, m, scale[todo])
-    if forced.size:
-        m = mat.at(forced)
-        ret, dep_f = _main_plane(trial[:, forced], m)
-        stress[:, forced], dep[:, forced] = ret, dep_f
-        if tangent:
-            C = np.concatenate([C, _tangent(trial[:, forced], ret, np.zeros(forced.size, np.int64), m,
-                                            scale[forced])])
-        todo = np.concatenate([todo, forced])
+    if tangent and todo.size:
+        C = _tangent(trial[:, todo], stress[:, todo], active[todo], mat.at(todo), scale[todo])
+    if frozen is not None:  # inside the surface, yet held flowing: onto the main plane all the same
+        forced = np.flatnonzero(may & (active == INSIDE))
+        if forced.size:
+            m = mat.at(forced)
+            ret, dep_f = _main_plane(trial[:, forced], m)
+            stress[:, forced], dep[:, forced] = ret, dep_f
+            if tangent:
+                C = np.concatenate([C, _tangent(trial[:, forced], ret, np.zeros(forced.size, np.int64), m,
+                                                scale[forced])])
+            todo = np.concatenate([todo, forced])
     if tangent:
         return stress, dep, at_yield, todo, C
     return stress, dep, at_yield
@@ -209,80 +168,138 @@ def _tangent(trial, stress, active, m: Material, scale):
     return full_tangent(trial, stress, unsort(J, order), m.lam, m.mu, scale)
 
 
-def _return(trial, lam, mu, c, sp, cp, sq, t, scale):
-    """The multi-surface return of trial states (4, m) that lie outside: stress (4, m) and
-    principal plastic strain increments (3, m) in the trial's axes."""
-    m = trial.shape[1]
-    major, minor, direction, szz = principal(trial)
-    st, perm = descending(major, minor, szz)
-    st = st.T  # (m, 3) sorted σ1 ≥ σ2 ≥ σ3
-    res = np.empty((m, 3))
-    gam_strain = np.zeros((m, 3))
-    active = np.zeros(m, np.int64)  # the candidate set each point returned onto
-    # isotropic elasticity in principal axes: D = λ 1 1ᵀ + 2μ I. The main plane alone (most
-    # returns) in closed form: a = (1 + sin φ, 0, -(1 - sin φ)), b likewise with ψ, D b, Δγ
-    b_main = np.stack([1.0 + sq, np.zeros(m), -(1.0 - sq)], axis=1)  # (m, 3)
-    Db = (2.0 * lam * sq)[:, None] + 2.0 * mu[:, None] * b_main
-    with np.errstate(all="ignore"):
-        gam = (((1.0 + sp) * st[:, 0] - (1.0 - sp) * st[:, 2] - 2.0 * c * cp)
-               / ((1.0 + sp) * Db[:, 0] - (1.0 - sp) * Db[:, 2]))
-        sig = st - gam[:, None] * Db
-    ok = _admissible(gam[:, None], sig, c, sp, cp, t, scale)
-    res[ok] = sig[ok]
-    gam_strain[ok] = gam[ok, None] * b_main[ok]
-    pending = ~ok
-    rest = np.flatnonzero(pending)
-    if rest.size:
-        # the other candidate sets, at the points left: surfaces a, b (r, 6, 3)
-        r = rest.size
-        lam, mu, c, sp, cp, sq, t, scale, sr = (v[rest] for v in (lam, mu, c, sp, cp, sq, t, scale, st))
-        A = np.zeros((r, 6, 3))
-        B = np.zeros((r, 6, 3))
-        for j, (i1, i2) in enumerate(((0, 2), (1, 2), (0, 1))):
-            A[:, j, i1], A[:, j, i2] = 1.0 + sp, -(1.0 - sp)
-            B[:, j, i1], B[:, j, i2] = 1.0 + sq, -(1.0 - sq)
-        for j in range(3):
-            A[:, 3 + j, j] = B[:, 3 + j, j] = 1.0
-        k_const = np.zeros((r, 6))
-        k_const[:, :3] = (2.0 * c * cp)[:, None]
-        k_const[:, 3:] = t[:, None]
-        left = np.ones(r, bool)
-        for number, cand in enumerate(CANDIDATES[1:], start=1):
-            p = np.flatnonzero(left)
-            if p.size == 0:
-                break
-            cs = list(cand)
-            a, b = A[p][:, cs], B[p][:, cs]  # (P, k, 3)
-            Db = lam[p, None, None] * b.sum(axis=2, keepdims=True) + 2.0 * mu[p, None, None] * b  # (P, k, 3)
-            M = np.einsum("pjx,plx->pjl", a, Db)
-            rhs = np.einsum("pjx,px->pj", a, sr[p]) - k_const[p][:, cs]
-            with np.errstate(all="ignore"):
-                try:
-                    gam = np.linalg.solve(M, rhs[..., None])[..., 0]
-                except np.linalg.LinAlgError:
-                    continue
-            sig = sr[p] - np.einsum("pl,plx->px", gam, Db)
-            ok = _admissible(gam, sig, c[p], sp[p], cp[p], t[p], scale[p])
-            hit = p[ok]
-            res[rest[hit]] = sig[ok]
-            active[rest[hit]] = number
-            gam_strain[rest[hit]] = np.einsum("pl,plx->px", gam[ok], b[ok])
-            left[hit] = False
-        pending[rest] = left
-    if pending.any():
-        raise ArithmeticError(f"Mohr-Coulomb return mapping found no admissible stress at {pending.sum()} points")
-    # back to the trial's axes: undo the sort, then the in-plane directions
-    back = unsorted(res.T, perm)
-    return from_principal(back[0], back[1], direction, back[2]), unsorted(gam_strain.T, perm), active
+#: :func:`_returns`' ``active`` of a point inside the surface, and of one outside it that may not return
+INSIDE, HELD = -1, -2
+#: :data:`CANDIDATES` padded with -1 (c, 4), and their sizes (c,): what the compiled return reads
+_CANDIDATE_SETS = np.array([c + (-1,) * (4 - len(c)) for c in CANDIDATES], np.int64)
+_CANDIDATE_SIZES = np.array([len(c) for c in CANDIDATES], np.int64)
 
 
-def _admissible(gam, sig, c, sp, cp, t, scale) -> np.ndarray:
-    """Koiter's conditions of candidate returns: multipliers ``gam`` (P, k) non-negative, stresses
-    ``sig`` (P, 3) on or inside every surface, in the principal order, finite."""
-    fv = yield_values(sig.T, c, sp, cp, t)
-    return (np.all(gam >= -YIELD_TOL, axis=1) & np.all(fv <= YIELD_TOL * scale * 10, axis=0)
-            & (sig[:, 0] >= sig[:, 1] - YIELD_TOL * scale) & (sig[:, 1] >= sig[:, 2] - YIELD_TOL * scale)
-            & np.all(np.isfinite(sig), axis=1))
+@njit(cache=True)
+def _returns(trial, lam, mu, c, sin_phi, cos_phi, sin_psi, tensile, flag, may, stress, dep, at_yield, active,
+             scale):
+    """The return of every point of ``trial`` (4, n), compiled: one pass over the points, each screened on its
+    largest and least principal stresses and, where outside (and ``may`` return), returned (:func:`_onto`);
+    fills ``stress`` (4, n), the principal plastic strain increments ``dep`` (3, n) in the trial's axes,
+    ``at_yield``, the candidate set returned onto ``active`` (:data:`INSIDE`, :data:`HELD`) and the stress
+    scale ``max(|σ1|, |σ3|, c, 1 Pa)``. Returns how many points found no admissible return."""
+    st, res, ep = np.empty(3), np.empty(3), np.empty(3)
+    work = (np.empty((4, 3)), np.empty((4, 3)), np.empty((4, 3)), np.empty((4, 4)), np.empty(4), np.empty(3))
+    failed = 0
+    for i in range(trial.shape[1]):
+        s1, s3 = extremes(trial, i)
+        scale[i] = sc = max(max(s1, -s3), max(c[i], 1.0))
+        f = max((s1 - s3) + (s1 + s3) * sin_phi[i] - 2.0 * c[i] * cos_phi[i], s1 - tensile[i])
+        outside = f > YIELD_TOL * sc
+        at_yield[i] = outside or f > -flag * sc
+        for x in range(4):
+            stress[x, i] = trial[x, i]
+        dep[0, i] = dep[1, i] = dep[2, i] = 0.0
+        active[i] = INSIDE if not outside else (HELD if not may[i] else INSIDE)
+        if not outside or active[i] == HELD:
+            continue
+        top, middle = sorted_at(trial, i, st)
+        active[i] = _onto(st, lam[i], mu[i], c[i], sin_phi[i], cos_phi[i], sin_psi[i], tensile[i], sc, res, ep, work)
+        if active[i] < 0:
+            failed += 1
+        else:
+            put_back(trial, i, top, middle, res, ep, stress, dep)
+    return failed
+
+
+@njit(cache=True)
+def _onto(st, lam, mu, c, sp, cp, sq, t, scale, res, ep, work):
+    """The multi-surface return of sorted principal trial stresses ``st`` (3,): the first candidate set (in
+    :data:`CANDIDATES`' order; the main plane in closed form) whose multipliers solve its planes and pass
+    Koiter's conditions (:func:`_admissible`) gives the stress ``res`` and plastic strain increments ``ep``
+    (sorted axes); returns its index, -1 if none does."""
+    A, B, Db, M, g, sig = work
+    b0, b2 = 1.0 + sq, -(1.0 - sq)
+    d0, d1, d2 = 2.0 * lam * sq + 2.0 * mu * b0, 2.0 * lam * sq, 2.0 * lam * sq + 2.0 * mu * b2
+    den = (1.0 + sp) * d0 - (1.0 - sp) * d2
+    g[0] = ((1.0 + sp) * st[0] - (1.0 - sp) * st[2] - 2.0 * c * cp) / den if den != 0.0 else np.nan
+    res[0], res[1], res[2] = st[0] - g[0] * d0, st[1] - g[0] * d1, st[2] - g[0] * d2
+    if _admissible(g, 1, res, c, sp, cp, t, scale):
+        ep[0], ep[1], ep[2] = g[0] * b0, 0.0, g[0] * b2
+        return 0
+    for number in range(1, _CANDIDATE_SIZES.size):
+        k = _CANDIDATE_SIZES[number]
+        for j in range(k):
+            surface = _CANDIDATE_SETS[number, j]
+            _plane(surface, sp, A[j])
+            _plane(surface, sq, B[j])
+            trace = B[j, 0] + B[j, 1] + B[j, 2]
+            for x in range(3):
+                Db[j, x] = lam * trace + 2.0 * mu * B[j, x]
+            g[j] = A[j, 0] * st[0] + A[j, 1] * st[1] + A[j, 2] * st[2] - (2.0 * c * cp if surface < 3 else t)
+        for j in range(k):
+            for m in range(k):
+                M[j, m] = A[j, 0] * Db[m, 0] + A[j, 1] * Db[m, 1] + A[j, 2] * Db[m, 2]
+        if not _solve(M, g, k):
+            continue
+        for x in range(3):
+            sig[x] = st[x]
+            for m in range(k):
+                sig[x] -= g[m] * Db[m, x]
+        if _admissible(g, k, sig, c, sp, cp, t, scale):
+            for x in range(3):
+                res[x], ep[x] = sig[x], 0.0
+                for m in range(k):
+                    ep[x] += g[m] * B[m, x]
+            return number
+    return -1
+
+
+@njit(cache=True)
+def _plane(surface, s, out):
+    """The normal (``s`` = sin φ) or flow direction (sin ψ) of a surface (:data:`CANDIDATES`' numbering) into
+    ``out`` (3,)."""
+    out[0] = out[1] = out[2] = 0.0
+    if surface < 3:
+        i, j = ((0, 2), (1, 2), (0, 1))[surface]
+        out[i], out[j] = 1.0 + s, -(1.0 - s)
+    else:
+        out[surface - 3] = 1.0
+
+
+@njit(cache=True)
+def _admissible(g, k, sig, c, sp, cp, t, scale) -> bool:
+    """Koiter's conditions of a candidate return: multipliers ``g[:k]`` non-negative, the stress ``sig`` (3,)
+    on or inside every surface, in the principal order, finite."""
+    for m in range(k):
+        if not g[m] >= -YIELD_TOL:
+            return False
+    s0, s1, s2, lim = sig[0], sig[1], sig[2], YIELD_TOL * scale * 10
+    return ((s0 - s2) + (s0 + s2) * sp - 2.0 * c * cp <= lim and max(s0, max(s1, s2)) - t <= lim
+            and s0 >= s1 - YIELD_TOL * scale and s1 >= s2 - YIELD_TOL * scale
+            and np.isfinite(s0) and np.isfinite(s1) and np.isfinite(s2))
+
+
+@njit(cache=True)
+def _solve(M, g, k) -> bool:
+    """Solve the k×k system ``M x = g`` in place (``g`` ← x) by Gaussian elimination with partial pivoting;
+    False where it is singular."""
+    for col in range(k):
+        piv = col
+        for r in range(col + 1, k):
+            if abs(M[r, col]) > abs(M[piv, col]):
+                piv = r
+        if M[piv, col] == 0.0:
+            return False
+        if piv != col:
+            for x in range(k):
+                M[col, x], M[piv, x] = M[piv, x], M[col, x]
+            g[col], g[piv] = g[piv], g[col]
+        for r in range(col + 1, k):
+            f = M[r, col] / M[col, col]
+            for x in range(col, k):
+                M[r, x] -= f * M[col, x]
+            g[r] -= f * g[col]
+    for col in range(k - 1, -1, -1):
+        for x in range(col + 1, k):
+            g[col] -= M[col, x] * g[x]
+        g[col] /= M[col, col]
+    return True
 
 
 def equivalent(plastic_strain: np.ndarray) -> np.ndarray:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 
 def principal(stress: np.ndarray):
@@ -48,3 +49,48 @@ def order_of(perm) -> np.ndarray:
     """:func:`descending`'s permutation as indices (3, m): the slot (0 major, 1 minor, 2 zz) of each sorted row."""
     top, mid = perm
     return np.stack([np.where(top, 2, 0), np.where(top, 0, np.where(mid, 2, 1)), np.where(top | mid, 1, 2)])
+
+
+# The same at one point, compiled: what the yield laws' compiled returns share (solver.ground.mohr_coulomb,
+# solver.ground.hoek_brown), one pass over the points with no temporaries.
+
+@njit(cache=True)
+def extremes(trial, i):
+    """The largest and least principal stresses (σ1, σ3) of point ``i`` of ``trial`` (4, n), without sorting."""
+    mid, d = 0.5 * (trial[0, i] + trial[1, i]), 0.5 * (trial[0, i] - trial[1, i])
+    rad = np.sqrt(d * d + trial[2, i] * trial[2, i])
+    return max(mid + rad, trial[3, i]), min(mid - rad, trial[3, i])
+
+
+@njit(cache=True)
+def sorted_at(trial, i, st):
+    """Point ``i``'s principal stresses sorted σ1 ≥ σ2 ≥ σ3 into ``st`` (3,) as :func:`descending` sorts them;
+    returns its permutation ``(top, mid)``."""
+    mid, d = 0.5 * (trial[0, i] + trial[1, i]), 0.5 * (trial[0, i] - trial[1, i])
+    rad = np.sqrt(d * d + trial[2, i] * trial[2, i])
+    major, minor, szz = mid + rad, mid - rad, trial[3, i]
+    top = szz > major
+    middle = szz > minor and not top
+    st[0] = szz if top else major
+    st[1] = major if top else (szz if middle else minor)
+    st[2] = minor if (top or middle) else szz
+    return top, middle
+
+
+@njit(cache=True)
+def put_back(trial, i, top, middle, res, ep, stress, dep):
+    """Sorted principal stresses ``res`` and plastic strain increments ``ep`` (3,) of point ``i`` back in the
+    slots (major, minor, zz) (:func:`unsorted`) and along its trial's in-plane directions
+    (:func:`from_principal`): ``stress[:, i]`` (4, n) and ``dep[:, i]`` (3, n)."""
+    if top:
+        a, b, z, ea, eb, ez = res[1], res[2], res[0], ep[1], ep[2], ep[0]
+    elif middle:
+        a, b, z, ea, eb, ez = res[0], res[2], res[1], ep[0], ep[2], ep[1]
+    else:
+        a, b, z, ea, eb, ez = res[0], res[1], res[2], ep[0], ep[1], ep[2]
+    d, sxy = 0.5 * (trial[0, i] - trial[1, i]), trial[2, i]
+    rad = np.sqrt(d * d + sxy * sxy)
+    c2, s2 = (d / rad, sxy / rad) if rad > 0.0 else (1.0, 0.0)
+    m2, r2 = 0.5 * (a + b), 0.5 * (a - b)
+    stress[0, i], stress[1, i], stress[2, i], stress[3, i] = m2 + r2 * c2, m2 - r2 * c2, r2 * s2, z
+    dep[0, i], dep[1, i], dep[2, i] = ea, eb, ez
