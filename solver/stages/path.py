@@ -20,8 +20,9 @@ log = logging.getLogger(__name__)
 #: an increment that needs more takes what the easier ones left.
 MAX_STEP_ITERATIONS = 2500
 #: No increment takes more than this many times :data:`MAX_STEP_ITERATIONS` (:func:`share`): what a case
-#: that fails spends stays bounded.
-MOST_SHARES = 2
+#: that fails spends stays bounded. (Four: issue 36's c 10 kPa ground released to λd 0.8 takes 5 234
+#: iterations in its last increment, near the ground's limit, and converges.)
+MOST_SHARES = 4
 #: An iteration has stalled when its least out-of-balance force has not fallen by a tenth in
 #: this many iterations: the step is then halved, or followed by arc-length (:func:`advance`); the
 #: smallest steps have what is left of :data:`MAX_STEP_ITERATIONS`.
