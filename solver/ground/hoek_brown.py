@@ -253,7 +253,6 @@ def _main_returns(trial, lam, mu, ucs, mb, s, a, sin_psi, tensile, flag, stress,
         ordered[0, i], ordered[1, i], ordered[2, i] = r0, r1, r2
         ep[0], ep[1], ep[2] = gam * b0, 0.0, gam * b2
         put_back(trial, i, top, middle, ordered[:, i], ep, stress, dep)
-    return 0
 
 
 @njit(cache=True)

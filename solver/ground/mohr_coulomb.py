@@ -100,8 +100,8 @@ def consistent_tangent(trial: np.ndarray, mat: Material, flag_tolerance: float =
 
     ``frozen`` (n,) bool, if given, fixes which points flow: the others stay elastic even outside
     the surface, and those inside are returned onto the main plane all the same (a negative
-    multiplier). The return is then smooth in the trial (an active-set step of the equilibrium
-    iteration, :mod:`solver.stages.newton`); ``at_yield`` flags the points outside."""
+    multiplier). The return is then smooth in the trial (the tangent of a fixed active set, as a Newton step
+    on it would take); ``at_yield`` flags the points outside."""
     return _stress(trial, mat, flag_tolerance, True, frozen)
 
 

@@ -82,3 +82,37 @@ def test_the_consistent_tangent_is_the_derivative_of_the_return(c, phi, psi, t):
     sf, _, _, rf, Cf = consistent_tangent(trial, mat, frozen=frozen)
     assert rf.size == trial.shape[1]
     np.testing.assert_allclose(sf[:, returned], stress[:, returned], rtol=0, atol=1e-9 * 2e5)
+
+
+@pytest.mark.parametrize("c, phi, psi, t", [(2e4, 30, 0, 0), (1e4, 25, 10, 5e3), (5e4, 0, 0, 2e4),
+                                             (1e4, 35, 35, 1e4 / np.tan(np.radians(35)))])
+def test_koiter_multipliers_are_non_negative_on_the_active_surfaces(c, phi, psi, t):
+    """The compiled return picks, of the candidate active sets, one whose multipliers are all non-negative:
+    the plastic strain is a non-negative combination of the flow directions of the surfaces (main plane, both
+    edges, the cut-offs) the returned stress lies on (non-negative least squares leaves no residual). A return
+    onto the wrong set (a negative multiplier) leaves one."""
+    from scipy.optimize import nnls
+
+    rng = np.random.default_rng(5)
+    trial = rng.normal(0, 2e5, (4, 2000)) - np.array([1e5, 1e5, 0, 1e5])[:, None]
+    stress, dep, _ = return_map(trial, LAM, MU, c, phi, psi, t)
+    major, minor, (c2, s2), zz = principal(trial)
+    order = np.argsort(-np.stack([major, minor, zz]), axis=0, kind="stable")
+    ds = np.take_along_axis(dep, order, axis=0)  # in the trial's sorted axes
+    cc, ss, sc = 0.5 * (1 + c2), 0.5 * (1 - c2), 0.5 * s2  # the returned stress along the trial's axes
+    ret = np.stack([stress[0] * cc + stress[1] * ss + 2 * stress[2] * sc,
+                    stress[0] * ss + stress[1] * cc - 2 * stress[2] * sc, stress[3]])
+    ret = np.take_along_axis(ret, order, axis=0)
+    sp, cp = np.sin(np.radians(phi)), np.cos(np.radians(phi))
+    fv = np.vstack([(ret[0] - ret[2]) + (ret[0] + ret[2]) * sp - 2 * c * cp,
+                    (ret[1] - ret[2]) + (ret[1] + ret[2]) * sp - 2 * c * cp,
+                    (ret[0] - ret[1]) + (ret[0] + ret[1]) * sp - 2 * c * cp, ret - t])
+    sq = np.sin(np.radians(psi))
+    flows = np.array([[1 + sq, 0, -(1 - sq)], [0, 1 + sq, -(1 - sq)], [1 + sq, -(1 - sq), 0], *np.eye(3)])
+    plastic = np.flatnonzero(np.any(dep != 0, axis=0))
+    assert plastic.size > 500
+    for i in plastic:
+        active = fv[:, i] >= -1e-7 * 2e5
+        assert active.any()
+        _, resid = nnls(flows[active].T, ds[:, i])
+        assert resid <= 1e-9 * np.abs(ds[:, i]).max()
