@@ -8,6 +8,7 @@ from __future__ import annotations
 import copy
 
 import numpy as np
+from numba import njit
 
 from ..ground.laws import PointLaws
 from ..ground.loads import in_situ_stress, moduli
@@ -37,7 +38,7 @@ class Points:
         poisson = np.broadcast_to(poisson, y.shape)
         lam = young * poisson / ((1 + poisson) * (1 - 2 * poisson))
         mu = young / (2 * (1 + poisson))
-        self.lam, self.mu, self.mu2 = lam, mu, 2 * mu
+        self.lam, self.mu = lam, mu
         per = lambda name: np.broadcast_to(  # noqa: E731
             np.array([getattr(s, name) for s in layers])[band][:, None], y.shape).ravel()
         law = np.broadcast_to(np.array([s.model for s in layers])[band][:, None], y.shape).ravel()
@@ -59,20 +60,14 @@ class Points:
         self.flag_tolerance = max(spec.solver.plastic_tolerance / 10, FLAG_TOLERANCE)
         self._part = None  # the last elements :meth:`follow` followed, and their :meth:`part`
 
-    def hooke(self, grad: np.ndarray, onto: np.ndarray | None = None) -> np.ndarray:
-        """The elastic stress (4, E, Q) of a displacement gradient (2, 2, E, Q), plane strain;
-        added to a copy of ``onto`` (4, E, Q) if given (in place: the trial of every iterate)."""
-        out = np.zeros((4,) + grad.shape[2:]) if onto is None else onto.copy()
-        lt = grad[0, 0] + grad[1, 1]
-        lt *= self.lam
-        out[3] += lt
-        out[0] += lt
-        out[1] += lt
-        out[0] += self.mu2 * grad[0, 0]
-        out[1] += self.mu2 * grad[1, 1]
-        shear = grad[0, 1] + grad[1, 0]
-        shear *= self.mu
-        out[2] += shear
+    def hooke(self, grad: np.ndarray, onto: np.ndarray | None = None, since: np.ndarray | None = None) -> np.ndarray:
+        """The elastic stress (4, E, Q) of a displacement gradient (2, 2, E, Q) (less ``since``, if given),
+        plane strain; added to ``onto`` (4, E, Q) if given: the trial of every iterate, in one compiled pass."""
+        none = np.zeros((4, 0))
+        flat = lambda a: none if a is None else np.ascontiguousarray(a).reshape(4, -1)  # noqa: E731
+        out = np.empty((4,) + grad.shape[2:])
+        _hooke(flat(grad), flat(since), flat(onto), np.ascontiguousarray(self.lam).reshape(-1),
+               np.ascontiguousarray(self.mu).reshape(-1), out.reshape(4, -1))
         return out
 
     def gradient(self, u_free: np.ndarray) -> np.ndarray:
@@ -82,7 +77,7 @@ class Points:
     def trial(self, grad: np.ndarray):
         """Stress, plastic strain increment, yield flags and ``D ε_p`` of a displacement
         gradient since excavation, from the last converged increment."""
-        trial = self.hooke(grad - self.grad, onto=self.sigma)
+        trial = self.hooke(grad, onto=self.sigma, since=self.grad)
         flat = trial.reshape(4, -1)
         dep = np.zeros((3, flat.shape[1]))
         flags = np.zeros(flat.shape[1], bool)
@@ -96,7 +91,9 @@ class Points:
                                                                                      self.flag_tolerance)
         # (a point flowing in this increment is at yield: return_stress flags every point it returns)
         stress = stress.reshape(trial.shape)
-        return stress, dep, flags.reshape(self.shape), self.tau + (trial - stress)
+        tau = np.empty_like(trial)
+        _plastic_part(self.tau.reshape(4, -1), trial.reshape(4, -1), stress.reshape(4, -1), tau.reshape(4, -1))
+        return stress, dep, flags.reshape(self.shape), tau
 
     def state(self, u_free: np.ndarray) -> tuple:
         """The state at the ground's unknowns ``u_free`` as the equilibrium iteration carries it:
@@ -139,7 +136,7 @@ class Points:
         sub.G, sub.shape = G, (at.size, Q)
         sub.yielding = self.yielding[points]
         sub.material = self.material.at((np.cumsum(self.yielding) - 1)[points][sub.yielding])
-        for name in ("lam", "mu", "mu2", "weights"):
+        for name in ("lam", "mu", "weights"):
             setattr(sub, name, getattr(self, name)[at])
         return sub
 
@@ -250,3 +247,28 @@ def elastic_increments(points: Points, u_stage: np.ndarray, steps: int) -> tuple
         mid = (low + high) // 2
         low, high = (low, mid) if at_yield(mid / steps, out, material).any() else (mid, high)
     return low, at_end.any(axis=1)
+
+
+@njit(cache=True)
+def _hooke(grad, since, onto, lam, mu, out):
+    """``out`` (4, n) = ``onto`` + D (``grad`` - ``since``): plane-strain Hooke's law at n points, gradients (4, n)
+    as (∂u/∂x, ∂u/∂y, ∂v/∂x, ∂v/∂y), stresses as (xx, yy, xy, zz); ``since`` or ``onto`` with no columns: zero."""
+    minus, add = since.shape[1] > 0, onto.shape[1] > 0
+    for i in range(out.shape[1]):
+        g0, g1, g2, g3 = grad[0, i], grad[1, i], grad[2, i], grad[3, i]
+        if minus:
+            g0, g1, g2, g3 = g0 - since[0, i], g1 - since[1, i], g2 - since[2, i], g3 - since[3, i]
+        lt = (g0 + g3) * lam[i]
+        s0, s1, s2, s3 = (onto[0, i], onto[1, i], onto[2, i], onto[3, i]) if add else (0.0, 0.0, 0.0, 0.0)
+        out[0, i] = (s0 + lt) + 2.0 * mu[i] * g0
+        out[1, i] = (s1 + lt) + 2.0 * mu[i] * g3
+        out[2, i] = s2 + (g1 + g2) * mu[i]
+        out[3, i] = s3 + lt
+
+
+@njit(cache=True)
+def _plastic_part(tau, trial, stress, out):
+    """``out`` = ``tau`` + (``trial`` - ``stress``), all (4, n): ``D ε_p`` since excavation after a return."""
+    for x in range(4):
+        for i in range(out.shape[1]):
+            out[x, i] = tau[x, i] + (trial[x, i] - stress[x, i])
