@@ -73,7 +73,7 @@ def model_key(spec: CaseSpec) -> str:
 #: full releases of the unsupported ground (a curve and a radius each: :mod:`solver.stages.face`) and
 #: stage-1 states of yielding ground (their points' histories: 5.3 MB each at the default mesh,
 #: :mod:`solver.stages.plastic`) and the solutions of cases (1.2 MB: :func:`solver.model.mechanics_key`).
-KEPT = {"release": 16, "stage one": 2, "solution": 4}
+KEPT = {"release": 16, "stage one": 2, "bound": 2, "solution": 4}
 
 
 _MISSING = object()
@@ -110,7 +110,9 @@ class Kept:
                 while len(kept) > KEPT[kind]:
                     kept.popitem(last=False)
         if isinstance(found, BaseException):
-            raise type(found)(str(found))
+            again = type(found)(str(found))
+            again.__dict__.update(found.__dict__)  # what it carries (a collapse's peak, where it failed)
+            raise again
         return found
 
     def values(self, kind: str) -> list:

@@ -33,7 +33,12 @@ class NotConvergedError(SolverError):
 
 class GroundCollapseError(NotConvergedError):
     """The unsupported ground cannot stand at the asked deconfinement: at its limit load the load it
-    holds levels out or falls as it deforms (SPEC §9.1: a result, named with what the ground held)."""
+    holds levels out or falls as it deforms (SPEC §9.1: a result, named with what the ground held).
+    ``peak``: the released share of the excavation load at which it collapsed, where known."""
+
+    def __init__(self, message: str, peak: float | None = None):
+        super().__init__(message)
+        self.peak = peak
 
 
 class NoAdmissibleBoltError(SolverError):

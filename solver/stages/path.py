@@ -38,6 +38,8 @@ ARC_SPLITS = 3
 #: Along the arc, a doubling of the displacement that gains less than this share of an increment's load
 #: is a mechanism: the unsupported ground collapses (:func:`advance`).
 PLATEAU = 0.01
+#: What a collapse's message advises.
+ADVICE = "a stronger ground, or support placed earlier: a lower excavation.deconfinement"
 #: Anderson mixing depth.
 DEPTH = 8
 
@@ -166,11 +168,11 @@ def _collapse(where: str, x: np.ndarray, lam: float, peak: float, ref, increment
     the displacement and load where the arc began or last doubled, the displacement has doubled for
     less than :data:`PLATEAU` of an increment's load, the path at its peak); else the reference for the
     next doubling (in a dip below the peak, the dip's latest state)."""
-    advice = "a stronger ground, or support placed earlier: a lower excavation.deconfinement"
+    advice = ADVICE
     if peak - lam > 0.5 * increment:
         raise GroundCollapseError(
             f"excavation.deconfinement: the unsupported ground collapses in {where}: the load it holds peaks at "
-            f"λ {peak:.4g} and falls to {lam:.4g} as it deforms further ({advice})")
+            f"λ {peak:.4g} and falls to {lam:.4g} as it deforms further ({advice})", peak)
     if ref is not None and lam < peak - PLATEAU * increment:
         return x, lam  # in a dip below the peak (a snap-through): a plateau is measured from where it ends
     if ref is None or np.linalg.norm(x - ref[0]) < np.linalg.norm(ref[0]):
@@ -179,7 +181,7 @@ def _collapse(where: str, x: np.ndarray, lam: float, peak: float, ref, increment
         raise GroundCollapseError(
             f"excavation.deconfinement: the unsupported ground collapses in {where}: its ground reaction levels out "
             f"at λ {peak:.4g}, the displacement doubling for {lam - ref[1]:.2g} more of the load (less than "
-            f"{PLATEAU:.0%} of an increment; {advice})")
+            f"{PLATEAU:.0%} of an increment; {advice})", peak)
     return x, lam
 
 

@@ -58,7 +58,7 @@ from ..fe.condense import Reach
 from .contact import contact_tractions
 from .loads import stage_loads
 from .points import Points, affine_elements, elastic_increments, follows, plastic_load
-from . import path
+from . import bounds, path
 from .path import advance, fixed_point
 from . import region
 from .region import Zone
@@ -171,7 +171,9 @@ def _stage_one(model, rows, release, ld: float, steps: int, tol: float, gauss: "
                                                              budget=path.share(k - elastic, iterations))
             except NotConvergedError as err:
                 unit = mean_convergence(body.expand(u_r), iface)  # the elastic ground's, of the whole release
-                raise type(err)(f"{err}. {held(curve, unit, isinstance(err, GroundCollapseError))}") from None
+                again = type(err)(f"{err}. {held(curve, unit, isinstance(err, GroundCollapseError))}")
+                again.__dict__.update(err.__dict__, unsupported=True)  # stage 1's: the ground alone failed
+                raise again from None
             lam = ld * k / steps
             iterations += its
             curve.append((lam, mean_convergence(body.expand(u1), iface)))
@@ -209,10 +211,12 @@ def release_unsupported(model, spec, rows, fraction: float = 1.0):
     return tightened(attempt, spec.solver.plastic_tolerance)[0]
 
 
-def tightened(attempt, tol: float):
+def tightened(attempt, tol: float, bound=None):
     """``attempt(tol)``, and where it fails short of a collapse, ``attempt`` once more at
     :data:`RETRY_TOLERANCE` × ``tol``: the answer (a stricter stop test than asked, so also the asked
-    one's) and, if retried, the first attempt's reason; raises the second's with both.
+    one's) and, if retried, the first attempt's reason; raises the second's with both. Where the
+    first failed in stage 1, ``bound(failure)`` first (if given) raises the collapse it can prove
+    (:func:`~solver.stages.bounds.prove_collapse`).
 
     Why: the path a loose stop test leaves (each increment's out-of-balance force up to the
     tolerance) can meet a limit point in non-associated ground that the path of a tighter one
@@ -223,6 +227,8 @@ def tightened(attempt, tol: float):
     except GroundCollapseError:
         raise
     except NotConvergedError as first:
+        if bound is not None and getattr(first, "unsupported", False):
+            bound(first)
         log.info("yielding ground at solver.plastic_tolerance %g: %s; again at %g", tol, first, RETRY_TOLERANCE * tol)
         try:
             return attempt(RETRY_TOLERANCE * tol), str(first)
@@ -354,7 +360,14 @@ def solve_staged(model, spec, rows, t0: float):
     """Solve a case whose ground can yield (see the module's docstring): a
     :class:`~solver.model.Solution` with ``plastic`` results filled (:func:`tightened`: where the
     stop test asked stalls, once more at a tighter one, which ``plastic["retried"]`` reports)."""
-    sol, first = tightened(lambda tol: _staged(model, spec, rows, t0, tol), spec.solver.plastic_tolerance)
+    def release(twin):  # a twin case's stage 1 alone; its outcome kept on the model (a sweep meets it again)
+        def stands():
+            release_unsupported(model, twin, rows, twin.excavation.deconfinement)
+            return True
+        return model.kept.get("bound", stage_one_key(twin, rows), stands, failures=(NotConvergedError,))
+
+    sol, first = tightened(lambda tol: _staged(model, spec, rows, t0, tol), spec.solver.plastic_tolerance,
+                           lambda stalled: bounds.prove_collapse(spec, stalled, release))
     sol.plastic["retried"] = None if first is None else (RETRY_TOLERANCE * spec.solver.plastic_tolerance, first)
     return sol
 

@@ -1,0 +1,91 @@
+"""Where the unsupported ground's limit load lies when its flow is not associated: what proves a collapse that the
+staged solve could not follow to its end (SPEC §9.1: a collapse is a result, named with what the ground held).
+
+For Mohr–Coulomb ground with dilatancy ψ < φ the limit load (here the share λ of the excavation load that the
+unsupported ground holds, its in-situ state a dead load) is bracketed by two limit loads of associated ground
+(ψ = φ), whose paths the staged solve follows readily (Radenkovic 1961, 1962; Drescher & Detournay 1993):
+
+- it is at most that of the same ground with ψ = φ (normality gives the largest limit load);
+- it is at least that of associated ground of the reduced strength ``tan φ* = sin φ cos ψ / (1 - sin φ sin ψ)``,
+  ``c* = c cos φ cos ψ / (1 - sin φ sin ψ)`` (``c* cot φ* = c cot φ``: the same apex, so the tension cut-off
+  stays admissible).
+
+So where stage 1 stalls short of a named collapse and the same ground with ψ = φ collapses below the asked λd, the
+ground cannot stand there: :func:`prove_collapse` says so, with both bounds (the lower one: what the ground holds for
+certain). Hoek–Brown strata have a constant ψ, not a potential equal to their surface: no bound is drawn there.
+"""
+from __future__ import annotations
+
+import math
+
+from ..errors import GroundCollapseError, SolverError
+from .path import ADVICE
+
+
+def twins(spec):
+    """The case with every Mohr–Coulomb stratum's flow associated: ``(upper, lower)``, the same strength with
+    ψ = φ and Radenkovic's reduced strength with ψ = φ* (``lower`` None where that case is not admissible: the
+    in-situ state outside the reduced surface); None where no stratum's flow is non-associated or one is
+    Hoek–Brown."""
+    from ..spec.case import CaseSpec
+
+    ground = spec.ground
+    strata = ground.layers or (ground,)
+    if any(s.model == "hoek-brown" for s in strata) or \
+            not any(s.model == "mohr-coulomb" and s.dilatancy < s.friction_angle for s in strata):
+        return None
+
+    def case(reduced: bool):
+        data = spec.model_dump(mode="json")
+
+        def associated(stratum: dict) -> dict:
+            if stratum.get("model") != "mohr-coulomb":
+                return stratum
+            phi, psi = math.radians(stratum["friction_angle"]), math.radians(stratum["dilatancy"])
+            if not reduced:
+                return stratum | {"dilatancy": stratum["friction_angle"]}
+            factor = math.cos(psi) / (1.0 - math.sin(phi) * math.sin(psi))
+            phi_star = math.degrees(math.atan(math.sin(phi) * factor))
+            return stratum | {"cohesion": stratum["cohesion"] * math.cos(phi) * factor,
+                              "friction_angle": phi_star, "dilatancy": phi_star}
+
+        data["ground"] = associated(data["ground"]) | {"layers": [associated(s) for s in data["ground"]["layers"]]}
+        try:
+            return CaseSpec.model_validate(data)
+        except ValueError:
+            return None
+
+    upper = case(False)
+    return None if upper is None else (upper, case(True))
+
+
+def _collapse_at(release, twin) -> float | None:
+    """The λ at which ``twin``'s unsupported ground collapses on its way to its λd (``release(twin)``: its stage 1),
+    None where it stands there or its solve fails short of a named collapse."""
+    try:
+        release(twin)
+    except GroundCollapseError as collapse:
+        return collapse.peak
+    except SolverError:
+        return None
+    return None
+
+
+def prove_collapse(spec, stalled: SolverError, release) -> None:
+    """Raise :class:`~solver.errors.GroundCollapseError` where ``spec``'s unsupported ground, whose stage 1
+    ``stalled``, cannot stand at its λd: the same ground with associated flow (an upper bound of its limit load)
+    collapses below it. ``release(twin)`` runs a twin case's stage 1 to its λd. Returns where nothing is proved."""
+    pair = twins(spec)
+    if pair is None:
+        return
+    ld = spec.excavation.deconfinement
+    upper = _collapse_at(release, pair[0])
+    if upper is None or upper >= ld:
+        return
+    lower = None if pair[1] is None else _collapse_at(release, pair[1])
+    held = (f"at least λ {lower:.4g}, where associated ground of Radenkovic's reduced strength collapses, and "
+            if lower is not None else "")
+    raise GroundCollapseError(
+        f"excavation.deconfinement: the unsupported ground cannot stand at λd {ld:.4g}: with its flow not associated "
+        f"its limit load is {held}at most λ {upper:.4g}, where the same ground with ψ = φ collapses (Radenkovic's "
+        f"bounds; {ADVICE}). The staged solve had stopped short of it: {stalled}", lower if lower is not None else None)
