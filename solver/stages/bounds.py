@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 
 from ..errors import GroundCollapseError, SolverError
+from ..limits import CaseCancelled, TimeLimitExceeded
 from .path import ADVICE
 
 
@@ -66,6 +67,8 @@ def _collapse_at(release, twin) -> float | None:
         release(twin)
     except GroundCollapseError as collapse:
         return collapse.peak
+    except (TimeLimitExceeded, CaseCancelled):
+        raise  # the clock's or the user's, not the twin's
     except SolverError:
         return None
     return None

@@ -168,7 +168,7 @@ def _collapse(where: str, x: np.ndarray, lam: float, peak: float, ref, increment
     the displacement and load where the arc began or last doubled, the displacement has doubled for
     less than :data:`PLATEAU` of an increment's load, the path at its peak); else the reference for the
     next doubling (in a dip below the peak, the dip's latest state)."""
-    advice = ADVICE
+    advice = ADVICE  # (short: it fills two messages)
     if peak - lam > 0.5 * increment:
         raise GroundCollapseError(
             f"excavation.deconfinement: the unsupported ground collapses in {where}: the load it holds peaks at "
