@@ -11,8 +11,9 @@ unsupported ground holds, its in-situ state a dead load) is bracketed by two lim
   stays admissible).
 
 So where stage 1 stalls short of a named collapse and the same ground with ψ = φ collapses below the asked λd, the
-ground cannot stand there: :func:`prove_collapse` says so, with both bounds (the lower one: what the ground holds for
-certain). Hoek–Brown strata have a constant ψ, not a potential equal to their surface: no bound is drawn there.
+ground cannot stand there: :func:`judge` says so, with both bounds (the lower one: what the ground holds for
+certain); a collapse the path names itself is checked against them. Hoek–Brown strata have a constant ψ, not a
+potential equal to their surface: no bound is drawn there.
 """
 from __future__ import annotations
 
@@ -60,9 +61,9 @@ def twins(spec):
     return None if upper is None else (upper, case(True))
 
 
-def _collapse_at(release, twin) -> float | None:
-    """The λ at which ``twin``'s unsupported ground collapses on its way to its λd (``release(twin)``: its stage 1),
-    None where it stands there or its solve fails short of a named collapse."""
+def _limit(release, twin) -> float | None:
+    """The λ at which ``twin``'s unsupported ground collapses on its way to its λd (``release(twin)``: its stage 1);
+    infinity where it stands there, None where its solve fails short of a named collapse."""
     try:
         release(twin)
     except GroundCollapseError as collapse:
@@ -71,24 +72,47 @@ def _collapse_at(release, twin) -> float | None:
         raise  # the clock's or the user's, not the twin's
     except SolverError:
         return None
-    return None
+    return math.inf
 
 
-def prove_collapse(spec, stalled: SolverError, release) -> None:
-    """Raise :class:`~solver.errors.GroundCollapseError` where ``spec``'s unsupported ground, whose stage 1
-    ``stalled``, cannot stand at its λd: the same ground with associated flow (an upper bound of its limit load)
-    collapses below it. ``release(twin)`` runs a twin case's stage 1 to its λd. Returns where nothing is proved."""
+def _bound(value: float, ld: float, which: str) -> str:
+    kind = ("associated ground of Radenkovic's reduced strength" if which == "lower"
+            else "the same ground with ψ = φ")
+    if math.isinf(value):
+        return f"{'at least' if which == 'lower' else 'beyond'} λd {ld:.4g}, which {kind} holds"
+    return f"{'at least' if which == 'lower' else 'at most'} λ {value:.4g}, where {kind} collapses"
+
+
+def judge(spec, failure: SolverError, release) -> str | None:
+    """Judge ``spec``'s stage-1 ``failure`` by Radenkovic's bounds (``release(twin)`` runs a twin case's stage 1
+    to its λd; the twins' outcomes are what the caller keeps):
+
+    - a stall: where the same ground with ψ = φ collapses below λd, the ground cannot stand there either: raise
+      that :class:`~solver.errors.GroundCollapseError`, with both bounds; else return None (nothing proved);
+    - a named collapse: raise it, with the bounds it lies within, unless it lies below what the ground holds for
+      certain (the lower bound, or λd where that twin stands, less half an increment: the resolution of the path's
+      own collapse tests), where it was a stall of the path, not a collapse: return a note that says so.
+
+    Ground with no twins (associated flow, Hoek–Brown) is judged by nothing: a collapse is raised as it is."""
     pair = twins(spec)
+    collapsed = isinstance(failure, GroundCollapseError)
     if pair is None:
-        return
+        if collapsed:
+            raise failure
+        return None
     ld = spec.excavation.deconfinement
-    upper = _collapse_at(release, pair[0])
-    if upper is None or upper >= ld:
-        return
-    lower = None if pair[1] is None else _collapse_at(release, pair[1])
-    held = (f"at least λ {lower:.4g}, where associated ground of Radenkovic's reduced strength collapses, and "
-            if lower is not None else "")
+    upper = _limit(release, pair[0])
+    if not collapsed and (upper is None or upper >= ld):
+        return None
+    lower = None if pair[1] is None else _limit(release, pair[1])
+    if collapsed and lower is not None and failure.peak is not None \
+            and failure.peak < min(lower, ld) - 0.5 * ld / spec.solver.load_steps:
+        return f"not a collapse: the ground holds {_bound(lower, ld, 'lower')}"
+    bracket = ", ".join([_bound(v, ld, which) for v, which in ((lower, "lower"), (upper, "upper")) if v is not None])
+    if collapsed:
+        raise GroundCollapseError(f"{failure} (with its flow not associated its limit load is {bracket}: "
+                                  "Radenkovic's bounds)", failure.peak)
     raise GroundCollapseError(
         f"excavation.deconfinement: the unsupported ground cannot stand at λd {ld:.4g}: with its flow not associated "
-        f"its limit load is {held}at most λ {upper:.4g}, where the same ground with ψ = φ collapses (Radenkovic's "
-        f"bounds; {ADVICE}). The staged solve had stopped short of it: {stalled}", lower if lower is not None else None)
+        f"its limit load is {bracket} (Radenkovic's bounds; {ADVICE}). The staged solve had stopped short of it: "
+        f"{failure}", lower if lower is not None and math.isfinite(lower) else None)

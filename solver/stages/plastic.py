@@ -214,27 +214,34 @@ def release_unsupported(model, spec, rows, fraction: float = 1.0):
 def tightened(attempt, tol: float, bound=None):
     """``attempt(tol)``, and where it fails short of a collapse, ``attempt`` once more at
     :data:`RETRY_TOLERANCE` × ``tol``: the answer (a stricter stop test than asked, so also the asked
-    one's) and, if retried, the first attempt's reason; raises the second's with both. Where the
-    first failed in stage 1, ``bound(failure)`` first (if given) raises the collapse it can prove
-    (:func:`~solver.stages.bounds.prove_collapse`).
+    one's) and, if retried, the first attempt's reason; raises the second's with both. A collapse is
+    not retried, unless ``bound(failure)`` (if given; :func:`~solver.stages.bounds.judge`: for a failure
+    in stage 1) finds it below what the ground holds for certain; a stall it proves a collapse is not either.
 
     Why: the path a loose stop test leaves (each increment's out-of-balance force up to the
     tolerance) can meet a limit point in non-associated ground that the path of a tighter one
     does not (docs/performance.md: issue 36's weak case 3 turns into elastic unloading past λ 0.157
     at 0.01 and converges at 0.005)."""
+    def judged(failure) -> str:
+        """The failure's reason, judged by ``bound`` where it can be (raising what that proves or confirms)."""
+        if bound is not None and getattr(failure, "unsupported", False):
+            note = bound(failure)  # raises the collapse it proves, or a named one it does not contradict
+            return f"{failure} ({note})" if note else str(failure)
+        if isinstance(failure, GroundCollapseError):
+            raise failure
+        return str(failure)
+
     try:
         return attempt(tol), None
-    except GroundCollapseError:
-        raise
-    except NotConvergedError as first:
-        if bound is not None and getattr(first, "unsupported", False):
-            bound(first)
-        log.info("yielding ground at solver.plastic_tolerance %g: %s; again at %g", tol, first, RETRY_TOLERANCE * tol)
-        try:
-            return attempt(RETRY_TOLERANCE * tol), str(first)
-        except NotConvergedError as again:
-            raise type(again)(f"{again} (at solver.plastic_tolerance {RETRY_TOLERANCE * tol:g}; at {tol:g}: "
-                              f"{first})") from None
+    except NotConvergedError as failed:
+        first = judged(failed)
+    log.info("yielding ground at solver.plastic_tolerance %g: %s; again at %g", tol, first, RETRY_TOLERANCE * tol)
+    try:
+        return attempt(RETRY_TOLERANCE * tol), first
+    except NotConvergedError as failed:
+        again = judged(failed)
+    raise NotConvergedError(f"{again} (at solver.plastic_tolerance {RETRY_TOLERANCE * tol:g}; at {tol:g}: "
+                            f"{first})") from None
 
 
 def _elastic_contact(model, spec, rows, gauss: Points, stage_of, p1, F2_full, steps: int, commit, u1):
@@ -367,7 +374,7 @@ def solve_staged(model, spec, rows, t0: float):
         return model.kept.get("bound", stage_one_key(twin, rows), stands, failures=(NotConvergedError,))
 
     sol, first = tightened(lambda tol: _staged(model, spec, rows, t0, tol), spec.solver.plastic_tolerance,
-                           lambda stalled: bounds.prove_collapse(spec, stalled, release))
+                           lambda failed: bounds.judge(spec, failed, release))
     sol.plastic["retried"] = None if first is None else (RETRY_TOLERANCE * spec.solver.plastic_tolerance, first)
     return sol
 

@@ -50,20 +50,29 @@ def test_no_twins_where_the_flow_is_associated_or_the_ground_is_hoek_brown():
     assert bounds.twins(CaseSpec.model_validate({"ground": weak, "loads": {"lateral_ratio": 0.6}}))[1] is not None
 
 
-def _stalls_first(monkeypatch):
-    """Stage 1 of the case itself stalls (scripted, as a stage-1 failure); the twins' stage 1 run as they are."""
+def _fails_first(monkeypatch, failure: NotConvergedError):
+    """Stage 1 of the case itself fails with ``failure`` (scripted, as a stage-1 failure); the twins' stage 1 and any
+    retry run as they are. The loads each stage 1 went to."""
     real, calls = plastic._stage_one, []
+    failure.unsupported = True
 
     def stage_one(model, rows, release, ld, steps, tol, *args):
         calls.append(ld)
         if len(calls) == 1:
-            stalled = NotConvergedError("solver.load_steps: stage 1 stalled (scripted)")
-            stalled.unsupported = True
-            raise stalled
+            raise failure
         return real(model, rows, release, ld, steps, tol, *args)
 
     monkeypatch.setattr(plastic, "_stage_one", stage_one)
     return calls
+
+
+def _stalls_first(monkeypatch):
+    return _fails_first(monkeypatch, NotConvergedError("solver.load_steps: stage 1 stalled (scripted)"))
+
+
+def _collapses_first(monkeypatch, peak: float):
+    return _fails_first(monkeypatch, GroundCollapseError(
+        f"excavation.deconfinement: the unsupported ground collapses in stage 1 (scripted at λ {peak})", peak))
 
 
 @pytest.mark.slow
@@ -101,3 +110,26 @@ def test_a_stall_past_the_associated_grounds_limit_is_a_collapse_within_radenkov
     calls = _stalls_first(monkeypatch)
     ds = run_case(CaseSpec.model_validate({**case, "excavation": {"deconfinement": 0.5}}))
     assert calls == [0.5, 0.5, 0.5] and np.isfinite(float(ds["max_thrust"]))
+
+
+@pytest.mark.slow
+def test_a_named_collapse_is_checked_against_radenkovics_bounds(monkeypatch):
+    """A collapse the path names is raised with the bounds it lies within; one named below what the ground holds
+    for certain (the lower bound, less half an increment) is no collapse: the case is solved again, and its warning
+    says why (c 10 kPa, φ 28°, ψ 0, coarse mesh: bounds 0.825 and 0.884)."""
+    import json
+
+    case = {"ground": C10, "excavation": {"deconfinement": 0.95}, "mesh": COARSE}
+    _collapses_first(monkeypatch, 0.86)
+    with pytest.raises(GroundCollapseError, match=r"\(scripted at λ 0\.86\) \(with its flow not associated its limit "
+                                                  r"load is at least λ 0\.8\d+, .*at most λ 0\.88\d+, .*Radenkovic's "
+                                                  r"bounds\)$") as err:
+        run_case(CaseSpec.model_validate(case))
+    assert err.value.peak == 0.86
+    monkeypatch.undo()
+    calls = _collapses_first(monkeypatch, 0.4)  # at λd 0.8, below the lower bound: the ground stands
+    ds = run_case(CaseSpec.model_validate({**case, "excavation": {"deconfinement": 0.8}}))
+    warnings = json.loads(ds.attrs["warnings"]) if isinstance(ds.attrs["warnings"], str) else ds.attrs["warnings"]
+    assert any("(scripted at λ 0.4) (not a collapse: the ground holds at least λd 0.8, which associated ground of "
+               "Radenkovic's reduced strength holds)" in w for w in warnings)
+    assert calls == [0.8, 0.8, 0.8, 0.8]  # the case, both twins, the retry
