@@ -197,18 +197,19 @@ def held(curve: list[tuple[float, float]], unit: float, collapse: bool = False) 
             f"increment {(c1 - c0) / ((l1 - l0) * unit):.3g} times as steep as the elastic line)")
 
 
-def release_unsupported(model, spec, rows, fraction: float = 1.0):
+def release_unsupported(model, spec, rows, fraction: float = 1.0, retry: bool = True):
     """Stage 1 alone: ``fraction`` of the excavation load released on the unsupported ground in
     ``solver.load_steps`` increments (as :func:`solve_staged` begins). Returns the ground reaction
     curve [(released, convergence)] and the quadrature points' history (:class:`Points`: where
-    the ground yielded). Raises :class:`NotConvergedError` where the ground collapses."""
+    the ground yielded). Raises :class:`NotConvergedError` where the ground collapses, or where it
+    stalls (with ``retry``, once more at a tighter stop test first: :func:`tightened`)."""
     release = stage_loads(model, spec).release
 
     def attempt(tol: float):
         gauss = Points(model, spec, "gauss")
         return _stage_one(model, rows, release, fraction, spec.solver.load_steps, tol, gauss)[3], gauss
 
-    return tightened(attempt, spec.solver.plastic_tolerance)[0]
+    return tightened(attempt, spec.solver.plastic_tolerance)[0] if retry else attempt(spec.solver.plastic_tolerance)
 
 
 def tightened(attempt, tol: float, bound=None):
@@ -367,9 +368,9 @@ def solve_staged(model, spec, rows, t0: float):
     """Solve a case whose ground can yield (see the module's docstring): a
     :class:`~solver.model.Solution` with ``plastic`` results filled (:func:`tightened`: where the
     stop test asked stalls, once more at a tighter one, which ``plastic["retried"]`` reports)."""
-    def release(twin):  # a twin case's stage 1 alone; its outcome kept on the model (a sweep meets it again)
+    def release(twin):  # a twin case's stage 1 alone (a stall proves nothing: not retried); its outcome kept
         def stands():
-            release_unsupported(model, twin, rows, twin.excavation.deconfinement)
+            release_unsupported(model, twin, rows, twin.excavation.deconfinement, retry=False)
             return True
         return model.kept.get("bound", stage_one_key(twin, rows), stands, failures=(NotConvergedError,))
 

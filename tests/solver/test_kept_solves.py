@@ -114,7 +114,9 @@ def test_a_stage_one_that_failed_fails_the_next_case_alike_without_solving_it_ag
     with pytest.raises(NotConvergedError) as one:
         run_case(first, model=model)
     solved = len(counted)
-    assert solved == 2  # at the asked stop test and once more at a tighter one
+    # at the asked stop test, its associated twin (Radenkovic's upper bound, which stalls too: nothing proved) and
+    # once more at a tighter stop test
+    assert solved == 3
     with pytest.raises(NotConvergedError) as two:
         run_case(_case(lining={"density": 2000.0}), model=model)
     assert len(counted) == solved
