@@ -24,11 +24,15 @@ converged (a collapse is named, with the deconfinement held), and the cost ratio
 percentile and maximum; then issue 36's default Mohr–Coulomb case (c 10 kPa, φ 28°, ψ 0) against
 the default, and a next case of it on its built model (K0 varied; the lining lighter).
 
+``--edge N`` solves a seeded sample of N weak soft-ground cases released far (c′ 3–15 kPa, φ′ 20–32°, ψ 0–5°,
+λd 0.7–0.95, K0 0.45–0.7) and reports each outcome and time: converged, or a collapse (the staged path's own, or
+proved by Radenkovic's bounds: :mod:`solver.stages.bounds`), or a failure.
+
 ``--zones N`` solves the yielding cases (the two above, issue 36's default, the first N of each sampled family)
 with the yielding zone (:mod:`solver.stages.region`) and on the whole ground, back to back: the speed-up and
 how far the answers differ.
 
-    python -m bench.ground [--repeat N] [--json] [--weak] [--sample N] [--zones N]
+    python -m bench.ground [--repeat N] [--json] [--weak] [--sample N] [--edge N] [--zones N]
 """
 from __future__ import annotations
 
@@ -148,8 +152,19 @@ def _timed(case: dict):
         # solved again at a tighter stop test (solver.stages.plastic.tightened), which its warnings say
         outcome = "retried" if any(w.startswith("solver.plastic_tolerance") for w in warnings) else "converged"
     except SolverError as e:
-        outcome = "collapse" if isinstance(e, GroundCollapseError) else f"failed: {e}"
+        outcome = f"collapse: {e}" if isinstance(e, GroundCollapseError) else f"failed: {e}"
     return time.perf_counter() - t0, outcome
+
+
+def edge_cases(n: int, seed: int = 7) -> list[dict]:
+    """``n`` weak soft-ground cases released far (``--edge``), from a scrambled Sobol' sequence (seeded)."""
+    from scipy.stats import qmc
+
+    u = qmc.Sobol(d=5, scramble=True, seed=seed).random(n)
+    return [{"ground": {"model": "mohr-coulomb", "cohesion": round(c * 1e3, 1), "friction_angle": round(phi, 2),
+                        "dilatancy": round(psi, 2)}, "loads": {"lateral_ratio": round(k0, 3)},
+             "excavation": {"deconfinement": round(ld, 3)}}
+            for c, phi, psi, ld, k0 in qmc.scale(u, [3, 20, 0, 0.7, 0.45], [15, 32, 5, 0.95, 0.7])]
 
 
 def sample_study(n: int) -> dict:
@@ -173,7 +188,7 @@ def sample_study(n: int) -> dict:
         out[family] = {"cases": rows, "refused": len(rows) - len(rows_run),
                        "converged_or_collapse": float(np.mean([not r["outcome"].startswith("failed")
                                                                for r in rows_run])),
-                       "collapses": sum(r["outcome"] == "collapse" for r in rows),
+                       "collapses": sum(r["outcome"].startswith("collapse") for r in rows),
                        "retried": sum(r["outcome"] == "retried" for r in rows),
                        "median": float(np.median(ratios)), "p95": float(np.percentile(ratios, 95)),
                        "max": float(ratios.max())}
@@ -251,7 +266,14 @@ def main(argv=None) -> None:
     ap.add_argument("--sample", type=int, default=0, help="solve a seeded sample of this many cases per family")
     ap.add_argument("--zones", type=int, default=0,
                     help="time the yielding zone against the whole ground on this many cases per family")
+    ap.add_argument("--edge", type=int, default=0, help="solve a seeded sample of this many weak grounds released far")
     args = ap.parse_args(argv)
+    if args.edge:
+        run_case(CaseSpec.model_validate({}))  # warm the imports
+        for case in edge_cases(args.edge):
+            seconds, outcome = _timed(case)
+            print(f"{seconds:7.1f} s  {json.dumps(case)}: {outcome[:300]}", flush=True)
+        return
     if args.zones:
         study = zone_study(args.zones)
         if args.json:
