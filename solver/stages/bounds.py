@@ -88,7 +88,8 @@ def judge(spec, failure: SolverError, release) -> str | None:
     to its λd; the twins' outcomes are what the caller keeps):
 
     - a stall: where the same ground with ψ = φ collapses below λd, the ground cannot stand there either: raise
-      that :class:`~solver.errors.GroundCollapseError`, with both bounds; else return None (nothing proved);
+      that :class:`~solver.errors.GroundCollapseError`, with both bounds; else return what the bounds say (the
+      lower one: what the ground holds for certain), the stall's to be solved again;
     - a named collapse: raise it, with the bounds it lies within, unless it lies below what the ground holds for
       certain (the lower bound, or λd where that twin stands, less half an increment: the resolution of the path's
       own collapse tests), where it was a stall of the path, not a collapse: return a note that says so.
@@ -102,9 +103,10 @@ def judge(spec, failure: SolverError, release) -> str | None:
         return None
     ld = spec.excavation.deconfinement
     upper = _limit(release, pair[0])
-    if not collapsed and (upper is None or upper >= ld):
-        return None
     lower = None if pair[1] is None else _limit(release, pair[1])
+    if not collapsed and (upper is None or upper >= ld):  # nothing proved: what is known of the limit, said
+        known = [_bound(v, ld, which) for v, which in ((lower, "lower"), (upper, "upper")) if v is not None]
+        return f"its limit load is {', '.join(known)}: Radenkovic's bounds" if known else None
     if collapsed and lower is not None and failure.peak is not None \
             and failure.peak < min(lower, ld) - 0.5 * ld / spec.solver.load_steps:
         return f"not a collapse: the ground holds {_bound(lower, ld, 'lower')}"
