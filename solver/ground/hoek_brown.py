@@ -237,7 +237,7 @@ def _main_returns(trial, lam, mu, ucs, mb, s, a, sin_psi, tensile, flag, stress,
             continue
         at_yield[i] = True
         state[i] = REST
-        top, middle = sorted_at(trial, i, st)
+        top, middle, c2, s2 = sorted_at(trial, i, st)
         sq = sin_psi[i]
         b0, b2 = 1.0 + sq, -(1.0 - sq)  # f13's flow b13 and D b13
         d0, d1, d2 = 2.0 * lam[i] * sq + 2.0 * mu[i] * b0, 2.0 * lam[i] * sq, 2.0 * lam[i] * sq + 2.0 * mu[i] * b2
@@ -252,7 +252,7 @@ def _main_returns(trial, lam, mu, ucs, mb, s, a, sin_psi, tensile, flag, stress,
         state[i] = MAIN
         ordered[0, i], ordered[1, i], ordered[2, i] = r0, r1, r2
         ep[0], ep[1], ep[2] = gam * b0, 0.0, gam * b2
-        put_back(trial, i, top, middle, ordered[:, i], ep, stress, dep)
+        put_back(i, top, middle, c2, s2, ordered[:, i], ep, stress, dep)
 
 
 @njit(cache=True)

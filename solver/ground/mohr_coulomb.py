@@ -198,12 +198,12 @@ def _returns(trial, lam, mu, c, sin_phi, cos_phi, sin_psi, tensile, flag, may, s
         active[i] = INSIDE if not outside else (HELD if not may[i] else INSIDE)
         if not outside or active[i] == HELD:
             continue
-        top, middle = sorted_at(trial, i, st)
+        top, middle, c2, s2 = sorted_at(trial, i, st)
         active[i] = _onto(st, lam[i], mu[i], c[i], sin_phi[i], cos_phi[i], sin_psi[i], tensile[i], sc, res, ep, work)
         if active[i] < 0:
             failed += 1
         else:
-            put_back(trial, i, top, middle, res, ep, stress, dep)
+            put_back(i, top, middle, c2, s2, res, ep, stress, dep)
     return failed
 
 

@@ -65,7 +65,8 @@ def extremes(trial, i):
 @njit(cache=True)
 def sorted_at(trial, i, st):
     """Point ``i``'s principal stresses sorted σ1 ≥ σ2 ≥ σ3 into ``st`` (3,) as :func:`descending` sorts them;
-    returns its permutation ``(top, mid)``."""
+    returns its permutation ``(top, mid)`` and its major in-plane direction ``(cos 2θ, sin 2θ)`` (:func:`principal`'s):
+    what :func:`put_back` takes."""
     mid, d = 0.5 * (trial[0, i] + trial[1, i]), 0.5 * (trial[0, i] - trial[1, i])
     rad = np.sqrt(d * d + trial[2, i] * trial[2, i])
     major, minor, szz = mid + rad, mid - rad, trial[3, i]
@@ -74,23 +75,21 @@ def sorted_at(trial, i, st):
     st[0] = szz if top else major
     st[1] = major if top else (szz if middle else minor)
     st[2] = minor if (top or middle) else szz
-    return top, middle
+    c2, s2 = (d / rad, trial[2, i] / rad) if rad > 0.0 else (1.0, 0.0)
+    return top, middle, c2, s2
 
 
 @njit(cache=True)
-def put_back(trial, i, top, middle, res, ep, stress, dep):
+def put_back(i, top, middle, c2, s2, res, ep, stress, dep):
     """Sorted principal stresses ``res`` and plastic strain increments ``ep`` (3,) of point ``i`` back in the
-    slots (major, minor, zz) (:func:`unsorted`) and along its trial's in-plane directions
-    (:func:`from_principal`): ``stress[:, i]`` (4, n) and ``dep[:, i]`` (3, n)."""
+    slots (major, minor, zz) (:func:`unsorted`) and along its trial's in-plane directions (:func:`from_principal`;
+    the permutation and direction :func:`sorted_at` gave): ``stress[:, i]`` (4, n) and ``dep[:, i]`` (3, n)."""
     if top:
         a, b, z, ea, eb, ez = res[1], res[2], res[0], ep[1], ep[2], ep[0]
     elif middle:
         a, b, z, ea, eb, ez = res[0], res[2], res[1], ep[0], ep[2], ep[1]
     else:
         a, b, z, ea, eb, ez = res[0], res[1], res[2], ep[0], ep[1], ep[2]
-    d, sxy = 0.5 * (trial[0, i] - trial[1, i]), trial[2, i]
-    rad = np.sqrt(d * d + sxy * sxy)
-    c2, s2 = (d / rad, sxy / rad) if rad > 0.0 else (1.0, 0.0)
     m2, r2 = 0.5 * (a + b), 0.5 * (a - b)
     stress[0, i], stress[1, i], stress[2, i], stress[3, i] = m2 + r2 * c2, m2 - r2 * c2, r2 * s2, z
     dep[0, i], dep[1, i], dep[2, i] = ea, eb, ez

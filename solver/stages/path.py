@@ -61,7 +61,7 @@ class Stalled(Exception):
 
 
 def fixed_point(G, x0: np.ndarray, K, atol: float, patience: int | None = STAGNATION,
-                limit: int = MAX_STEP_ITERATIONS, load=None):
+                limit: int = MAX_STEP_ITERATIONS, load=None, carried: np.ndarray | None = None):
     """Solve ``x = G(x)`` by constant-stiffness iterations with Anderson mixing, until the
     out-of-balance force ``‖K (G(x) - x)‖`` of an iterate ``x`` is at most ``atol``. ``G``
     returns the new iterate, the plastic load and the yield state at ``x``; the answer is that
@@ -71,8 +71,9 @@ def fixed_point(G, x0: np.ndarray, K, atol: float, patience: int | None = STAGNA
 
     ``load(p)``, if given, is the load ``G`` solved for (``K G(x) = load(p)`` with ``p`` the
     plastic load at ``x``): then ``K x`` is carried along Anderson's mix of those loads (one
-    product with ``K`` at the start, none after), the force is ``‖load(p) - K x‖``, and the mix
-    makes the least combination of these out-of-balance forces, not of the displacement changes
+    product with ``K`` at the start, or ``carried``, that product given: ``K`` is then not used), the
+    force is ``‖load(p) - K x‖``, and the mix makes the least combination of these out-of-balance
+    forces, not of the displacement changes
     ``G(x) - x = K⁻¹(load(p) - K x)``: as right-preconditioned GMRES minimizes the true residual, the
     mix then minimizes what the stop test measures (stage 1's iterations: issue 36's c 10 kPa,
     ψ 0 case 430 → 215, issue 25's weak ground 940 → 709; docs/performance.md). Without ``load``
@@ -84,7 +85,7 @@ def fixed_point(G, x0: np.ndarray, K, atol: float, patience: int | None = STAGNA
     acc = Anderson(DEPTH)
     x, force = x0, float("inf")
     mark, since = float("inf"), 0
-    Kx = None if load is None else K @ x0
+    Kx = None if load is None else (K @ x0 if carried is None else carried)
     for count in range(1, limit + 1):
         check_time("plastic iteration", count)
         gx, p, state = G(x)

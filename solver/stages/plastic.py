@@ -266,16 +266,6 @@ def _elastic_contact(model, spec, rows, gauss: Points, stage_of, p1, F2_full, st
     return elastic, elastic / steps * x, (elastic - 1) / steps * x
 
 
-class _Carried:
-    """The load an iteration's start carries (what :func:`~solver.stages.path.fixed_point` asks ``K @ x0`` for)."""
-
-    def __init__(self, load: np.ndarray):
-        self.load = load
-
-    def __matmul__(self, x: np.ndarray) -> np.ndarray:
-        return self.load
-
-
 class _ContactReach:
     """The contact stage's iteration on a yielding zone (:meth:`~solver.stages.region.Zone.iterate`'s ``setup``),
     on the loads: at the load's fraction ``a`` the ground's displacement is ``a u_f + K⁻¹ l`` (``u_f`` of the
@@ -339,7 +329,7 @@ class _ContactReach:
                 full[reach.columns] = y
                 return base + ground.backward(full, self.rows)
 
-            return G, reach.forward(load0), _Carried(load0), (lambda load: load), extend
+            return G, reach.forward(load0), load0, (lambda load: load), extend
 
         return setup
 

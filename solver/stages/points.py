@@ -121,19 +121,27 @@ class Points:
         self.eqps = self.eqps + equivalent(dep).reshape(self.shape)
         self.at_yield = flags
 
+    def of(self, at: np.ndarray) -> np.ndarray:
+        """The points (their flat indices) of the elements ``at`` (indices), in their order."""
+        Q = self.shape[1]
+        return (at[:, None] * Q + np.arange(Q)).ravel()
+
     def rows(self, at: np.ndarray) -> np.ndarray:
         """The rows of the gradient operator at the points of the elements ``at`` (indices), in their order."""
         E, Q = self.shape
-        return (np.arange(4)[:, None] * (E * Q) + (at[:, None] * Q + np.arange(Q)).ravel()[None, :]).ravel()
+        return (np.arange(4)[:, None] * (E * Q) + self.of(at)[None, :]).ravel()
+
+    def has_yielded(self) -> np.ndarray:
+        """The elements (E,) with a point at yield (within the flag tolerance) or with a plastic strain."""
+        return self.at_yield.any(axis=1) | (self.eqps > 0).any(axis=1)
 
     def part(self, at: np.ndarray, G) -> "Points":
         """The points of the elements ``at`` (indices) as points of their own, ``G`` their rows of the gradient
         operator (on whatever unknowns the caller reads them): what no commit changes; :meth:`as_committed`
         gives them their history."""
         sub = copy.copy(self)
-        E, Q = self.shape
-        points = (at[:, None] * Q + np.arange(Q)).ravel()
-        sub.G, sub.shape = G, (at.size, Q)
+        points = self.of(at)
+        sub.G, sub.shape = G, (at.size, self.shape[1])
         sub.yielding = self.yielding[points]
         sub.material = self.material.at((np.cumsum(self.yielding) - 1)[points][sub.yielding])
         for name in ("lam", "mu", "weights"):
@@ -188,8 +196,7 @@ def follows(gauss: Points, out: Points, affine: np.ndarray) -> np.ndarray:
     stress linear in depth within a layer, the strain linear for P2), the ``out`` points (sub-triangle centroids)
     lie in the convex hull of the quadrature points, and the yield function being convex, they are inside the
     surface where every quadrature point is."""
-    return (gauss.at_yield.any(axis=1) | (gauss.eqps > 0).any(axis=1) | out.at_yield.any(axis=1)
-            | (out.eqps > 0).any(axis=1) | ~affine)
+    return gauss.has_yielded() | out.has_yielded() | ~affine
 
 
 def plastic_load(points: Points, tau: np.ndarray) -> np.ndarray:
@@ -201,9 +208,8 @@ def plastic_load(points: Points, tau: np.ndarray) -> np.ndarray:
     now = (tau.reshape(4, -1) != 0).any(axis=0).reshape(points.shape).any(axis=1)  # (E,)
     if (now & ~elements).any():
         elements = elements | now
-        E, Q = points.shape
-        at = (np.flatnonzero(elements)[:, None] * Q + np.arange(Q)).ravel()  # their points
-        GT = points.G[points.rows(np.flatnonzero(elements))].T
+        which = np.flatnonzero(elements)
+        at, GT = points.of(which), points.G[points.rows(which)].T  # their points and rows
         points.yielded = elements, at, GT
     if GT is None:
         return np.zeros(points.G.shape[1])

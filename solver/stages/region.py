@@ -48,16 +48,6 @@ KEPT = 3
 ENABLED = True
 
 
-class _Product:
-    """``S @ x`` for :func:`~solver.stages.path.fixed_point` (its only use of the stiffness)."""
-
-    def __init__(self, schur: RegionSchur, scale: float):
-        self.schur, self.scale = schur, scale
-
-    def __matmul__(self, x: np.ndarray) -> np.ndarray:
-        return self.scale * self.schur.product(x)
-
-
 def _adjacency(model) -> sp.csr_matrix:
     """Elements sharing a vertex (E, E), built once per model."""
     def build():
@@ -177,7 +167,7 @@ class Zone:
     def iterate(self, plastic_load, setup, guess: np.ndarray, limit: int, patience, atol: float,
                 offset: np.ndarray | None = None):
         """:func:`~solver.stages.path.fixed_point` on the zone: ``setup(points, dofs, guess)`` gives the
-        iteration's ``G``, start, the stiffness (or the start's load) its mix carries, ``load`` and ``extend`` (its
+        iteration's ``G``, start, the start's load (``K`` times it: what its mix carries), ``load`` and ``extend`` (its
         answer's displacement on the whole ground). Returns the whole ground's displacement, plastic load and
         state (at ``offset +`` it) at the answer, and the iterations. Before it, the zone watches the points at
         yield as committed; after it, where a point it does not watch has reached yield, it watches more (grows
@@ -188,9 +178,9 @@ class Zone:
         while self.active:
             if used >= limit:
                 raise Stalled(float("inf"), atol, used)
-            G, start, K, load, extend = setup(self.points(), self.dofs, guess)
+            G, start, carried, load, extend = setup(self.points(), self.dofs, guess)
             try:
-                x, _, _, count = fixed_point(G, start, K, atol, patience, limit - used, load)
+                x, _, _, count = fixed_point(G, start, None, atol, patience, limit - used, load, carried)
             except Stalled as stall:
                 raise Stalled(stall.force, stall.atol, stall.iterations + used) from None
             used += count
@@ -202,29 +192,28 @@ class Zone:
         raise GivenUp(guess, used)
 
     def _cover(self) -> np.ndarray:
-        """Watch :data:`LAYERS` rings round the elements at yield as committed, the zone grown to cover them (by
-        twice as many: each growth refactorizes); those elements."""
-        g = self.gauss
-        yielded = g.at_yield.any(axis=1) | (g.eqps > 0).any(axis=1)
-        need = dilate(self.model, yielded)
-        if self.active and (need & ~self.elements).any():
-            self._grow(yielded, GROWTH * LAYERS)
-        if self.active and (need & ~self.watched).any():
-            self._watch(self.watched | need)
+        """Watch the elements at yield as committed (:meth:`_extend`); those elements."""
+        yielded = self.gauss.has_yielded()
+        self._extend(yielded)
         return yielded
 
     def _holds(self, state: tuple, yielded: np.ndarray) -> bool:
-        """Whether no point outside the watched elements is at yield in the whole ground's ``state``; else they
-        take :data:`LAYERS` rings round those at yield (the zone grown where they leave it) and it is False."""
+        """Whether no point outside the watched elements is at yield in the whole ground's ``state``; else they are
+        watched too (:meth:`_extend`) and it is False."""
         flags = state[4].any(axis=1)
         if not (flags & ~self.watched).any():
             return True
-        need = dilate(self.model, flags | yielded)
-        if (need & ~self.elements).any():
-            self._grow(flags | yielded, GROWTH * LAYERS)
-        if self.active:
-            self._watch(self.watched | need)
+        self._extend(flags | yielded)
         return False
+
+    def _extend(self, yielding: np.ndarray) -> None:
+        """Watch :data:`LAYERS` rings round the elements ``yielding``, the zone grown to cover them where they
+        would leave it (by twice as many rings: each growth refactorizes)."""
+        need = dilate(self.model, yielding)
+        if self.active and (need & ~self.elements).any():
+            self._grow(yielding, GROWTH * LAYERS)
+        if self.active and (need & ~self.watched).any():
+            self._watch(self.watched | need)
 
 
 def release_step(zone: Zone, plastic_load, rows, frac=None, arc=None):
@@ -256,7 +245,8 @@ def release_step(zone: Zone, plastic_load, rows, frac=None, arc=None):
             q[d] = zone.scale * zone.schur.product(x - base[d])
             return base + ground.backward(ground.forward(q, rows), rows)
 
-        return G, guess[d], _Product(zone.schur, zone.scale), (lambda p: box["lam"] * zone.g_r + p), extend
+        start = guess[d]
+        return G, start, zone.scale * zone.schur.product(start), (lambda p: box["lam"] * zone.g_r + p), extend
 
     return setup, box
 
@@ -295,8 +285,7 @@ def watched(zones: list, model, gauss, plastic_load, setup, whole_G, guess: np.n
     at the first call) while it is small, else :func:`~solver.stages.path.fixed_point` of ``whole_G`` on the whole
     ground: the answer, its plastic load, state and the iterations."""
     if not zones and ENABLED and not model.ground.pinned:  # (a pinned DOF: the factor's unknowns are not the body's)
-        yielded = gauss.at_yield.any(axis=1) | (gauss.eqps > 0).any(axis=1)
-        zones.append(Zone(model, gauss, None, yielded, condensed=False))
+        zones.append(Zone(model, gauss, None, gauss.has_yielded(), condensed=False))
     return attempt(zones[0] if zones else None,
                    lambda: zones[0].iterate(plastic_load, setup, guess, limit, patience, atol, offset),
                    lambda guess, limit: fixed_point(whole_G, guess, K, atol, patience, limit),
